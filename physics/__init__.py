@@ -1,0 +1,44 @@
+"""SpinStrike physics: the seed note's rotating-body impulse model as an exact, batched 2D engine.
+
+Public API::
+
+    scene = physics.load_scene("configs/scenes/rod_strike.yaml")   # or a dict / YAML string
+    world = physics.World(scene, batch_size=B, solver=None)         # solver overrides the scene
+    contacts = world.step(dt)                                       # flat arrays, batch index
+    world.state.positions, .angles, .velocities, .omegas            # [B, N, 2] / [B, N]
+    world.set_state(...), world.set_body(...), world.set_force(...), world.index("rod")
+"""
+
+from physics.effects import EFFECTS, Effect
+from physics.scene import (
+    WALL_NAMES,
+    Body,
+    ExactSolver,
+    FixedSolver,
+    PymunkSolver,
+    Scene,
+    SceneError,
+    load_scene,
+)
+from physics.world import Contacts, State, StepStats, World
+
+#: solver modes a scene may name
+SOLVERS = ("exact", "fixed", "pymunk")
+
+__all__ = [
+    "EFFECTS",
+    "SOLVERS",
+    "WALL_NAMES",
+    "Body",
+    "Contacts",
+    "Effect",
+    "ExactSolver",
+    "FixedSolver",
+    "PymunkSolver",
+    "Scene",
+    "SceneError",
+    "State",
+    "StepStats",
+    "World",
+    "load_scene",
+]

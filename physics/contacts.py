@@ -1,0 +1,161 @@
+"""Contact geometry: closest points between capsules, and between a capsule and a cushion.
+
+Every body is a capsule (a core segment swept by a disk of radius ``rho``; a disk has a segment of
+length 0). The *gap* between two bodies is the distance between their core segments minus the two
+radii; it is negative when they overlap. The contact normal is the unit vector from body a's
+closest core point to body b's (from a to b, DESIGN §1), the contact point lies midway between the
+two surfaces along it. Lever arms are kept as (core offset, distance along n) so that ``r x n``
+is exactly the core offset's, i.e. exactly 0 for a disk.
+
+Flat contacts: when two segments are parallel (sin^2 of the angle between them below
+``PARALLEL``) and their projections overlap, or a rod lies parallel to a cushion, the contact point
+is the middle of the overlap, so a flat impact gets one impulse through the middle, not one at an
+arbitrary end.
+
+All functions are numba kernels on scalars (no allocation).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+
+__all__ = ["capsule_capsule", "capsule_wall", "closest_segment_params", "core_segment"]
+
+#: squared sine of the angle below which two segments count as parallel
+PARALLEL = 1e-12
+_TINY = 1e-300
+
+jit = numba.njit(cache=True, nogil=True, fastmath=False)
+
+
+@jit
+def core_segment(x, y, angle, h):
+    """End points of a body's core segment (a disk's two ends coincide at its centre)."""
+    if h == 0.0:
+        return x, y, x, y
+    c = h * math.cos(angle)
+    s = h * math.sin(angle)
+    return x - c, y - s, x + c, y + s
+
+
+@jit
+def _clamp01(v):
+    return 0.0 if v < 0.0 else (1.0 if v > 1.0 else v)
+
+
+@jit
+def closest_segment_params(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y):
+    """Parameters (s, t) in [0, 1] of the closest points P(s), Q(t) of two segments.
+
+    Ericson, *Real-Time Collision Detection* §5.1.9, with degenerate segments handled and, for
+    parallel overlapping segments, the middle of the overlap chosen.
+    """
+    d1x = p1x - p0x
+    d1y = p1y - p0y
+    d2x = q1x - q0x
+    d2y = q1y - q0y
+    rx = p0x - q0x
+    ry = p0y - q0y
+    a = d1x * d1x + d1y * d1y
+    e = d2x * d2x + d2y * d2y
+    f = d2x * rx + d2y * ry
+    if a <= _TINY and e <= _TINY:
+        return 0.0, 0.0
+    if a <= _TINY:
+        return 0.0, _clamp01(f / e)
+    c = d1x * rx + d1y * ry
+    if e <= _TINY:
+        return _clamp01(-c / a), 0.0
+    b = d1x * d2x + d1y * d2y
+    denom = a * e - b * b
+    if denom > PARALLEL * a * e:
+        s = _clamp01((b * f - c * e) / denom)
+    else:
+        # parallel: the middle of the overlap of Q's projection onto P, if they overlap
+        s0 = -c / a
+        s1 = (b - c) / a
+        lo = max(0.0, min(s0, s1))
+        hi = min(1.0, max(s0, s1))
+        if lo <= hi:
+            s = 0.5 * (lo + hi)
+            t = _clamp01((b * s + f) / e)
+            return s, t
+        s = 0.0
+    t = (b * s + f) / e
+    if t < 0.0:
+        t = 0.0
+        s = _clamp01(-c / a)
+    elif t > 1.0:
+        t = 1.0
+        s = _clamp01((b - c) / a)
+    return s, t
+
+
+@jit
+def capsule_capsule(xa, ya, anga, ha, ra, xb, yb, angb, hb, rb):
+    """Gap, unit normal (a to b) and closest core points of two capsules.
+
+    Returns:
+        (gap, nx, ny, oax, oay, obx, oby): the closest core points relative to each centre; the
+        contact point is ``centre_a + o_a + (ra + gap/2) n``.
+    """
+    p0x, p0y, p1x, p1y = core_segment(xa, ya, anga, ha)
+    q0x, q0y, q1x, q1y = core_segment(xb, yb, angb, hb)
+    s, t = closest_segment_params(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y)
+    cax = p0x + s * (p1x - p0x)
+    cay = p0y + s * (p1y - p0y)
+    cbx = q0x + t * (q1x - q0x)
+    cby = q0y + t * (q1y - q0y)
+    dx = cbx - cax
+    dy = cby - cay
+    d = math.sqrt(dx * dx + dy * dy)
+    if d > _TINY:
+        nx = dx / d
+        ny = dy / d
+    else:
+        # cores touch: fall back to the line of centres, then to +x
+        dx = xb - xa
+        dy = yb - ya
+        dc = math.sqrt(dx * dx + dy * dy)
+        if dc > _TINY:
+            nx = dx / dc
+            ny = dy / dc
+        else:
+            nx = 1.0
+            ny = 0.0
+    return d - ra - rb, nx, ny, cax - xa, cay - ya, cbx - xb, cby - yb
+
+
+@jit
+def capsule_wall(x, y, angle, h, r, wall, half_w, half_h):
+    """Gap, unit normal (body to cushion) and closest core point of a capsule and a cushion.
+
+    Cushions: 0 left (x = -half_w), 1 right (x = +half_w), 2 bottom (y = -half_h), 3 top.
+
+    Returns:
+        (gap, nx, ny, ox, oy, 0, 0): the closest core point relative to the centre.
+    """
+    p0x, p0y, p1x, p1y = core_segment(x, y, angle, h)
+    if wall == 0:
+        ix, iy, off = 1.0, 0.0, half_w
+    elif wall == 1:
+        ix, iy, off = -1.0, 0.0, half_w
+    elif wall == 2:
+        ix, iy, off = 0.0, 1.0, half_h
+    else:
+        ix, iy, off = 0.0, -1.0, half_h
+    # distance of each core end from the cushion, measured into the table
+    d0 = ix * p0x + iy * p0y + off
+    d1 = ix * p1x + iy * p1y + off
+    diff = d0 - d1
+    if h > 0.0 and diff * diff <= PARALLEL * 4.0 * h * h:
+        cx = 0.5 * (p0x + p1x)
+        cy = 0.5 * (p0y + p1y)
+        d = 0.5 * (d0 + d1)
+    elif d0 <= d1:
+        cx, cy, d = p0x, p0y, d0
+    else:
+        cx, cy, d = p1x, p1y, d1
+    return d - r, -ix, -iy, cx - x, cy - y, 0.0, 0.0

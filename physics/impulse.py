@@ -1,0 +1,151 @@
+"""The impulse law of the seed note (§2.2), in inverse-mass form.
+
+Sign convention (DESIGN §1): the normal ``n`` points **from body a to body b**; lever arms are
+``r_a = p - x_a``, ``r_b = p - x_b``; point velocities ``v_ip = v_i + omega_i x r_i``. For an
+approaching pair (``(v_bp - v_ap) . n < 0``)::
+
+    j = -(1 + e) (v_bp - v_ap) . n / (1/m_a + 1/m_b + (r_a x n)^2 / I_a + (r_b x n)^2 / I_b)
+    v_a -= j n / m_a     omega_a -= (r_a x n) j / I_a
+    v_b += j n / m_b     omega_b += (r_b x n) j / I_b
+
+which is the seed's formula with its ``n`` reversed. Everything uses inverse masses and inertias,
+so static bodies and cushions (inverse mass and inertia 0), pivots (inverse mass 0) and mass
+ratios of 1e-12..1e12 need no special case; ``m = inf`` never appears in arithmetic. Two places
+where the code departs from the note: §2.2 writes ``I2 (w2' - w2) = r2p x J`` although body 2
+receives ``-J`` (here the minus sign is kept), and the note's rod inertia (see ``shapes``).
+
+A lever arm is passed as the core offset ``o`` (closest core point minus centre) and the distance
+``k`` from the core to the contact point along n: ``r_a = o_a + k_a n``, ``r_b = o_b - k_b n``, so
+``r x n = o x n`` exactly (0 for a disk, whose core is its centre) and ``r x t = o x t +/- k``.
+
+Friction (``contact_friction``, not in the note) is sequential: after the normal impulse, a
+tangential impulse along ``t = (-n_y, n_x)`` that stops the slip, clipped to ``|jt| <= mu j``; it
+never reverses the slip, so it never adds energy (solving Newton restitution jointly with Coulomb
+friction can add energy for rotating bodies). If its lever arms turn the contact into an
+approaching one again, a last plastic normal impulse (e = 0) removes the approach. The ``-e`` law
+along the normal thus holds exactly where the tangential impulse has no lever on the normal
+direction (disks, or mu = 0).
+"""
+
+from __future__ import annotations
+
+import numba
+
+from physics.layout import INV_INERTIA, INV_MASS, OMEGA, VX, VY
+
+__all__ = ["apply_impulse", "relative_velocity", "resolve"]
+
+jit = numba.njit(cache=True, nogil=True)
+
+
+@jit
+def relative_velocity(sa, sb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb):
+    """Relative velocity ``v_bp - v_ap`` at the contact point: (along n, along t)."""
+    rax = oax + ka * nx
+    ray = oay + ka * ny
+    w = sa[OMEGA]
+    vax = sa[VX] - w * ray
+    vay = sa[VY] + w * rax
+    if is_wall:
+        vbx = 0.0
+        vby = 0.0
+    else:
+        rbx = obx - kb * nx
+        rby = oby - kb * ny
+        w = sb[OMEGA]
+        vbx = sb[VX] - w * rby
+        vby = sb[VY] + w * rbx
+    dvx = vbx - vax
+    dvy = vby - vay
+    return dvx * nx + dvy * ny, -dvx * ny + dvy * nx
+
+
+@jit
+def apply_impulse(sa, pa, sb, pb, is_wall, j, dx, dy, cross_a, cross_b, rotation):
+    """Apply impulse ``j d`` to body b and ``-j d`` to body a; ``cross_* = r_* x d``."""
+    ima = pa[INV_MASS]
+    sa[VX] -= j * dx * ima
+    sa[VY] -= j * dy * ima
+    if rotation:
+        sa[OMEGA] -= cross_a * j * pa[INV_INERTIA]
+    if not is_wall:
+        imb = pb[INV_MASS]
+        sb[VX] += j * dx * imb
+        sb[VY] += j * dy * imb
+        if rotation:
+            sb[OMEGA] += cross_b * j * pb[INV_INERTIA]
+
+
+@jit
+def _effective_inverse_mass(pa, pb, is_wall, cross_a, cross_b, rotation):
+    """``1/m_a + 1/m_b + (r_a x d)^2 / I_a + (r_b x d)^2 / I_b``."""
+    k = pa[INV_MASS]
+    if rotation:
+        k += cross_a * cross_a * pa[INV_INERTIA]
+    if not is_wall:
+        k += pb[INV_MASS]
+        if rotation:
+            k += cross_b * cross_b * pb[INV_INERTIA]
+    return k
+
+
+@jit
+def _friction(sa, pa, sb, pb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb, rna, rnb, mu, j, k_n,
+              rotation):
+    """Sequential Coulomb stage; returns (tangential impulse, extra plastic normal impulse)."""
+    vn, vt = relative_velocity(sa, sb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb)
+    if vt == 0.0:
+        return 0.0, 0.0
+    tx = -ny
+    ty = nx
+    rta = oax * ty - oay * tx + ka
+    rtb = obx * ty - oby * tx - kb
+    k_t = _effective_inverse_mass(pa, pb, is_wall, rta, rtb, rotation)
+    jt = -vt / k_t
+    limit = mu * j
+    if jt > limit:
+        jt = limit
+    elif jt < -limit:
+        jt = -limit
+    apply_impulse(sa, pa, sb, pb, is_wall, jt, tx, ty, rta, rtb, rotation)
+    vn, vt = relative_velocity(sa, sb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb)
+    if vn < 0.0:
+        j2 = -vn / k_n
+        apply_impulse(sa, pa, sb, pb, is_wall, j2, nx, ny, rna, rnb, rotation)
+        return jt, j2
+    return jt, 0.0
+
+
+@jit
+def resolve(sa, pa, sb, pb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb, e, mu, rotation,
+            contact_friction):
+    """Resolve one contact in place.
+
+    Args:
+        sa, pa: state and parameter rows of body a; sb, pb of body b (ignored for a cushion).
+        is_wall: body b is a cushion.
+        nx, ny: unit normal from a to b.
+        oax, oay, ka / obx, oby, kb: lever arms as core offset and distance along n.
+        e: restitution in [0, 1].  mu: friction coefficient.
+
+    Returns:
+        (j, jt, vn): normal impulse magnitude (>= 0, including any plastic correction after
+        friction), tangential impulse along t = (-n_y, n_x), and the normal relative velocity
+        before (negative when approaching; nothing is applied otherwise).
+    """
+    vn, vt = relative_velocity(sa, sb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb)
+    if vn >= 0.0:
+        return 0.0, 0.0, vn
+    rna = oax * ny - oay * nx
+    rnb = obx * ny - oby * nx
+    k_n = _effective_inverse_mass(pa, pb, is_wall, rna, rnb, rotation)
+    if k_n <= 0.0:
+        return 0.0, 0.0, vn
+    j = -(1.0 + e) * vn / k_n
+    apply_impulse(sa, pa, sb, pb, is_wall, j, nx, ny, rna, rnb, rotation)
+    jt = 0.0
+    if contact_friction and mu > 0.0:
+        jt, j2 = _friction(sa, pa, sb, pb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb, rna, rnb,
+                           mu, j, k_n, rotation)
+        j += j2
+    return j, jt, vn

@@ -1,0 +1,414 @@
+"""Scene schema: plain data (YAML or a dict) validated once into typed objects.
+
+A scene lists the bodies on the table, the effects to simulate, the materials and the solver.
+Every invalid value raises :class:`SceneError` with a message that names the field and what is
+allowed, e.g. ``bodies[1].mass: must be > 0 (got -1.0)``.
+
+Units are SI throughout: metres, kilograms, seconds, radians (counter-clockwise from +x).
+
+Example::
+
+    table:   {size: [1.2, 0.8]}             # centred on the origin; omitted: unbounded plane
+    effects: [rotation, walls]
+    solver:  {mode: exact, tolerance: 1.0e-9}
+    materials: {restitution: 1.0, friction: 0.0}
+    bodies:
+      - {name: rod, shape: rod, length: 0.4, thickness: 0.02, mass: 0.1}
+      - {name: striker, shape: disk, radius: 0.04, mass: 0.2, position: [-0.3, 0]}
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from physics.effects import EFFECTS
+from physics.shapes import capsule_inertia, disk_inertia
+
+__all__ = [
+    "Body",
+    "ExactSolver",
+    "FixedSolver",
+    "Materials",
+    "PairMaterial",
+    "PymunkSolver",
+    "Scene",
+    "SceneError",
+    "SolverConfig",
+    "Table",
+    "WALL_NAMES",
+    "load_scene",
+    "validate_solver",
+]
+
+#: Names of the four cushions created by the ``walls`` effect, in index order after the bodies.
+WALL_NAMES = ("wall_left", "wall_right", "wall_bottom", "wall_top")
+
+
+class SceneError(ValueError):
+    """An invalid scene, solver block or body parameter. The message names the field."""
+
+
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+Vec2 = tuple[Finite, Finite]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+# ---------------------------------------------------------------------------------------------
+# Solvers
+# ---------------------------------------------------------------------------------------------
+
+
+class ExactSolver(_Model):
+    """Event-driven solver: closed-form flight, time of impact by conservative advancement and
+    bracketing, the impulse applied at the true contact geometry. Cannot tunnel.
+
+    Attributes:
+        tolerance: gap (m) within which two approaching bodies are in contact. The time of impact
+            is found to this gap, so it sets the accuracy. Smaller costs more root-finding
+            iterations per collision. Default 1e-9 m; allowed (0, 1e-2].
+        max_events: events (impacts and checkpoints) per batch element per ``step`` before the
+            rest of the step is integrated by the fixed-step contact solver (the element is then
+            flagged in ``world.last_step.fallback``). Default 1000.
+        max_iterations: conservative-advancement iterations per time-of-impact search before the
+            search reports a safe checkpoint instead (the world advances to it and searches
+            again). Default 64.
+        zeno_speed: an impact closing slower than this (m/s) counts as a *resting* bounce.
+            Default 1e-3 m/s.
+        zeno_impacts: after this many resting bounces in one step (an inelastic body pinned by a
+            force: infinitely many ever-smaller impacts in finite time) the rest of the step is
+            settled by the fixed-step contact solver, which handles resting contact. Default 8.
+        settle_substep: longest substep (s) of that settling integration; it is shortened further
+            so that no body moves more than a quarter of its size per substep. Default 1e-3 s.
+    """
+
+    mode: Literal["exact"] = "exact"
+    tolerance: float = Field(1e-9, gt=0.0, le=1e-2)
+    max_events: int = Field(1000, ge=1, le=10_000_000)
+    max_iterations: int = Field(64, ge=4, le=100_000)
+    zeno_speed: float = Field(1e-3, ge=0.0)
+    zeno_impacts: int = Field(8, ge=1)
+    settle_substep: float = Field(1e-3, gt=0.0)
+
+
+class FixedSolver(_Model):
+    """Fixed-substep solver: symplectic Euler, discrete overlap detection, impulses from the
+    overlapped pose and positional correction. Cheap; its error grows with the distance moved per
+    substep and it tunnels once ``speed * dt / substeps`` exceeds the bodies' sizes.
+
+    Attributes:
+        substeps: substeps per ``world.step(dt)``. More costs proportionally more time and shrinks
+            the error. Default 1; allowed 1..100000.
+        iterations: sequential-impulse sweeps over the overlapping pairs per substep. Default 4.
+    """
+
+    mode: Literal["fixed"] = "fixed"
+    substeps: int = Field(1, ge=1, le=100_000)
+    iterations: int = Field(4, ge=1, le=1000)
+
+
+class PymunkSolver(_Model):
+    """The same scene on Chipmunk2D through pymunk (see ``physics.pymunk_backend``).
+
+    Attributes:
+        substeps: pymunk steps per ``world.step(dt)``. Default 10.
+        iterations: pymunk's ``Space.iterations``. Default 10.
+    """
+
+    mode: Literal["pymunk"] = "pymunk"
+    substeps: int = Field(10, ge=1, le=100_000)
+    iterations: int = Field(10, ge=1, le=100_000)
+
+
+SolverConfig = Annotated[Union[ExactSolver, FixedSolver, PymunkSolver], Field(discriminator="mode")]
+
+
+# ---------------------------------------------------------------------------------------------
+# Table, materials, bodies
+# ---------------------------------------------------------------------------------------------
+
+
+class Table(_Model):
+    """The table, centred on the origin.
+
+    Attributes:
+        size: [width, height] in m; the cushions (``walls`` effect) lie on its edges.
+        friction: Coulomb coefficient between bodies and the cloth (``table_friction`` effect).
+        gravity: m/s^2, presses bodies onto the cloth (only used by ``table_friction``).
+    """
+
+    size: Vec2 | None = None
+    friction: float = Field(0.0, ge=0.0, allow_inf_nan=False)
+    gravity: float = Field(9.81, gt=0.0, allow_inf_nan=False)
+
+    @field_validator("size")
+    @classmethod
+    def _positive_size(cls, v: Vec2 | None) -> Vec2 | None:
+        if v is not None and (v[0] <= 0 or v[1] <= 0):
+            raise ValueError(f"must be two positive lengths in m (got {list(v)})")
+        return v
+
+
+class PairMaterial(_Model):
+    """Per-pair override: ``bodies`` names two bodies, or a body and ``walls`` / a wall name."""
+
+    bodies: tuple[str, str]
+    restitution: float | None = Field(None, ge=0.0, le=1.0)
+    friction: float | None = Field(None, ge=0.0)
+
+
+class Materials(_Model):
+    """Contact materials.
+
+    Attributes:
+        restitution: Newton's coefficient e in [0, 1]: the normal relative velocity at the contact
+            point after an impact is -e times the one before.
+        friction: Coulomb coefficient mu >= 0 of the tangential contact impulse
+            (``contact_friction`` effect).
+        pairs: per-pair overrides.
+    """
+
+    restitution: float = Field(1.0, ge=0.0, le=1.0)
+    friction: float = Field(0.0, ge=0.0)
+    pairs: tuple[PairMaterial, ...] = ()
+
+
+class Body(_Model):
+    """A rigid body on the table.
+
+    Attributes:
+        name: unique name.
+        shape: ``disk`` (a puck of ``radius``) or ``rod`` (a capsule: a segment of ``length`` with
+            round ends of diameter ``thickness``; its overall extent is ``length + thickness``).
+        mass: kg, > 0. Ignored (may be omitted) for a static body.
+        inertia: kg m^2 about the centre of mass; default the exact value for the shape. The
+            string ``thin_rod`` gives ``mass * length**2 / 12`` (the seed note's ``m r^2 / 3``
+            with r the half-length).
+        position: [x, y] of the centre of mass, m.  angle: rad, CCW from +x (the rod's axis).
+        velocity: [vx, vy], m/s.  omega: rad/s, CCW positive.
+        static: infinite mass and inertia (inverse mass and inertia 0); must not move.
+        pivot: pinned at its centre: infinite mass, finite inertia (needs ``rotation``).
+        driven: may be pushed by an applied force (``World.set_force``); a driven body is not
+            slowed by table friction (its force is the net force).
+    """
+
+    name: str = Field(min_length=1)
+    shape: Literal["disk", "rod"]
+    mass: float | None = Field(None, gt=0.0)
+    radius: float | None = Field(None, gt=0.0)
+    length: float | None = Field(None, gt=0.0)
+    thickness: float | None = Field(None, ge=0.0)
+    inertia: float | Literal["thin_rod"] | None = None
+    position: Vec2 = (0.0, 0.0)
+    angle: Finite = 0.0
+    velocity: Vec2 = (0.0, 0.0)
+    omega: Finite = 0.0
+    static: bool = False
+    pivot: bool = False
+    driven: bool = False
+
+    @field_validator("inertia")
+    @classmethod
+    def _positive_inertia(cls, v: float | str | None) -> float | str | None:
+        if isinstance(v, float) and not (math.isfinite(v) and v > 0):
+            raise ValueError(f"must be a finite number > 0 in kg m^2, or 'thin_rod' (got {v})")
+        return v
+
+    @model_validator(mode="after")
+    def _shape_fields(self) -> Body:
+        if self.name in WALL_NAMES or self.name == "walls":
+            raise ValueError(f"name {self.name!r} is reserved for the cushions")
+        if self.shape == "disk":
+            _require(self.radius is not None, "radius", "a disk needs radius > 0 (m)")
+            _require(self.length is None and self.thickness is None, "length",
+                     "a disk has radius only; length and thickness belong to rods")
+            _require(self.inertia != "thin_rod", "inertia", "'thin_rod' applies to rods only")
+        else:
+            _require(self.length is not None, "length", "a rod needs length > 0 (m)")
+            _require(self.radius is None, "radius", "a rod has length and thickness, not radius")
+        if self.static:
+            _require(not self.pivot and not self.driven, "static",
+                     "a static body cannot also be a pivot or driven")
+            _require(self.velocity == (0.0, 0.0) and self.omega == 0.0, "velocity",
+                     "a static body must have zero velocity and omega")
+        else:
+            _require(self.mass is not None, "mass", "required for a non-static body, > 0 (kg)")
+        if self.pivot:
+            _require(not self.driven, "pivot", "a pivot cannot be driven")
+            _require(self.velocity == (0.0, 0.0), "velocity",
+                     "a pivot is pinned at its centre: velocity must be zero")
+        return self
+
+    @property
+    def half_length(self) -> float:
+        """Half the length of the capsule's core segment, m (0 for a disk)."""
+        return 0.5 * self.length if self.shape == "rod" else 0.0
+
+    @property
+    def core_radius(self) -> float:
+        """Radius swept around the core segment, m (disk radius, or half the rod thickness)."""
+        return self.radius if self.shape == "disk" else 0.5 * (self.thickness or 0.0)
+
+    @property
+    def moment(self) -> float:
+        """Moment of inertia about the centre of mass, kg m^2 (derived unless overridden)."""
+        return body_inertia(self.shape, self.mass or 0.0, self.core_radius, self.half_length,
+                            self.inertia)
+
+
+def body_inertia(shape: str, mass, radius, half_length, override=None):
+    """Moment of inertia of a body (works on scalars and numpy arrays alike)."""
+    if isinstance(override, float):
+        return override
+    if override == "thin_rod":
+        return mass * (2.0 * half_length) ** 2 / 12.0
+    if shape == "disk":
+        return disk_inertia(mass, radius)
+    return capsule_inertia(mass, 2.0 * half_length, radius)
+
+
+def _require(ok: bool, field: str, message: str) -> None:
+    if not ok:
+        raise ValueError(f"{field}: {message}")
+
+
+class Scene(_Model):
+    """A validated scene. Build it with :func:`load_scene`."""
+
+    table: Table = Table()
+    effects: tuple[Literal[tuple(EFFECTS)], ...] = ("rotation",)  # type: ignore[valid-type]
+    solver: SolverConfig = ExactSolver()
+    materials: Materials = Materials()
+    bodies: tuple[Body, ...] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _consistency(self) -> Scene:
+        effects = set(self.effects)
+        _require(len(effects) == len(self.effects), "effects", "lists an effect twice")
+        names = [b.name for b in self.bodies]
+        for name in names:
+            _require(names.count(name) == 1, "bodies", f"body name {name!r} is used twice")
+        rotation = "rotation" in effects
+        for i, body in enumerate(self.bodies):
+            if not rotation:
+                _require(body.omega == 0.0, f"bodies[{i}].omega",
+                         "is set but the scene does not list the 'rotation' effect")
+                _require(not body.pivot, f"bodies[{i}].pivot",
+                         "a pivot needs the 'rotation' effect")
+        if "walls" in effects:
+            _require(self.table.size is not None, "table.size",
+                     "the 'walls' effect needs a table size [width, height] (m)")
+        if "table_friction" not in effects:
+            _require(self.table.friction == 0.0, "table.friction",
+                     "is set but the scene does not list the 'table_friction' effect")
+        if "contact_friction" not in effects:
+            _require(self.materials.friction == 0.0, "materials.friction",
+                     "is set but the scene does not list the 'contact_friction' effect")
+        allowed = set(names) | {"walls"} | (set(WALL_NAMES) if "walls" in effects else set())
+        for k, pair in enumerate(self.materials.pairs):
+            for name in pair.bodies:
+                _require(name in allowed, f"materials.pairs[{k}].bodies",
+                         f"unknown body {name!r}; allowed: {sorted(allowed)}")
+            if "contact_friction" not in effects:
+                _require(not pair.friction, f"materials.pairs[{k}].friction",
+                         "is set but the scene does not list the 'contact_friction' effect")
+        if self.table.size is not None and "walls" in effects:
+            self._check_inside_table()
+        return self
+
+    def _check_inside_table(self) -> None:
+        half_w, half_h = 0.5 * self.table.size[0], 0.5 * self.table.size[1]
+        for i, b in enumerate(self.bodies):
+            if b.static:
+                continue
+            reach_x = b.half_length * abs(math.cos(b.angle)) + b.core_radius
+            reach_y = b.half_length * abs(math.sin(b.angle)) + b.core_radius
+            x, y = b.position
+            _require(abs(x) + reach_x <= half_w and abs(y) + reach_y <= half_h,
+                     f"bodies[{i}].position",
+                     f"{b.name!r} must lie inside the table [-{half_w}, {half_w}] x "
+                     f"[-{half_h}, {half_h}] m (it reaches to x = {x:+.4g} +/- {reach_x:.4g}, "
+                     f"y = {y:+.4g} +/- {reach_y:.4g})")
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(b.name for b in self.bodies)
+
+
+_FIELD = re.compile(r"[A-Za-z_][\w.\[\]]*")
+_SOLVER_TAGS = {"exact", "fixed", "pymunk"}
+
+
+def _format_error(err: ValidationError) -> str:
+    """One line per error: ``<field path>: <what is wrong and what is allowed> (got <input>)``."""
+    lines = []
+    for e in err.errors():
+        loc = ""
+        for part in e["loc"]:
+            if isinstance(part, int):
+                loc += f"[{part}]"
+            elif part not in _SOLVER_TAGS:
+                loc += ("." if loc else "") + str(part)
+        msg = e["msg"].removeprefix("Value error, ")
+        if e["type"] == "value_error":
+            field, sep, rest = msg.partition(": ")
+            if sep and _FIELD.fullmatch(field):  # our validators say "<field>: <message>"
+                loc, msg = (f"{loc}.{field}" if loc else field), rest
+        elif "input" in e and not isinstance(e["input"], dict):
+            msg = f"{msg} (got {e['input']!r})"
+        lines.append(f"{loc or 'scene'}: {msg}")
+    return "; ".join(lines)
+
+
+def load_scene(source: str | Path | dict[str, Any] | Scene) -> Scene:
+    """Load and validate a scene.
+
+    Args:
+        source: a path to a YAML file, a YAML string, a dict, or an existing :class:`Scene`.
+
+    Raises:
+        SceneError: naming the first invalid fields and what is allowed.
+    """
+    if isinstance(source, Scene):
+        return source
+    if isinstance(source, (str, Path)):
+        text = str(source)
+        path = Path(text)
+        if "\n" not in text and (path.suffix in (".yaml", ".yml") or path.exists()):
+            if not path.is_file():
+                raise SceneError(f"scene file {str(path)!r} does not exist")
+            text = path.read_text()
+        try:
+            data = yaml.safe_load(text)
+        except yaml.YAMLError as exc:
+            raise SceneError(f"scene is not valid YAML: {exc}") from exc
+    else:
+        data = source
+    if not isinstance(data, dict):
+        raise SceneError(f"scene must be a mapping of fields, got {type(data).__name__}")
+    try:
+        return Scene.model_validate(data)
+    except ValidationError as exc:
+        raise SceneError(_format_error(exc)) from None
+
+
+def validate_solver(solver: Any) -> ExactSolver | FixedSolver | PymunkSolver:
+    """Validate a solver block given as a dict (``{"mode": "fixed", "substeps": 8}``) or model."""
+    if isinstance(solver, (ExactSolver, FixedSolver, PymunkSolver)):
+        return solver
+    if isinstance(solver, str):
+        solver = {"mode": solver}
+    try:
+        return Scene.model_validate(
+            {"solver": solver, "bodies": [{"name": "x", "shape": "disk", "radius": 1, "mass": 1}]}
+        ).solver
+    except ValidationError as exc:
+        raise SceneError(_format_error(exc)) from None
