@@ -276,6 +276,8 @@ class World:
             k = radius_of_gyration(np.where(self.static, 1.0, self.mass),
                                    np.where(self.static, 1.0, self.inertia))
             p[..., SPIN_DECEL] = np.where(~self.static & ~self.driven & (k > 0), decel / k, 0.0)
+        if getattr(self, "_backend", None) is not None:
+            self._backend.sync_params()
 
     def _alloc_buffers(self) -> None:
         B, M = self.batch_size, self.max_contacts
@@ -411,6 +413,8 @@ class World:
                 raise SceneError("friction: is set but the scene does not list the "
                                  "'contact_friction' effect")
             self._materials[np.ix_(np.arange(self.batch_size)[idx], rows, [FRICTION])] = mu[:, None, None]
+        if self._backend is not None:
+            self._backend.sync_params()
 
     def set_table(self, *, friction: Any = None, size: Any = None, env: Any = None) -> None:
         """Change the table's friction coefficient or size per element."""

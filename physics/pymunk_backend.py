@@ -1,0 +1,383 @@
+"""The ``pymunk`` solver: the same scene on Chipmunk2D through pymunk (DESIGN §5).
+
+This is the peer most users would pick instead of the exact solver, kept here so that the
+accuracy benchmark can price both on the same scenes. ``physics.World`` builds a
+:class:`PymunkBackend` when the solver block is ``{mode: pymunk, iterations: N, substeps: N}``;
+``world.step(dt)`` then runs ``substeps`` pymunk steps of ``dt / substeps`` on every element and
+copies the result back into the world's packed state and contact buffers, so that ``world.state``,
+``world.step``'s :class:`~physics.world.Contacts` and ``world.last_step`` look the same whichever
+solver ran. This module is the only one that imports pymunk.
+
+Mapping (one ``pymunk.Space`` per batch element, the one Python loop over elements that the
+project allows):
+
+* ``disk`` -> ``Circle(radius)``; ``rod`` (capsule) -> ``Segment((-L/2, 0), (L/2, 0),
+  radius=thickness/2)``; the body's local x axis is the rod's axis, so pymunk's ``angle`` is the
+  world's (rad, CCW from +x).
+* mass and moment of inertia are the world's (``world.mass``, ``world.inertia``), so inertia
+  overrides such as ``thin_rod`` carry over; without the ``rotation`` effect the moment is
+  ``inf``. ``static`` bodies are ``Body.STATIC``; a ``pivot`` is a dynamic body pinned at its
+  centre to the space's static body by a ``PivotJoint`` (finite mass, so the pin is only as
+  rigid as ``iterations`` make it — part of what the benchmark prices).
+* ``walls``: four static segments whose inner surfaces lie on the table's edges (left, right,
+  bottom, top = bodies ``N..N+3``). They are *thick* (radius ``WALL_DEPTH`` x the smaller half
+  size of the table, core moved outward by that radius, extended past the corners) so that a
+  body pushed deep into a cushion within one step is still pushed back in: a radius-0 segment
+  would let a centre cross it and flip the normal. Their bounding boxes end on the table edges,
+  so the broad phase costs the same as for thin segments.
+* materials: Chipmunk multiplies the two shapes' elasticities and frictions; here a
+  ``pre_solve`` callback per contact pair sets ``arbiter.restitution`` / ``arbiter.friction`` to
+  the scene's effective per-pair values (``world._materials``), so per-pair overrides and
+  ``set_material`` act exactly. Chipmunk's friction is its own (Coulomb, solved jointly with the
+  normal impulse by sequential impulses), not the project's sequential stage: with ``mu > 0``
+  the two models differ by design.
+* ``driven`` bodies get ``world._forces`` applied before every pymunk step.
+* ``table_friction`` is implemented by a per-body ``velocity_func`` (Python, called by Chipmunk
+  each step for each sliding body) with the model of ``physics.effects``: speed reduced by
+  ``mu_t g h`` along the velocity and ``|omega|`` by ``mu_t g h / k`` per step of ``h``, never
+  reversed; driven bodies exempt. Integrated per step (first order), like the ``fixed`` solver.
+  Any other effect raises :class:`~physics.scene.SceneError` naming it (``SUPPORTED_EFFECTS``).
+
+Knobs (set on every space):
+
+* ``Space.iterations`` = the solver block's ``iterations`` (Chipmunk's sequential-impulse sweeps
+  per step); ``dt / substeps`` is the pymunk step.
+* ``collision_slop = COLLISION_SLOP = 0`` m. pymunk's default, 0.1, is in the user's length unit
+  and tuned for pixels; in metres it would let bodies rest 10 cm deep in each other. Slop only
+  gates Chipmunk's positional correction, which works on separate bias velocities, so it never
+  changes the post-impact velocities the benchmark measures.
+* ``collision_bias`` and ``collision_persistence`` keep pymunk's defaults (0.18% of an overlap
+  left after 1 s; contacts cached for 3 steps for warm starting). Gravity 0, damping 1 (none),
+  no sleeping.
+
+Reporting (what ``world.step`` returns): every pymunk step in which a pair's arbiter applied a
+nonzero impulse is one contact, at the end of that pymunk step (``time``), at the mean of
+Chipmunk's contact points (midway between the two surfaces), with Chipmunk's normal oriented from
+body a to body b (``world.pair_a`` -> ``world.pair_b``; a cushion is always b) and the impulse
+received by b split into its normal part ``j >= 0`` and its part along ``t = (-n_y, n_x)``.
+Chipmunk warm-starts and re-solves a contact over the steps its shapes overlap, so one physical
+impact can be reported more than once (the later reports usually with ``j = 0`` and then
+omitted). ``world.last_step``: ``substeps`` = pymunk steps, ``iterations`` = ``substeps x
+Space.iterations`` (solver sweeps, the pymunk analogue of the exact solver's root-finding
+iterations), ``events`` = 0.
+
+Caveat: Chipmunk detects contacts after moving the bodies and corrects overlaps over later steps,
+so the state after a ``step`` can hold overlaps of up to ``speed * dt / substeps``; the world's
+overlap check in ``set_state`` (tolerance 1e-9 m for non-exact solvers) can then refuse a state
+that pymunk itself produced.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pymunk
+
+from physics.layout import (
+    ANGLE,
+    FRICTION,
+    FRICTION_DECEL,
+    OMEGA,
+    RESTITUTION,
+    SPIN_DECEL,
+    STAT_CONTACTS,
+    STAT_ITERATIONS,
+    STAT_SUBSTEPS,
+    VX,
+    VY,
+    X,
+    Y,
+)
+from physics.scene import SceneError
+
+__all__ = ["COLLISION_SLOP", "SUPPORTED_EFFECTS", "WALL_DEPTH", "PymunkBackend"]
+
+#: effects this backend can simulate; any other listed effect is a SceneError
+SUPPORTED_EFFECTS = frozenset({"rotation", "walls", "contact_friction", "table_friction"})
+#: Space.collision_slop, m (see module docstring)
+COLLISION_SLOP = 0.0
+#: cushion radius as a multiple of the table's smaller half size (see module docstring)
+WALL_DEPTH = 1.0
+
+
+class _Element:
+    """One batch element's pymunk objects."""
+
+    __slots__ = ("space", "bodies", "shapes", "walls", "joints", "cloth")
+
+    def __init__(self) -> None:
+        self.space = pymunk.Space()
+        self.bodies: list[pymunk.Body] = []
+        self.shapes: list[pymunk.Shape] = []
+        self.walls: list[pymunk.Segment] = []
+        self.joints: list[pymunk.Constraint] = []
+        self.cloth: list[list[float]] = []  # per body [speed decel, spin decel], m/s^2, rad/s^2
+
+
+class PymunkBackend:
+    """Steps a :class:`physics.World` with pymunk (see the module docstring).
+
+    Args:
+        world: the world; its scene, parameters and state are read from it, and results are
+            written back into ``world._state`` and its contact and statistics buffers.
+
+    Raises:
+        SceneError: the scene lists an effect pymunk cannot express here.
+    """
+
+    def __init__(self, world: Any) -> None:
+        unsupported = sorted(set(world.effects) - SUPPORTED_EFFECTS)
+        if unsupported:
+            raise SceneError(f"effects: the pymunk solver cannot simulate {unsupported}; "
+                             f"it supports {sorted(SUPPORTED_EFFECTS)}")
+        self.world = world
+        B = world.batch_size
+        self._elements: list[_Element] = [None] * B  # type: ignore[list-item]
+        # per element and pair: [restitution, friction], read by the pre_solve callbacks
+        self._mats: list[list[list[float]]] = [[[0.0, 0.0] for _ in world.pair_a] for _ in range(B)]
+        self._written = np.full_like(world._state, np.nan)
+        # recording context of the running step: [element, time within the step (s), count]
+        self._ctx: list[Any] = [0, 0.0, 0]
+        self._load_materials()
+        for b in range(B):
+            self._build(b)
+        self._written[:] = world._state
+
+    # ------------------------------------------------------------------------------------------
+    # building and syncing
+    # ------------------------------------------------------------------------------------------
+
+    def _load_materials(self) -> None:
+        mats = self.world._materials
+        for b, rows in enumerate(self._mats):
+            for p, cell in enumerate(rows):
+                cell[0] = float(mats[b, p, RESTITUTION])
+                cell[1] = float(mats[b, p, FRICTION])
+
+    def _wall_geometry(self, b: int) -> list[tuple[tuple[float, float], tuple[float, float], float]]:
+        hw, hh = (float(v) for v in self.world._hw[b])
+        r = WALL_DEPTH * min(hw, hh)
+        ext = hw + hh + 2.0 * r  # past the corners
+        xl, xr, yb, yt = -hw - r, hw + r, -hh - r, hh + r
+        return [(((xl, -ext), (xl, ext)), r), (((xr, -ext), (xr, ext)), r),
+                (((-ext, yb), (ext, yb)), r), (((-ext, yt), (ext, yt)), r)]
+
+    def _build(self, b: int) -> None:
+        """(Re)create element b's space from the world's parameters and state."""
+        w = self.world
+        el = _Element()
+        sp = el.space
+        sp.iterations = int(w.solver.iterations)
+        sp.collision_slop = COLLISION_SLOP
+        sp.gravity = (0.0, 0.0)
+        sp.damping = 1.0
+        state = w._state[b]
+        for i in range(w.n_bodies):
+            if w.static[i]:
+                body = pymunk.Body(body_type=pymunk.Body.STATIC)
+            else:
+                body = pymunk.Body(float(w.mass[b, i]), self._moment(b, i))
+            body.position = (float(state[i, X]), float(state[i, Y]))
+            body.angle = float(state[i, ANGLE])
+            if not w.static[i]:
+                body.velocity = (float(state[i, VX]), float(state[i, VY]))
+                body.angular_velocity = float(state[i, OMEGA])
+            if w.shapes[i] == "disk":
+                shape: pymunk.Shape = pymunk.Circle(body, float(w.radius[b, i]))
+            else:
+                h = float(w.half_length[b, i])
+                shape = pymunk.Segment(body, (-h, 0.0), (h, 0.0), float(w.radius[b, i]))
+            shape.collision_type = i
+            shape.elasticity = 1.0
+            shape.friction = 0.0
+            sp.add(body, shape)
+            el.bodies.append(body)
+            el.shapes.append(shape)
+            if w.pivot[i]:
+                joint = pymunk.PivotJoint(sp.static_body, body, body.position)
+                joint.collide_bodies = True
+                sp.add(joint)
+                el.joints.append(joint)
+            cloth = [0.0, 0.0]
+            el.cloth.append(cloth)
+        if w.walls:
+            for k, ((a, c), r) in enumerate(self._wall_geometry(b)):
+                seg = pymunk.Segment(sp.static_body, a, c, r)
+                seg.collision_type = w.n_bodies + k
+                seg.elasticity = 1.0
+                seg.friction = 0.0
+                sp.add(seg)
+                el.walls.append(seg)
+        for p in range(len(w.pair_a)):
+            cell = self._mats[b][p]
+            sp.on_collision(int(w.pair_a[p]), int(w.pair_b[p]),
+                            pre_solve=_materials_callback(cell),
+                            post_solve=self._record_callback(p))
+        self._elements[b] = el
+        self._set_cloth(b)
+
+    def _moment(self, b: int, i: int) -> float:
+        return float(self.world.inertia[b, i]) if self.world.rotation else math.inf
+
+    def _set_cloth(self, b: int) -> None:
+        """Install (or remove) the table-friction velocity function of element b's bodies."""
+        w = self.world
+        el = self._elements[b]
+        for i, body in enumerate(el.bodies):
+            if w.static[i]:
+                continue
+            decel = float(w._params[b, i, FRICTION_DECEL]) if w.table_friction else 0.0
+            spin = float(w._params[b, i, SPIN_DECEL]) if w.table_friction and w.rotation else 0.0
+            cell = el.cloth[i]
+            cell[0], cell[1] = decel, spin
+            if decel > 0.0 or spin > 0.0:
+                body.velocity_func = _cloth_velocity(cell)
+            else:
+                body.velocity_func = pymunk.Body.update_velocity
+
+    def sync_from_world(self) -> None:
+        """Take over the world's state after ``set_state`` / ``reset`` / ``restore``.
+
+        Elements whose state changed are rebuilt from scratch (which also drops Chipmunk's cached
+        contacts, so the same state always steps the same way); the others keep their spaces.
+        """
+        state = self.world._state
+        changed = np.any(state != self._written, axis=(1, 2))
+        for b in np.nonzero(changed)[0]:
+            self._build(int(b))
+        self._written[:] = state
+
+    def sync_params(self) -> None:
+        """Take over changed parameters (``set_body``, ``set_material``, ``set_table``) in place."""
+        w = self.world
+        if not self._elements or self._elements[0] is None:
+            return
+        self._load_materials()
+        for b, el in enumerate(self._elements):
+            for i, (body, shape) in enumerate(zip(el.bodies, el.shapes)):
+                if not w.static[i]:
+                    body.mass = float(w.mass[b, i])
+                    body.moment = self._moment(b, i)
+                if w.shapes[i] == "disk":
+                    shape.unsafe_set_radius(float(w.radius[b, i]))
+                else:
+                    h = float(w.half_length[b, i])
+                    shape.unsafe_set_endpoints((-h, 0.0), (h, 0.0))
+                    shape.unsafe_set_radius(float(w.radius[b, i]))
+            for seg, ((a, c), r) in zip(el.walls, self._wall_geometry(b)):
+                seg.unsafe_set_endpoints(a, c)
+                seg.unsafe_set_radius(r)
+            if el.walls:
+                el.space.reindex_static()
+            self._set_cloth(b)
+
+    # ------------------------------------------------------------------------------------------
+    # stepping
+    # ------------------------------------------------------------------------------------------
+
+    def _record_callback(self, p: int):
+        w = self.world
+        ctx = self._ctx
+        cpair, ctime, cgeo, cimp = w._cpair, w._ctime, w._cgeo, w._cimp
+        M = w.max_contacts
+
+        def post_solve(arbiter: pymunk.Arbiter, space: pymunk.Space, data: Any) -> None:
+            J = arbiter.total_impulse  # received by shape a (= body a): b receives -J
+            if J.x == 0.0 and J.y == 0.0:
+                return
+            n = arbiter.normal  # from shape a to shape b
+            k = ctx[2]
+            ctx[2] = k + 1
+            if k >= M:
+                return
+            b = ctx[0]
+            nx, ny = n.x, n.y
+            px = py = 0.0
+            points = arbiter.contact_point_set.points
+            for cp in points:
+                px += cp.point_a.x + cp.point_b.x
+                py += cp.point_a.y + cp.point_b.y
+            m = 2.0 * max(len(points), 1)
+            cpair[b, k] = p
+            ctime[b, k] = ctx[1]
+            g = cgeo[b, k]
+            g[0] = px / m
+            g[1] = py / m
+            g[2] = nx
+            g[3] = ny
+            cimp[b, k, 0] = -(J.x * nx + J.y * ny)
+            cimp[b, k, 1] = -(J.y * nx - J.x * ny)
+
+        return post_solve
+
+    def step(self, dt: float) -> None:
+        """Advance every element by ``dt`` s in ``substeps`` pymunk steps; write the results."""
+        w = self.world
+        n = int(w.solver.substeps)
+        h = dt / n
+        state = w._state
+        stats = w._stats
+        driven = [i for i in range(w.n_bodies) if w.driven[i]]
+        forces = w._forces
+        ctx = self._ctx
+        for b, el in enumerate(self._elements):
+            ctx[0] = b
+            ctx[2] = 0
+            sp = el.space
+            bodies = el.bodies
+            push = [(bodies[i], (float(forces[b, i, 0]), float(forces[b, i, 1]))) for i in driven]
+            if dt > 0.0:
+                for k in range(n):
+                    ctx[1] = (k + 1) * h
+                    for body, f in push:
+                        body.force = f
+                    sp.step(h)
+            row = state[b]
+            for i, body in enumerate(bodies):
+                if w.static[i]:
+                    continue
+                x, y = body.position
+                vx, vy = body.velocity
+                r = row[i]
+                r[X] = x
+                r[Y] = y
+                r[ANGLE] = body.angle
+                r[VX] = vx
+                r[VY] = vy
+                r[OMEGA] = body.angular_velocity
+            stats[b, STAT_CONTACTS] = ctx[2]
+            if dt > 0.0:
+                stats[b, STAT_SUBSTEPS] = n
+                stats[b, STAT_ITERATIONS] = n * sp.iterations
+        self._written[:] = state
+
+
+def _materials_callback(cell: list[float]):
+    """pre_solve: the scene's effective restitution and friction of one pair (``cell``)."""
+
+    def pre_solve(arbiter: pymunk.Arbiter, space: pymunk.Space, data: Any) -> None:
+        arbiter.restitution = cell[0]
+        arbiter.friction = cell[1]
+
+    return pre_solve
+
+
+def _cloth_velocity(cell: list[float]):
+    """velocity_func: Chipmunk's update, then Coulomb cloth friction (``physics.effects``)."""
+
+    def update(body: pymunk.Body, gravity: Any, damping: float, dt: float) -> None:
+        pymunk.Body.update_velocity(body, gravity, damping, dt)
+        decel, spin = cell
+        if decel > 0.0:
+            vx, vy = body.velocity
+            speed = math.hypot(vx, vy)
+            if speed > 0.0:
+                f = max(speed - decel * dt, 0.0) / speed
+                body.velocity = (vx * f, vy * f)
+        if spin > 0.0:
+            w = body.angular_velocity
+            body.angular_velocity = math.copysign(max(abs(w) - spin * dt, 0.0), w)
+
+    return update
