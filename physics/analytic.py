@@ -42,7 +42,11 @@ def rod_strike(m1, m2, r, theta, V, e=1.0):
 
 
 def rod_strike_light_rod(theta, V, r):
-    """Seed §1 limits for m1/m2 -> 0: (V1, V2, |omega1|) = ((3c^2-1)/(3c^2+1) V, 0, 6cV/((3c^2+1)r))."""
+    """Seed §1 limits for m1/m2 -> 0.
+
+    Returns:
+        (V1, V2, |omega1|) = ((3c^2-1)/(3c^2+1) V, 0, 6cV/((3c^2+1)r)), c = cos(theta).
+    """
     c = np.cos(theta)
     return (3 * c**2 - 1) / (3 * c**2 + 1) * V, 0.0 * V, np.abs(6 * c * V / ((3 * c**2 + 1) * r))
 

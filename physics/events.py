@@ -32,11 +32,13 @@ from physics.layout import (
 )
 from physics.motion import ca_step, flight
 
-__all__ = ["pair_geometry", "time_of_impact"]
+__all__ = ["ROUNDOFF", "pair_geometry", "time_of_impact"]
 
 jit = numba.njit(cache=True, nogil=True)
 
 _BRACKET_ITERATIONS = 200
+#: relative size of round-off in a normal velocity: |vn| below this times the speeds counts as 0
+ROUNDOFF = 1e-12
 
 
 @jit
@@ -47,7 +49,9 @@ def pair_geometry(sa, pa, sb, pb, wall, half_w, half_h):
 
     Returns:
         (gap, nx, ny, oax, oay, ka, obx, oby, kb, vn): normal from a to b, lever arms as core
-        offsets and distances along n (see ``impulse``), and ``(v_bp - v_ap) . n``.
+        offsets and distances along n (see ``impulse``), and ``(v_bp - v_ap) . n``, set to 0
+        when it is below round-off (``ROUNDOFF`` times the point speeds): a pair is approaching
+        only when ``vn < 0``.
     """
     if wall < 0:
         g, nx, ny, oax, oay, obx, oby = capsule_capsule(
@@ -59,7 +63,9 @@ def pair_geometry(sa, pa, sb, pb, wall, half_w, half_h):
                                                      pa[RADIUS], wall, half_w, half_h)
         kb = 0.0
     ka = pa[RADIUS] + 0.5 * g
-    vn, vt = relative_velocity(sa, sb, wall >= 0, nx, ny, oax, oay, ka, obx, oby, kb)
+    vn, vt, scale = relative_velocity(sa, sb, wall >= 0, nx, ny, oax, oay, ka, obx, oby, kb)
+    if abs(vn) <= ROUNDOFF * scale:
+        vn = 0.0  # at rest along n to round-off (e.g. just after a plastic impact)
     return g, nx, ny, oax, oay, ka, obx, oby, kb, vn
 
 
@@ -133,8 +139,8 @@ def time_of_impact(sa, pa, fa, sb, pb, fb, wall, half_w, half_h, horizon, tol, m
                         table_friction)
         t_new = t + s if t + s < horizon else horizon
         if g <= tol:
-            g_new, _, _, _, _, _, _, _, _, _ = _probe(sa, pa, fa, sb, pb, fb, wall, half_w, half_h, t_new,
-                                          tmp_a, tmp_b, rotation, table_friction)
+            g_new = _probe(sa, pa, fa, sb, pb, fb, wall, half_w, half_h, t_new, tmp_a, tmp_b,
+                           rotation, table_friction)[0]
             if g_new < floor:
                 tc, kind, k = _bracket(sa, pa, fa, sb, pb, fb, wall, half_w, half_h, t, g - floor,
                                        t_new, g_new - floor, floor, tol, tmp_a, tmp_b, rotation,

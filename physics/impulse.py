@@ -40,7 +40,10 @@ jit = numba.njit(cache=True, nogil=True)
 
 @jit
 def relative_velocity(sa, sb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb):
-    """Relative velocity ``v_bp - v_ap`` at the contact point: (along n, along t)."""
+    """Relative velocity ``v_bp - v_ap`` at the contact point: (along n, along t, scale).
+
+    ``scale`` (sum of the point velocities' absolute components) sizes the round-off of vn.
+    """
     rax = oax + ka * nx
     ray = oay + ka * ny
     w = sa[OMEGA]
@@ -57,7 +60,8 @@ def relative_velocity(sa, sb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb):
         vby = sb[VY] + w * rbx
     dvx = vbx - vax
     dvy = vby - vay
-    return dvx * nx + dvy * ny, -dvx * ny + dvy * nx
+    scale = abs(vax) + abs(vay) + abs(vbx) + abs(vby)
+    return dvx * nx + dvy * ny, -dvx * ny + dvy * nx, scale
 
 
 @jit
@@ -93,7 +97,7 @@ def _effective_inverse_mass(pa, pb, is_wall, cross_a, cross_b, rotation):
 def _friction(sa, pa, sb, pb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb, rna, rnb, mu, j, k_n,
               rotation):
     """Sequential Coulomb stage; returns (tangential impulse, extra plastic normal impulse)."""
-    vn, vt = relative_velocity(sa, sb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb)
+    vn, vt, _ = relative_velocity(sa, sb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb)
     if vt == 0.0:
         return 0.0, 0.0
     tx = -ny
@@ -108,7 +112,7 @@ def _friction(sa, pa, sb, pb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb, rna, 
     elif jt < -limit:
         jt = -limit
     apply_impulse(sa, pa, sb, pb, is_wall, jt, tx, ty, rta, rtb, rotation)
-    vn, vt = relative_velocity(sa, sb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb)
+    vn, vt, _ = relative_velocity(sa, sb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb)
     if vn < 0.0:
         j2 = -vn / k_n
         apply_impulse(sa, pa, sb, pb, is_wall, j2, nx, ny, rna, rnb, rotation)
@@ -133,7 +137,7 @@ def resolve(sa, pa, sb, pb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb, e, mu, 
         friction), tangential impulse along t = (-n_y, n_x), and the normal relative velocity
         before (negative when approaching; nothing is applied otherwise).
     """
-    vn, vt = relative_velocity(sa, sb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb)
+    vn, vt, _ = relative_velocity(sa, sb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb)
     if vn >= 0.0:
         return 0.0, 0.0, vn
     rna = oax * ny - oay * nx

@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 import re
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
@@ -87,7 +87,8 @@ class ExactSolver(_Model):
             force: infinitely many ever-smaller impacts in finite time) the rest of the step is
             settled by the fixed-step contact solver, which handles resting contact. Default 8.
         settle_substep: longest substep (s) of that settling integration; it is shortened further
-            so that no body moves more than a quarter of its size per substep. Default 1e-3 s.
+            so that no pair closes by more than half of the depth at which an overlap is still
+            seen (the sum of the two radii). Default 1e-3 s.
     """
 
     mode: Literal["exact"] = "exact"
@@ -128,7 +129,7 @@ class PymunkSolver(_Model):
     iterations: int = Field(10, ge=1, le=100_000)
 
 
-SolverConfig = Annotated[Union[ExactSolver, FixedSolver, PymunkSolver], Field(discriminator="mode")]
+SolverConfig = Annotated[ExactSolver | FixedSolver | PymunkSolver, Field(discriminator="mode")]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -225,7 +226,7 @@ class Body(_Model):
     @model_validator(mode="after")
     def _shape_fields(self) -> Body:
         if self.name in WALL_NAMES or self.name == "walls":
-            raise ValueError(f"name {self.name!r} is reserved for the cushions")
+            raise ValueError(f"name: {self.name!r} is reserved for the cushions")
         if self.shape == "disk":
             _require(self.radius is not None, "radius", "a disk needs radius > 0 (m)")
             _require(self.length is None and self.thickness is None, "length",

@@ -33,9 +33,9 @@ def capsule_inertia(mass, length, radius):
     Note: the seed note writes ``I1 = m1 (r^2 - (d/2)^2) / 3`` for a rod of thickness d; the minus
     sign is a slip (thickness adds inertia), so it is not used here.
     """
-    area = capsule_area(length, radius)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        m_rect = mass * (2.0 * radius * length) / area
+    # the rectangle's share of the area, 2 rho L / (2 rho L + pi rho^2), with rho cancelled so a
+    # zero-thickness rod (rho = 0) is the thin rod, not 0/0
+    m_rect = mass * (2.0 * length) / (2.0 * length + np.pi * radius)
     m_caps = mass - m_rect
     a = 4.0 * radius / (3.0 * np.pi)
     return m_rect * (length**2 + 4.0 * radius**2) / 12.0 + m_caps * (

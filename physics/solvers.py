@@ -7,10 +7,13 @@ approaching (the *simultaneous-contact rule*: sequential impulses swept in pair 
 approaches, at most ``MAX_SWEEPS`` sweeps — this reproduces Newton's cradle), and searches again
 only for the pairs whose bodies changed. Two guards keep a step finite:
 
-* a run of *resting bounces* (impacts closing slower than ``zeno_speed``; an inelastic body pinned
-  by a force makes infinitely many in finite time) or ``max_events`` events end the event loop,
+* a run of *resting bounces* (impacts closing slower than ``zeno_speed``, or time-of-impact
+  searches that stall while the pair is within ``tolerance``: an inelastic body pinned by a force,
+  or sliding along another, makes infinitely many in finite time) or ``max_events`` events end
+  the event loop,
   and the rest of the step is *settled* by the fixed-step contact solver below, with substeps
-  short enough that no body moves more than a quarter of its size per substep. The element is
+  short enough that no pair closes by more than half the depth at which its overlap is still
+  seen (``_settle_substeps``). The element is
   flagged (``stats[:, STAT_FALLBACK]``), never hung, never left overlapping.
 
 ``fixed``: ``substeps`` symplectic-Euler substeps; after each, pairs that overlap (or are within
@@ -215,24 +218,33 @@ def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, 
 
 
 @jit
-def _settle_substeps(S, Pm, F, T, settle_substep):
-    """Substeps for settling: each body moves at most a quarter of its size per substep."""
-    vmax = 0.0
-    size = math.inf
-    for i in range(S.shape[0]):
-        pr = Pm[i]
-        if pr[INV_MASS] == 0.0 and pr[INV_INERTIA] == 0.0:
-            continue
+def _settle_substeps(S, Pm, F, PA, PB, T, settle_substep):
+    """Substeps for settling, so that no pair closes by more than it can overlap undetected.
+
+    A body-body overlap is seen while it is shallower than ``rho_a + rho_b`` (two zero-thickness
+    rods: the shorter half-length), a cushion's at any depth (it is a half-plane).
+    """
+    n = S.shape[0]
+    speed = np.zeros(n)
+    for i in range(n):
         st = S[i]
-        speed = math.sqrt(st[VX] ** 2 + st[VY] ** 2) + abs(st[OMEGA]) * pr[HALF_LENGTH]
-        speed += math.sqrt(F[i, 0] ** 2 + F[i, 1] ** 2) * pr[INV_MASS] * T
-        vmax = max(vmax, speed)
-        size = min(size, pr[RADIUS] if pr[RADIUS] > 0.0 else pr[HALF_LENGTH])
+        pr = Pm[i]
+        speed[i] = (math.sqrt(st[VX] ** 2 + st[VY] ** 2) + abs(st[OMEGA]) * pr[HALF_LENGTH]
+                    + math.sqrt(F[i, 0] ** 2 + F[i, 1] ** 2) * pr[INV_MASS] * T)
     h = settle_substep
-    if vmax > 0.0 and 0.25 * size / vmax < h:
-        h = 0.25 * size / vmax
-    n = math.ceil(T / h)
-    return max(1, min(n, MAX_SETTLE_SUBSTEPS))
+    for p in range(PA.shape[0]):
+        a = PA[p]
+        b = PB[p]
+        if b >= n:
+            continue
+        size = Pm[a, RADIUS] + Pm[b, RADIUS]
+        if size == 0.0:
+            size = min(Pm[a, HALF_LENGTH], Pm[b, HALF_LENGTH])
+        closing = speed[a] + speed[b]
+        if closing > 0.0 and 0.5 * size / closing < h:
+            h = 0.5 * size / closing
+    steps = math.ceil(T / h)
+    return max(1, min(steps, MAX_SETTLE_SUBSTEPS))
 
 
 @jit
@@ -270,7 +282,17 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
             break
         events += 1
         changed[:] = False
-        if kind[best] != CHECKPOINT:
+        if kind[best] == CHECKPOINT:
+            # a search that stalls while the pair is in contact is a sliding/rolling contact:
+            # it counts toward settling like a resting bounce
+            a = PA[best]
+            b = PB[best]
+            wall = b - S.shape[0] if b >= S.shape[0] else -1
+            bb = a if wall >= 0 else b
+            g = pair_geometry(S[a], Pm[a], S[bb], Pm[bb], wall, hw[0], hw[1])[0]
+            if g <= tol:
+                resting += 1
+        else:
             for _ in range(MAX_SWEEPS):
                 hit, r = _contact_pass(S, Pm, hw, PA, PB, MAT, tol, zeno_speed, t_now, rotation,
                                        contact_friction, changed, cpair, ctime, cgeo, cimp, stats)
@@ -287,7 +309,7 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
                 iterations += it
         if events >= max_events or resting >= zeno_impacts:
             if t_now < dt:
-                substeps = _settle_substeps(S, Pm, F, dt - t_now, settle_substep)
+                substeps = _settle_substeps(S, Pm, F, PA, PB, dt - t_now, settle_substep)
                 fixed_element(S, Pm, F, hw, PA, PB, MAT, dt - t_now, substeps, MAX_SWEEPS, tol,
                               t_now, rotation, contact_friction, table_friction, cpair, ctime,
                               cgeo, cimp, stats)

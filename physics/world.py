@@ -130,7 +130,8 @@ def _as_batch(value: Any, shape: tuple[int, ...], field: str) -> np.ndarray:
     try:
         arr = np.broadcast_to(arr, shape)
     except ValueError:
-        raise SceneError(f"{field}: expected shape {shape} or broadcastable, got {arr.shape}") from None
+        raise SceneError(
+            f"{field}: expected shape {shape} or broadcastable, got {arr.shape}") from None
     if not np.all(np.isfinite(arr)):
         raise SceneError(f"{field}: must be finite numbers (got NaN or inf)")
     return arr
@@ -175,7 +176,8 @@ class World:
         self.table_friction = "table_friction" in self.effects
         bodies = self.scene.bodies
         self.n_bodies = N = len(bodies)
-        self.names: tuple[str, ...] = tuple(b.name for b in bodies) + (WALL_NAMES if self.walls else ())
+        walls = WALL_NAMES if self.walls else ()
+        self.names: tuple[str, ...] = tuple(b.name for b in bodies) + walls
         self.static = np.array([b.static for b in bodies])
         self.pivot = np.array([b.pivot for b in bodies])
         self.driven = np.array([b.driven for b in bodies])
@@ -270,7 +272,7 @@ class World:
         p[..., RADIUS] = self.radius
         p[..., HALF_LENGTH] = self.half_length
         sliding = dynamic & ~self.driven
-        decel = self.table_mu[:, None] * self.gravity if self.table_friction else np.zeros((self.batch_size, 1))
+        decel = self.table_mu[:, None] * self.gravity * float(self.table_friction)
         p[..., FRICTION_DECEL] = np.where(sliding, decel, 0.0)
         with np.errstate(divide="ignore", invalid="ignore"):
             k = radius_of_gyration(np.where(self.static, 1.0, self.mass),
@@ -404,7 +406,8 @@ class World:
             e = _as_batch(restitution, (n,), "restitution")
             if np.any((e < 0) | (e > 1)):
                 raise SceneError(f"restitution: must lie in [0, 1] (got {e.min()}..{e.max()})")
-            self._materials[np.ix_(np.arange(self.batch_size)[idx], rows, [RESTITUTION])] = e[:, None, None]
+            sel = np.ix_(np.arange(self.batch_size)[idx], rows, [RESTITUTION])
+            self._materials[sel] = e[:, None, None]
         if friction is not None:
             mu = _as_batch(friction, (n,), "friction")
             if np.any(mu < 0):
@@ -412,7 +415,8 @@ class World:
             if np.any(mu > 0) and not self.contact_friction:
                 raise SceneError("friction: is set but the scene does not list the "
                                  "'contact_friction' effect")
-            self._materials[np.ix_(np.arange(self.batch_size)[idx], rows, [FRICTION])] = mu[:, None, None]
+            sel = np.ix_(np.arange(self.batch_size)[idx], rows, [FRICTION])
+            self._materials[sel] = mu[:, None, None]
         if self._backend is not None:
             self._backend.sync_params()
 
@@ -580,7 +584,8 @@ class World:
             self._backend.step(dt)
         elif isinstance(self.solver, ExactSolver):
             s = self.solver
-            kernel = exact_batch_parallel if self.batch_size >= PARALLEL_BATCH else exact_batch_serial
+            parallel = self.batch_size >= PARALLEL_BATCH
+            kernel = exact_batch_parallel if parallel else exact_batch_serial
             kernel(self._state, self._params, self._forces, self._hw, self.pair_a, self.pair_b,
                    self._materials, dt, s.tolerance, s.max_events, s.max_iterations,
                    s.zeno_speed, s.zeno_impacts, s.settle_substep, self.rotation,
@@ -588,7 +593,8 @@ class World:
                    self._cgeo, self._cimp, self._stats)
         else:
             s = self.solver
-            kernel = fixed_batch_parallel if self.batch_size >= PARALLEL_BATCH else fixed_batch_serial
+            parallel = self.batch_size >= PARALLEL_BATCH
+            kernel = fixed_batch_parallel if parallel else fixed_batch_serial
             kernel(self._state, self._params, self._forces, self._hw, self.pair_a, self.pair_b,
                    self._materials, dt, s.substeps, s.iterations, self.rotation,
                    self.contact_friction, self.table_friction, self._cpair, self._ctime,
@@ -653,7 +659,6 @@ def _pair_gaps(S, Pm, HW, PA, PB, out):
             c = PB[p]
             wall = c - n if c >= n else -1
             cc = a if wall >= 0 else c
-            g, _, _, _, _, _, _, _, _, _ = pair_geometry(S[b, a], Pm[b, a], S[b, cc], Pm[b, cc], wall,
-                                             HW[b, 0], HW[b, 1])
-            out[b, p] = g
+            out[b, p] = pair_geometry(S[b, a], Pm[b, a], S[b, cc], Pm[b, cc], wall, HW[b, 0],
+                                      HW[b, 1])[0]
 

@@ -1,13 +1,13 @@
 """Time of impact with rotation, checked against an independent root finder.
 
-A free rod translates and spins, sweeping its end into a resting disk. The reference contact time is found here by dense sampling and bisection of the analytic gap
+A free rod translates and spins, sweeping its end into a resting disk. The reference contact time
+is found here by dense sampling and bisection of the analytic gap
 function; the reference post-impact velocities by the impulse law written out in this file.
 """
 
 import math
 
 import numpy as np
-import pytest
 
 import physics
 
@@ -102,6 +102,6 @@ def test_error_shrinks_with_tolerance():
         world, contacts = _simulate(tol)
         errors.append(abs(world.state.velocities[0, 1] - v_disk).max())
     assert errors[0] > 1e-5  # the coarse tolerance is visibly off...
-    for coarse, fine in zip(errors, errors[1:]):
+    for coarse, fine in zip(errors, errors[1:], strict=False):
         assert fine < coarse or fine < 1e-12  # ...and every tenfold-finer setting is better
     assert errors[-1] < 1e-9

@@ -1,0 +1,150 @@
+"""Every invalid scene value raises a SceneError that names the field and what is allowed."""
+
+import copy
+import math
+
+import pytest
+
+import physics
+from physics import SceneError, load_scene
+
+BASE = {
+    "table": {"size": [1.2, 0.8]},
+    "effects": ["rotation", "walls"],
+    "solver": {"mode": "exact", "tolerance": 1e-9},
+    "materials": {"restitution": 1.0, "friction": 0.0},
+    "bodies": [
+        {"name": "rod", "shape": "rod", "length": 0.4, "thickness": 0.02, "mass": 0.1},
+        {"name": "striker", "shape": "disk", "radius": 0.04, "mass": 0.2,
+         "position": [-0.3, 0.0]},
+    ],
+}
+
+
+def _set(path, value):
+    scene = copy.deepcopy(BASE)
+    node = scene
+    keys = path.split(".")
+    for k in keys[:-1]:
+        node = node[int(k)] if isinstance(node, list) else node[k]
+    last = keys[-1]
+    if isinstance(node, list):
+        node[int(last)] = value
+    else:
+        node[last] = value
+    return scene
+
+
+def _drop(path):
+    scene = copy.deepcopy(BASE)
+    node = scene
+    keys = path.split(".")
+    for k in keys[:-1]:
+        node = node[int(k)] if isinstance(node, list) else node[k]
+    del node[keys[-1]]
+    return scene
+
+
+INVALID = [
+    # (scene, substring the message must contain: the field, and the allowed range)
+    (_set("bodies.0.mass", -1.0), ["bodies[0].mass", "greater than 0"]),
+    (_set("bodies.0.mass", 0.0), ["bodies[0].mass", "greater than 0"]),
+    (_set("bodies.1.mass", math.nan), ["bodies[1].mass", "finite"]),
+    (_set("bodies.1.radius", math.inf), ["bodies[1].radius", "finite"]),
+    (_set("bodies.1.radius", -0.1), ["bodies[1].radius", "greater than 0"]),
+    (_set("bodies.0.length", 0.0), ["bodies[0].length", "greater than 0"]),
+    (_set("bodies.0.thickness", -0.01), ["bodies[0].thickness", "greater than or equal to 0"]),
+    (_set("bodies.0.inertia", -2.0), ["bodies[0].inertia", "> 0"]),
+    (_set("bodies.0.position", [math.nan, 0.0]), ["bodies[0].position", "finite"]),
+    (_set("bodies.0.velocity", [0.0, math.inf]), ["bodies[0].velocity", "finite"]),
+    (_set("bodies.0.shape", "triangle"), ["bodies[0].shape", "'disk' or 'rod'"]),
+    (_set("bodies.0.colour", "red"), ["bodies[0].colour", "Extra inputs"]),
+    (_drop("bodies.1.mass"), ["bodies[1].mass", "required"]),
+    (_drop("bodies.1.radius"), ["bodies[1].radius", "radius > 0"]),
+    (_set("materials.restitution", 1.5), ["materials.restitution", "less than or equal to 1"]),
+    (_set("materials.restitution", -0.1), ["materials.restitution", "greater than or equal to 0"]),
+    (_set("materials.restitution", math.nan), ["materials.restitution", "finite"]),
+    (_set("materials.friction", -0.2), ["materials.friction", "greater than or equal to 0"]),
+    (_set("materials.friction", 0.3), ["materials.friction", "contact_friction"]),
+    (_set("table.friction", 0.1), ["table.friction", "table_friction"]),
+    (_set("table.size", [1.0, -1.0]), ["table.size", "positive"]),
+    (_drop("table"), ["table.size", "walls"]),
+    (_set("effects", ["rotation", "gravity"]), ["effects[1]", "'rotation'", "'table_friction'"]),
+    (_set("effects", ["rotation", "rotation"]), ["effects", "twice"]),
+    (_set("solver", {"mode": "verlet"}), ["solver", "'exact'", "'fixed'", "'pymunk'"]),
+    (_set("solver", {"mode": "exact", "tolerance": 0.0}), ["solver.tolerance", "greater than 0"]),
+    (_set("solver", {"mode": "fixed", "substeps": 0}),
+     ["solver.substeps", "greater than or equal to 1"]),
+    (_set("solver", {"mode": "fixed", "tolerance": 1e-9}), ["solver.tolerance", "Extra inputs"]),
+    (_set("bodies.1.name", "rod"), ["bodies", "used twice"]),
+    (_set("bodies.1.name", "wall_left"), ["bodies[1].name", "reserved"]),
+    (_set("bodies.1.position", [0.7, 0.0]), ["bodies[1].position", "inside the table"]),
+    (_set("bodies.1.omega", 1.0) | {"effects": ["walls"]}, ["bodies[1].omega", "rotation"]),
+    (_set("materials.pairs", [{"bodies": ["rod", "ghost"], "restitution": 0.5}]),
+     ["materials.pairs[0].bodies", "ghost"]),
+    (_set("materials.pairs", [{"bodies": ["rod", "walls"], "restitution": 2}]),
+     ["materials.pairs[0].restitution", "less than or equal to 1"]),
+    (_set("unknown_key", 1), ["unknown_key", "Extra inputs"]),
+]
+
+
+@pytest.mark.parametrize("scene,needles", INVALID, ids=[n[0] for _, n in INVALID])
+def test_invalid_value_names_field(scene, needles):
+    with pytest.raises(SceneError) as info:
+        load_scene(scene)
+    message = str(info.value)
+    for needle in needles:
+        assert needle in message, f"{needle!r} not in {message!r}"
+
+
+def test_static_body_must_not_move():
+    scene = copy.deepcopy(BASE)
+    scene["bodies"][0].update(static=True, velocity=[1.0, 0.0])
+    with pytest.raises(SceneError, match=r"bodies\[0\].velocity: a static body"):
+        load_scene(scene)
+
+
+def test_overlap_at_start_is_an_error_but_touching_is_not():
+    scene = copy.deepcopy(BASE)
+    # rod along x from -0.2..0.2 (radius 0.01); striker radius 0.04
+    scene["bodies"][1]["position"] = [-0.25 + 1e-3, 0.0]  # overlaps by 1 mm
+    with pytest.raises(SceneError, match="'rod' and 'striker' overlap by 0.001"):
+        physics.World(scene)
+    scene["bodies"][1]["position"] = [-0.25, 0.0]  # exactly touching
+    physics.World(scene)
+
+
+def test_valid_scene_roundtrip_from_yaml(tmp_path):
+    import yaml
+
+    path = tmp_path / "scene.yaml"
+    path.write_text(yaml.safe_dump(BASE))
+    scene = load_scene(path)
+    assert scene.names == ("rod", "striker")
+    assert load_scene(str(path)) == scene
+    assert load_scene(yaml.safe_dump(BASE)) == scene
+
+
+def test_missing_file_and_bad_yaml():
+    with pytest.raises(SceneError, match="does not exist"):
+        load_scene("no/such/scene.yaml")
+    with pytest.raises(SceneError, match="mapping"):
+        load_scene("- just\n- a list\n")
+
+
+def test_solver_override_is_validated():
+    with pytest.raises(SceneError, match="solver.substeps"):
+        physics.World(BASE, solver={"mode": "fixed", "substeps": -3})
+    with pytest.raises(SceneError, match="batch_size"):
+        physics.World(BASE, batch_size=0)
+
+
+def test_inertia_defaults_and_overrides():
+    scene = load_scene(BASE)
+    rod, disk = scene.bodies
+    assert disk.moment == pytest.approx(0.5 * 0.2 * 0.04**2)
+    # capsule: between the thin rod and a rod 0.02 longer
+    assert 0.1 * 0.4**2 / 12 < rod.moment < 0.1 * 0.42**2 / 12
+    thin = load_scene(_set("bodies.0.inertia", "thin_rod")).bodies[0]
+    assert thin.moment == pytest.approx(0.1 * 0.4**2 / 12)
+    assert load_scene(_set("bodies.0.inertia", 0.5)).bodies[0].moment == 0.5
