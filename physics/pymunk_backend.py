@@ -240,13 +240,28 @@ class PymunkBackend:
     def sync_from_world(self) -> None:
         """Take over the world's state after ``set_state`` / ``reset`` / ``restore``.
 
-        Elements whose state changed are rebuilt from scratch (which also drops Chipmunk's cached
-        contacts, so the same state always steps the same way); the others keep their spaces.
+        In every element whose state changed, the bodies are moved in place and their shapes are
+        removed and re-added, which drops Chipmunk's cached contacts (warm-starting impulses), so
+        the same state always steps the same way whatever came before. Elements whose state did
+        not change keep their spaces untouched.
         """
-        state = self.world._state
+        w = self.world
+        state = w._state
         changed = np.any(state != self._written, axis=(1, 2))
         for b in np.nonzero(changed)[0]:
-            self._build(int(b))
+            el = self._elements[int(b)]
+            row = state[int(b)]
+            sp = el.space
+            for i, (body, shape) in enumerate(zip(el.bodies, el.shapes)):
+                if w.static[i]:
+                    continue
+                r = row[i]
+                body.position = (float(r[X]), float(r[Y]))
+                body.angle = float(r[ANGLE])
+                body.velocity = (float(r[VX]), float(r[VY]))
+                body.angular_velocity = float(r[OMEGA])
+                sp.remove(shape)
+                sp.add(shape)
         self._written[:] = state
 
     def sync_params(self) -> None:

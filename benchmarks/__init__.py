@@ -1,0 +1,1 @@
+"""SpinStrike benchmarks: accuracy against time (``python -m benchmarks.accuracy``)."""

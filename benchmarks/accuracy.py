@@ -1,0 +1,636 @@
+"""Accuracy against time: what each solver's knob buys, on collisions with known answers.
+
+Run ``python -m benchmarks.accuracy`` (about 5 minutes on 2 cores; ``--quick`` for a small subset
+in seconds). It writes ``docs/accuracy.md`` (tables, machine, library versions, the command) and
+``docs/accuracy.png`` (the Pareto chart). ``main(argv)`` is the entry point a CLI can call.
+
+What is measured, per solver and knob setting, on every variant of every reference case of
+``benchmarks.cases`` (one collision each, answer from a closed form or an independent root
+finder, never from a solver):
+
+* **velocity error**: ``max_i |v_i - v_i_ref| / V``, V the incoming speed (relative speed of the
+  two contact points at impact);
+* **spin error**: ``max_i |omega_i - omega_i_ref| L / V``, L the rod's half-length (a disk's radius
+  in the disk-disk case);
+* **energy error**: ``|E - E_ref| / E_in``;
+* **time per collision**: wall time (``time.perf_counter``, median over repetitions, numba
+  compiled beforehand) of one ``world.step`` that simulates the whole variant — approach, impact
+  and a collision-free window after it — divided by the batch size (B identical copies are
+  stepped together, so the world's per-call overhead is shared as in a vector env). Each variant
+  holds one collision, so this is the price of one collision with the approach that leads to it;
+* **cost accounting** from ``world.last_step``: events and root-finding iterations (exact),
+  substeps (fixed, pymunk), solver iterations (pymunk: substeps x ``Space.iterations``), impulses
+  recorded.
+
+Knobs: ``exact`` ``tolerance`` (m); ``fixed`` and ``pymunk`` *steps per approach* S: the step is
+``h = t_c / (S + phase)`` with ``t_c`` the reference time of impact, for several phases in (0, 1),
+so that the impact falls at different points inside a step (a phase-locked step would land every
+impact exactly at touching and flatter the fixed-step engines); ``pymunk`` also
+``Space.iterations``. Errors of the fixed-step solvers are taken over all phases.
+
+A second table prices each effect: the same scene with the effect on, on at zero strength, and
+off, in time per ``world.step`` (B = 1).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import gc
+import importlib.metadata
+import math
+import os
+import platform
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+import physics
+from benchmarks.cases import CASES, Case, Variant, get_case
+
+__all__ = ["Setting", "main", "measure", "run", "settings"]
+
+EXACT_TOLERANCES = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
+FIXED_STEPS = (1, 2, 4, 8, 16, 32, 64, 128, 256)
+PYMUNK_STEPS = (10, 30, 100, 300, 1000)
+PYMUNK_ITERATIONS = (1, 10, 100)
+PHASES = (0.125, 0.375, 0.625, 0.875)
+
+QUICK_EXACT = (1e-3, 1e-6, 1e-9, 1e-12)
+QUICK_FIXED = (1, 16, 256)
+QUICK_PYMUNK_STEPS = (10, 100, 1000)
+QUICK_PYMUNK_ITERATIONS = (10,)
+QUICK_PHASES = (0.375, 0.875)
+QUICK_VARIANTS = 2
+
+#: the pymunk setting the acceptance line compares with (steps per approach, iterations)
+PYMUNK_REFERENCE = (100, 10)
+#: plotted floor for errors that are exactly 0
+ERROR_FLOOR = 1e-17
+
+
+# ---------------------------------------------------------------------------------------------
+# settings and measurement
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One solver at one knob setting."""
+
+    solver: str  # exact | fixed | pymunk
+    tolerance: float | None = None
+    steps: int | None = None  # steps per approach (fixed, pymunk)
+    iterations: int | None = None  # pymunk Space.iterations
+
+    @property
+    def knob(self) -> str:
+        if self.solver == "exact":
+            return f"tolerance {self.tolerance:.0e} m"
+        if self.solver == "fixed":
+            return f"{self.steps} steps/approach"
+        return f"{self.steps} steps/approach, {self.iterations} it"
+
+    @property
+    def label(self) -> str:
+        return f"{self.solver} {self.knob}"
+
+    def runs(self, variant: Variant, phases: Sequence[float]) -> list[tuple[dict, float]]:
+        """Solver blocks and step lengths (s) that simulate ``variant``."""
+        if self.solver == "exact":
+            return [({"mode": "exact", "tolerance": self.tolerance}, variant.duration)]
+        out = []
+        for phase in phases:
+            h = variant.t_contact / (self.steps + phase)
+            first = math.ceil(variant.t_contact / h)  # the step that detects the impact
+            n = max(first + 1, round(variant.duration / h))
+            if n * h >= variant.t_next:
+                n = first + 1
+            block: dict[str, Any] = {"mode": self.solver, "substeps": n}
+            if self.solver == "pymunk":
+                block["iterations"] = self.iterations
+            out.append((block, n * h))
+        return out
+
+
+def settings(quick: bool = False) -> list[Setting]:
+    """Every (solver, knob) setting of the sweep."""
+    tols, fixed = (QUICK_EXACT, QUICK_FIXED) if quick else (EXACT_TOLERANCES, FIXED_STEPS)
+    steps, its = ((QUICK_PYMUNK_STEPS, QUICK_PYMUNK_ITERATIONS) if quick
+                  else (PYMUNK_STEPS, PYMUNK_ITERATIONS))
+    return ([Setting("exact", tolerance=t) for t in tols]
+            + [Setting("fixed", steps=s) for s in fixed]
+            + [Setting("pymunk", steps=s, iterations=i) for i in its for s in steps])
+
+
+@dataclass
+class Measurement:
+    """Errors and cost of one setting on one variant (errors: one entry per run/phase)."""
+
+    setting: Setting
+    case: str
+    variant: str
+    offline: bool  # the answer depends on where the contact is taken (not normal_fixed)
+    velocity: list[float] = field(default_factory=list)
+    spin: list[float] = field(default_factory=list)
+    energy: list[float] = field(default_factory=list)
+    hit: list[bool] = field(default_factory=list)
+    seconds: float = math.nan  # per collision
+    events: float = 0.0
+    iterations: float = 0.0
+    substeps: float = 0.0
+    contacts: float = 0.0
+
+
+def _errors(world: physics.World, v: Variant) -> tuple[float, float, float]:
+    vel = np.asarray(world.state.velocities[0])
+    om = np.asarray(world.state.omegas[0])
+    ev = float(np.linalg.norm(vel - v.velocities, axis=-1).max() / v.speed)
+    es = float(np.abs(om - v.omegas).max() * v.length / v.speed)
+    ee = abs(v.energy(vel, om) - v.energy_out) / v.energy_in
+    return ev, es, ee
+
+
+def _time_step(world: physics.World, dt: float, min_time: float, min_reps: int = 3,
+               max_reps: int = 500) -> float:
+    """Median wall time (s) of ``world.step(dt)`` from the initial state."""
+    times: list[float] = []
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        while (len(times) < min_reps or sum(times) < min_time) and len(times) < max_reps:
+            world.reset()
+            t0 = time.perf_counter()
+            world.step(dt)
+            times.append(time.perf_counter() - t0)
+    finally:
+        if enabled:
+            gc.enable()
+    return float(np.median(times))
+
+
+def measure(setting: Setting, case: str, variant: Variant, phases: Sequence[float] = PHASES,
+            batch: int = 16, min_time: float = 0.03) -> Measurement:
+    """Run one setting on one variant: errors for every phase, time for the first."""
+    m = Measurement(setting, case, variant.name, not variant.normal_fixed)
+    for k, (block, dt) in enumerate(setting.runs(variant, phases)):
+        world = physics.World(variant.scene, batch_size=batch if k == 0 else 1, solver=block)
+        world.step(dt)
+        ev, es, ee = _errors(world, variant)
+        m.velocity.append(ev)
+        m.spin.append(es)
+        m.energy.append(ee)
+        last = world.last_step
+        m.hit.append(bool(last.contacts[0] > 0))
+        if k == 0:
+            m.events = float(last.events[0])
+            m.iterations = float(last.iterations[0])
+            m.substeps = float(last.substeps[0])
+            m.contacts = float(last.contacts[0])
+            m.seconds = _time_step(world, dt, min_time) / batch
+    return m
+
+
+def _warm_up() -> None:
+    """Compile (or load) the numba kernels before anything is timed."""
+    v = get_case("seed").variants[0]
+    for block in ({"mode": "exact"}, {"mode": "fixed", "substeps": 4}):
+        for batch in (1, 2):
+            physics.World(v.scene, batch_size=batch, solver=block).step(v.duration)
+    physics.World(v.scene, solver={"mode": "pymunk"}).step(v.duration)
+
+
+def run(quick: bool = False, batch: int | None = None, min_time: float | None = None,
+        cases: Sequence[str] | None = None, log=None) -> list[Measurement]:
+    """The whole sweep: every setting on every variant of every case."""
+    batch = batch or (4 if quick else 16)
+    min_time = min_time if min_time is not None else (0.005 if quick else 0.03)
+    phases = QUICK_PHASES if quick else PHASES
+    _warm_up()
+    out = []
+    for name in cases or CASES:
+        case = get_case(name)
+        variants = case.variants[:QUICK_VARIANTS] if quick else case.variants
+        for s in settings(quick):
+            t0 = time.perf_counter()
+            for v in variants:
+                out.append(measure(s, name, v, phases, batch, min_time))
+            if log:
+                log(f"{name:17s} {s.label:40s} {time.perf_counter() - t0:6.2f} s")
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# cost per effect
+# ---------------------------------------------------------------------------------------------
+
+EFFECT_DT = 0.01
+EFFECT_STEPS = 100
+EFFECT_SOLVERS = (("exact", {"mode": "exact", "tolerance": 1e-9}),
+                  ("fixed", {"mode": "fixed", "substeps": 10}),
+                  ("pymunk", {"mode": "pymunk", "substeps": 10, "iterations": 10}))
+ALL_EFFECTS = ("rotation", "walls", "contact_friction", "table_friction")
+
+
+def effect_scene(effects: Sequence[str], contact_mu: float = 0.2, table_mu: float = 0.1) -> dict:
+    """A walled table with a spinning rod and two pucks; parameters of absent effects dropped."""
+    eff = list(effects)
+    rot = "rotation" in eff
+    return {
+        "table": {"size": [1.2, 0.8],
+                  "friction": table_mu if "table_friction" in eff else 0.0},
+        "effects": eff,
+        "materials": {"restitution": 0.9,
+                      "friction": contact_mu if "contact_friction" in eff else 0.0},
+        "bodies": [
+            {"name": "rod", "shape": "rod", "length": 0.4, "thickness": 0.02, "mass": 0.1,
+             "position": [0.0, 0.1], "angle": 0.3, "velocity": [0.5, -0.2],
+             "omega": 3.0 if rot else 0.0},
+            {"name": "puck", "shape": "disk", "radius": 0.03, "mass": 0.05,
+             "position": [-0.4, -0.2], "velocity": [1.5, 0.8]},
+            {"name": "puck2", "shape": "disk", "radius": 0.03, "mass": 0.05,
+             "position": [0.4, -0.2], "velocity": [-1.2, 0.5]},
+        ],
+    }
+
+
+def effect_configurations() -> list[tuple[str, dict]]:
+    """(label, scene): all effects, then each one off (and on at zero strength where it has one)."""
+    out = [("all four effects", effect_scene(ALL_EFFECTS))]
+    for e in ALL_EFFECTS:
+        out.append((f"without {e}", effect_scene([x for x in ALL_EFFECTS if x != e])))
+        if e == "contact_friction":
+            out.append(("contact_friction at mu = 0", effect_scene(ALL_EFFECTS, contact_mu=0.0)))
+        if e == "table_friction":
+            out.append(("table_friction at mu_t = 0", effect_scene(ALL_EFFECTS, table_mu=0.0)))
+    out.append(("none (bare translation, unbounded)", effect_scene([])))
+    return out
+
+
+def effect_costs(min_time: float = 0.2) -> list[dict]:
+    """Time per step (s) and contacts per step of each configuration and solver, B = 1."""
+    rows = []
+    for label, scene in effect_configurations():
+        row: dict[str, Any] = {"label": label}
+        for name, block in EFFECT_SOLVERS:
+            world = physics.World(scene, solver=block)
+            times: list[float] = []
+            contacts = 0
+            while len(times) < 3 or sum(times) < min_time:
+                world.reset()
+                contacts = 0
+                t0 = time.perf_counter()
+                for _ in range(EFFECT_STEPS):
+                    contacts += len(world.step(EFFECT_DT))
+                times.append(time.perf_counter() - t0)
+            row[name] = float(np.median(times)) / EFFECT_STEPS
+            row[name + "_contacts"] = contacts / EFFECT_STEPS
+        rows.append(row)
+    return rows
+
+
+# ---------------------------------------------------------------------------------------------
+# report
+# ---------------------------------------------------------------------------------------------
+
+
+def _summary(ms: list[Measurement]) -> list[dict]:
+    """Per setting: worst errors over the accuracy cases (all but ``tunnel``), the median over
+    their off-line variants, per-case median and worst, tunnel misses, mean cost."""
+    by: dict[Setting, list[Measurement]] = {}
+    for m in ms:
+        by.setdefault(m.setting, []).append(m)
+    rows = []
+    for s, group in by.items():
+        acc = [m for m in group if m.case != "tunnel"] or group
+        vel = np.concatenate([m.velocity for m in acc])
+        off = [x for m in acc if m.offline for x in m.velocity]
+        per_case: dict[str, tuple[float, float]] = {}
+        for case in dict.fromkeys(m.case for m in group):
+            errs = [x for m in group if m.case == case for x in m.velocity]
+            per_case[case] = (float(np.median(errs)), float(np.max(errs)))
+        tunnel = [h for m in group if m.case == "tunnel" for h in m.hit]
+        rows.append({
+            "setting": s, "vel_max": float(vel.max()),
+            "vel_offline_median": float(np.median(off)) if off else math.nan,
+            "spin_max": float(max(max(m.spin) for m in acc)),
+            "energy_max": float(max(max(m.energy) for m in acc)),
+            "seconds": float(np.mean([m.seconds for m in group])),
+            "events": float(np.mean([m.events for m in group])),
+            "iterations": float(np.mean([m.iterations for m in group])),
+            "substeps": float(np.mean([m.substeps for m in group])),
+            "contacts": float(np.mean([m.contacts for m in group])),
+            "per_case": per_case,
+            "tunnel_missed": (sum(not h for h in tunnel), len(tunnel)),
+        })
+    return rows
+
+
+def pareto_front(points: list[tuple[float, float]]) -> list[int]:
+    """Indices of the points no other point beats in both time and error (ties kept)."""
+    front = []
+    for i, (t, e) in enumerate(points):
+        if not any((t2 <= t and e2 <= e) and (t2 < t or e2 < e) for t2, e2 in points):
+            front.append(i)
+    return sorted(front, key=lambda i: points[i][0])
+
+
+def _us(seconds: float) -> str:
+    us = seconds * 1e6
+    return f"{us:.3g}" if us < 1000 else f"{us:,.0f}"
+
+
+def _e(x: float) -> str:
+    return "0" if x == 0 else f"{x:.1e}"
+
+
+def machine() -> dict[str, str]:
+    """CPU model (``lscpu``), core count, OS and the library versions the numbers depend on."""
+    model = platform.processor() or "unknown"
+    try:
+        out = subprocess.run(["lscpu"], capture_output=True, text=True, timeout=10).stdout
+        for line in out.splitlines():
+            if line.startswith("Model name:"):
+                model = line.split(":", 1)[1].strip()
+    except (OSError, subprocess.SubprocessError):
+        pass
+    versions = {"python": platform.python_version()}
+    for lib in ("numpy", "numba", "pymunk", "mpmath", "matplotlib", "gymnasium"):
+        try:
+            versions[lib] = importlib.metadata.version(lib)
+        except importlib.metadata.PackageNotFoundError:
+            versions[lib] = "not installed"
+    return {"cpu": model, "cores": str(os.cpu_count()), "os": platform.platform(),
+            "versions": ", ".join(f"{k} {v}" for k, v in versions.items())}
+
+
+def raw_pymunk_step(steps: int = 5000) -> float:
+    """Seconds per bare ``Space.step`` (no contact, no Python callback, no world around it).
+
+    Steps the backend's own space of a disk-disk variant after the impact, when the two disks
+    fly apart: Chipmunk's floor cost per step on this machine (pymunk is not imported here).
+    """
+    v = get_case("disk_disk").variants[0]
+    world = physics.World(v.scene, solver={"mode": "pymunk", "substeps": 10})
+    world.step(v.duration)  # past the impact
+    space = world._backend._elements[0].space
+    h = v.t_contact / 100
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        space.step(h)
+    return (time.perf_counter() - t0) / steps
+
+
+def report(ms: list[Measurement], effects: list[dict] | None, argv: Sequence[str],
+           seconds: float, plot_name: str | None, raw_step: float | None = None) -> str:
+    """The markdown page."""
+    rows = _summary(ms)
+    mach = machine()
+    cases = list(dict.fromkeys(m.case for m in ms))
+    cmd = "python -m benchmarks.accuracy" + "".join(f" {a}" for a in argv)
+    phases = ", ".join(f"{p:g}" for p in _phases(ms))
+    lines = [
+        "# Accuracy against time",
+        "",
+        f"Generated by `{cmd}` on {_dt.date.today().isoformat()} in {seconds:.0f} s "
+        "(regenerate with `python -m benchmarks.accuracy`; `--quick` for a small subset).",
+        "",
+        f"- Machine: {mach['cpu']}, {mach['cores']} cores (`lscpu`), {mach['os']}",
+        f"- Libraries: {mach['versions']}",
+        "",
+        "Every reference case (`benchmarks/cases.py`) is one collision whose answer comes from a "
+        "closed form or from an independent root finder (mpmath) plus the impulse law, never from "
+        "a solver. Errors are relative: velocity `max_i |v_i - v_i,ref| / V`, spin "
+        "`max_i |w_i - w_i,ref| L / V` (V the incoming contact-point speed, L the rod "
+        "half-length), energy `|E - E_ref| / E_in`. *Time per collision* is the wall time of one "
+        "`world.step` that simulates the approach, the impact and a short collision-free window "
+        "after it (a quarter of the approach), per batch element (B copies stepped together, "
+        "median over repetitions, numba compiled first). The fixed-step solvers run at *steps per "
+        "approach* S, i.e. step `h = t_c / (S + phase)` with `t_c` the reference time of impact, "
+        f"for phases {phases}; errors are taken over all phases. Cost columns are per collision "
+        "from `world.last_step` (pymunk's sweeps = steps x `Space.iterations`).",
+        "",
+    ]
+    lines += _acceptance(rows, raw_step)
+    lines += [
+        "## Summary",
+        "",
+        "*Worst*: over every variant and phase of the accuracy cases (all but `tunnel`, which is "
+        "reported by its misses). *Median off-line*: over the variants whose answer depends on "
+        "where the contact is taken (oblique and off-centre impacts, the spinning rod) — head-on "
+        "impacts are exact for every solver and would only pull the median to round-off.",
+        "",
+        "| solver | knob | velocity err, worst | velocity err, median off-line | spin err, worst "
+        "| energy err, worst | tunnel misses | time/collision (µs) | events | TOI iterations / "
+        "solver sweeps | substeps | impulses |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        s = r["setting"]
+        missed, total = r["tunnel_missed"]
+        lines.append(
+            f"| {s.solver} | {s.knob} | {_e(r['vel_max'])} | {_e(r['vel_offline_median'])} | "
+            f"{_e(r['spin_max'])} | {_e(r['energy_max'])} | {missed}/{total} | "
+            f"{_us(r['seconds'])} | {r['events']:.3g} | {r['iterations']:.3g} | "
+            f"{r['substeps']:.3g} | {r['contacts']:.3g} |")
+    if plot_name:
+        lines += ["", f"![error against time per collision]({plot_name})", "",
+                  "Pareto chart (log-log): error against time per collision; the dashed line "
+                  "joins the settings that no other setting beats in both; the dotted line is "
+                  "1e-9. Labels: exact tolerance (m), fixed and pymunk steps per approach."]
+    lines += ["", "## Velocity error per case (median / worst over variants and phases)", "",
+              "| solver | knob | " + " | ".join(f"`{c}`" for c in cases) + " |",
+              "|---|---|" + "---|" * len(cases)]
+    for r in rows:
+        s = r["setting"]
+        cells = []
+        for c in cases:
+            med, worst = r["per_case"].get(c, (math.nan, math.nan))
+            cells.append(f"{_e(med)} / {_e(worst)}")
+        lines.append(f"| {s.solver} | {s.knob} | " + " | ".join(cells) + " |")
+    lines += ["", "A tunnel run that misses leaves the puck flying on through the 1 mm rod: "
+              "its velocity error is then of order 1.", ""]
+    if effects:
+        lines += _effects_table(effects)
+    lines += ["## Reference cases", ""]
+    for name in cases:
+        case = get_case(name)
+        srcs = sorted({v.source for v in case.variants})
+        names = "; ".join(v.name for v in case.variants)
+        lines.append(f"- `{name}` ({len(case.variants)} variants: {names}): {case.title}. "
+                     f"Answer: {'; '.join(srcs)}.")
+    lines.append("")
+    return "\n".join(lines)
+
+
+def _phases(ms: list[Measurement]) -> list[float]:
+    n = max((len(m.velocity) for m in ms if m.setting.solver != "exact"), default=0)
+    return list(QUICK_PHASES if n == len(QUICK_PHASES) else PHASES)
+
+
+def _acceptance(rows: list[dict], raw_step: float | None) -> list[str]:
+    exact = [r for r in rows if r["setting"].solver == "exact"]
+    ref = [r for r in rows if r["setting"].solver == "pymunk"
+           and (r["setting"].steps, r["setting"].iterations) == PYMUNK_REFERENCE]
+    if not exact:
+        return []
+    best = min(exact, key=lambda r: r["setting"].tolerance)
+    cases = list(best["per_case"])
+    worst = max(max(w for _, w in best["per_case"].values()), best["spin_max"])
+    out = ["## Acceptance", "",
+           f"- **exact**, tolerance {best['setting'].tolerance:.0e} m: worst relative error in "
+           f"velocity and spin over every case ({', '.join(cases)}) = **{_e(worst)}** "
+           f"({'<=' if worst <= 1e-9 else 'NOT <='} 1e-9), no tunnel miss, "
+           f"**{_us(best['seconds'])} µs** per collision."]
+    if ref:
+        r = ref[0]
+        missed, total = r["tunnel_missed"]
+        med, worst_off = r["per_case"].get("offline_disk_rod", (math.nan, math.nan))
+        out.append(f"- **pymunk**, {PYMUNK_REFERENCE[0]} steps per approach, "
+                   f"{PYMUNK_REFERENCE[1]} iterations: velocity error on the off-line disk-rod "
+                   f"impacts {_e(med)} median, {_e(worst_off)} worst; worst over the accuracy "
+                   f"cases {_e(r['vel_max'])}; tunnel misses {missed}/{total}; "
+                   f"**{_us(r['seconds'])} µs** per collision.")
+    if raw_step is not None:
+        out.append(f"- For scale: one bare pymunk `Space.step` (no contact, no Python callback, "
+                   f"no world around it) costs {raw_step * 1e6:.2f} µs here, so "
+                   f"{PYMUNK_REFERENCE[0]} steps of approach alone are "
+                   f"{raw_step * 1e6 * PYMUNK_REFERENCE[0]:.0f} µs; the rest of pymunk's time "
+                   "per collision is the window after the impact, the per-contact Python callbacks "
+                   "(per-pair materials, contact reports) and the world's bookkeeping.")
+    out.append("")
+    return out
+
+
+def _effects_table(effects: list[dict]) -> list[str]:
+    names = [n for n, _ in EFFECT_SOLVERS]
+    blocks = ", ".join(f"{n} `{b}`" for n, b in EFFECT_SOLVERS)
+    out = ["## Cost per effect", "",
+           f"A walled 1.2 x 0.8 m table, a spinning rod and two pucks (e = 0.9, contact mu = 0.2, "
+           f"cloth mu_t = 0.1), {EFFECT_STEPS} steps of {EFFECT_DT} s, B = 1; solvers {blocks}. "
+           "Time per `world.step` in µs (impulses per step in brackets). Turning an effect off "
+           "also changes the motion (fewer or more contacts); the *at zero strength* rows keep "
+           "the motion of the row above them and price only the code path. pymunk's "
+           "`table_friction` is a Python `velocity_func` per sliding body and step, hence its "
+           "cost.", "",
+           "| configuration | " + " | ".join(names) + " |",
+           "|---|" + "---|" * len(names)]
+    for r in effects:
+        out.append(f"| {r['label']} | "
+                   + " | ".join(f"{_us(r[n])} ({r[n + '_contacts']:.2g})" for n in names) + " |")
+    out.append("")
+    return out
+
+
+def plot(ms: list[Measurement], path: Path) -> None:
+    """The Pareto chart: worst and median off-line velocity error, and tunnel misses, against
+    time per collision."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = _summary(ms)
+    fig, axes = plt.subplots(1, 3, figsize=(17, 5.4))
+    styles = {"exact": ("tab:blue", "o"), "fixed": ("tab:orange", "s"),
+              "pymunk": ("tab:green", "^")}
+    groups: dict[tuple[str, Any], list[dict]] = {}
+    for r in rows:
+        s = r["setting"]
+        groups.setdefault((s.solver, s.iterations), []).append(r)
+
+    def value(r: dict, key: str) -> float:
+        if key == "tunnel":
+            missed, total = r["tunnel_missed"]
+            return missed / total if total else math.nan
+        return max(r[key], ERROR_FLOOR)
+
+    panels = ((axes[0], "vel_max", "worst velocity error (all but tunnel)", True),
+              (axes[1], "vel_offline_median", "median velocity error, off-line impacts", True),
+              (axes[2], "tunnel", "fraction of tunnel runs missed", False))
+    for ax, key, title, logy in panels:
+        for (solver, its), group in groups.items():
+            color, marker = styles[solver]
+            xs = [r["seconds"] * 1e6 for r in group]
+            ys = [value(r, key) for r in group]
+            alpha = {None: 1.0, 1: 0.5, 10: 1.0, 100: 0.75}.get(its, 1.0)
+            ls = {None: "-", 1: ":", 10: "-", 100: "--"}.get(its, "-")
+            label = solver if its is None else f"pymunk, {its} iterations"
+            ax.plot(xs, ys, ls, color=color, marker=marker, alpha=alpha, label=label)
+            for r, x, y in zip(group, xs, ys):
+                s = r["setting"]
+                if solver != "pymunk" or its == 10:
+                    txt = f"{s.tolerance:.0e}" if solver == "exact" else f"{s.steps}"
+                    ax.annotate(txt, (x, y), textcoords="offset points", xytext=(4, 3),
+                                fontsize=7, color=color)
+        if logy:
+            pts = [(r["seconds"] * 1e6, value(r, key)) for r in rows]
+            front = pareto_front(pts)
+            ax.step([pts[i][0] for i in front], [pts[i][1] for i in front], "k--",
+                    where="post", lw=1, alpha=0.6, label="Pareto front")
+            ax.axhline(1e-9, color="grey", lw=0.8, ls=":")
+            ax.set_yscale("log")
+            ax.set_ylabel("|v - v_ref| / V")
+        else:
+            ax.set_ylim(-0.05, 1.05)
+        ax.set_xscale("log")
+        ax.set_xlabel("time per collision (µs)")
+        ax.set_title(title, fontsize=10)
+        ax.grid(True, which="major", alpha=0.3)
+    axes[0].legend(fontsize=8, loc="best")
+    fig.suptitle("SpinStrike solvers: accuracy against time (labels: exact tolerance in m; "
+                 "fixed and pymunk steps per approach)", fontsize=11)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+# ---------------------------------------------------------------------------------------------
+# command line
+# ---------------------------------------------------------------------------------------------
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m benchmarks.accuracy [--quick] [--out DIR] ...``; returns an exit code."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.accuracy",
+                                     description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true",
+                        help="a small subset (fewer knobs, 2 variants per case, 2 phases)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="directory for accuracy.md and accuracy.png (default: docs/ for a "
+                             "full run; a --quick run only prints unless --out is given)")
+    parser.add_argument("--cases", nargs="+", choices=CASES, default=None,
+                        help="only these cases")
+    parser.add_argument("--batch", type=int, default=None, help="copies stepped together")
+    parser.add_argument("--min-time", type=float, default=None,
+                        help="least wall time (s) spent timing each measurement")
+    parser.add_argument("--no-effects", action="store_true", help="skip the cost-per-effect table")
+    parser.add_argument("-v", "--verbose", action="store_true", help="progress on stderr")
+    args = parser.parse_args(argv)
+    out = args.out if args.out is not None else (None if args.quick else Path("docs"))
+    log = (lambda msg: print(msg, file=sys.stderr, flush=True)) if args.verbose else None
+
+    t0 = time.perf_counter()
+    ms = run(quick=args.quick, batch=args.batch, min_time=args.min_time, cases=args.cases, log=log)
+    effects = None if args.no_effects else effect_costs(0.05 if args.quick else 0.3)
+    raw = raw_pymunk_step(500 if args.quick else 5000)
+    seconds = time.perf_counter() - t0
+    plot_name = "accuracy.png" if out is not None else None
+    text = report(ms, effects, argv, seconds, plot_name, raw)
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "accuracy.md").write_text(text)
+        plot(ms, out / "accuracy.png")
+        print(f"wrote {out / 'accuracy.md'} and {out / 'accuracy.png'}")
+    else:
+        print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
