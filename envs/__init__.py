@@ -1,0 +1,61 @@
+"""SpinStrike Gymnasium environments. Importing this package registers them.
+
+    import gymnasium as gym
+    import envs  # noqa: F401  (or use the id "envs:SpinStrike/RodSpin-v0" without importing)
+
+    env = gym.make("SpinStrike/RodSpin-v0")
+    vec = gym.make_vec("SpinStrike/RodSpinControl-v0", num_envs=1024)   # one batched world
+
+=================================  ==========================================================
+id                                 task
+=================================  ==========================================================
+``SpinStrike/RodSpin-v0``          one strike on a free rod; reward for reaching a target spin
+``SpinStrike/PuckSpeed-v0``        one strike on a puck; reward for a target velocity
+``SpinStrike/RodSpinControl-v0``   push a mallet on a walled table; reward for spin its hits add
+``SpinStrike/PuckSpeedControl-v0`` push a mallet on a walled table; reward for speed its hits add
+=================================  ==========================================================
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+
+from envs.config import ConfigError
+
+__all__ = ["ENV_IDS", "ConfigError", "describe"]
+
+#: registered ids and a one-line description each
+ENV_IDS: dict[str, str] = {
+    "SpinStrike/RodSpin-v0": "one strike on a free rod; reward for reaching a target spin",
+    "SpinStrike/PuckSpeed-v0": "one strike on a puck; reward for reaching a target velocity",
+    "SpinStrike/RodSpinControl-v0":
+        "push a mallet around a walled table; reward for the spin its hits give a rod",
+    "SpinStrike/PuckSpeedControl-v0":
+        "push a mallet around a walled table; reward for the speed its hits give a puck",
+}
+
+_ENTRY = {
+    "SpinStrike/RodSpin-v0": ("envs.strike:RodSpinEnv", "envs.strike:RodSpinVectorEnv", None),
+    "SpinStrike/PuckSpeed-v0": ("envs.strike:PuckSpeedEnv", "envs.strike:PuckSpeedVectorEnv",
+                                None),
+    "SpinStrike/RodSpinControl-v0": ("envs.control:RodSpinControlEnv",
+                                     "envs.control:RodSpinControlVectorEnv", 250),
+    "SpinStrike/PuckSpeedControl-v0": ("envs.control:PuckSpeedControlEnv",
+                                       "envs.control:PuckSpeedControlVectorEnv", 250),
+}
+
+
+def _register() -> None:
+    for env_id, (entry, vector_entry, steps) in _ENTRY.items():
+        if env_id in gym.registry:
+            continue
+        gym.register(id=env_id, entry_point=entry, vector_entry_point=vector_entry,
+                     max_episode_steps=steps, disable_env_checker=False)
+
+
+def describe() -> str:
+    """One line per registered id."""
+    return "\n".join(f"{k:34s} {v}" for k, v in ENV_IDS.items())
+
+
+_register()

@@ -1,0 +1,265 @@
+"""Environment configuration: constructor keyword arguments, or one ``config`` dict (Ray RLlib).
+
+Every env validates its arguments into a frozen pydantic model; an unknown key or a bad value
+raises :class:`ConfigError` naming the field and what is allowed. Scenes ship inside the package
+(``configs/scenes/*.yaml``) and load from a plain ``pip install .`` as well as from a checkout.
+"""
+
+from __future__ import annotations
+
+import copy
+from importlib import resources
+from pathlib import Path
+from typing import ClassVar, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from physics import EFFECTS, SceneError, load_scene
+from physics.scene import Scene
+
+__all__ = [
+    "ConfigError",
+    "ControlConfig",
+    "EnvConfig",
+    "PuckSpeedConfig",
+    "RodSpinConfig",
+    "load_packaged_scene",
+    "parse_config",
+]
+
+
+class ConfigError(ValueError):
+    """An invalid env argument. The message names the argument and what is allowed."""
+
+
+Range = tuple[float, float]
+
+
+class EnvConfig(BaseModel):
+    """Arguments shared by every SpinStrike env.
+
+    Attributes:
+        scene: a scene (path, YAML string or dict) replacing the packaged one; its body names must
+            match (``striker``/``mallet`` and ``rod``/``puck``).
+        solver: solver block overriding the scene's, e.g. ``{"mode": "fixed", "substeps": 8}``.
+        effects: effect list replacing the scene's.
+        restitution: e in [0, 1] of every pair.
+        friction: contact friction mu >= 0 (needs ``contact_friction``; added when > 0).
+        table_friction: cloth friction mu_t >= 0 (needs ``table_friction``; added when > 0).
+        randomize: ranges ``{param: [low, high]}`` drawn per episode (masses log-uniformly, the
+            rest uniformly); the allowed params are listed by each env.
+        obs_mode: ``vector`` (flat Box), ``dict`` (goal-conditioned, target envs) or ``pixels``.
+        render_size: (width, height) of rendered frames, pixels.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    scene: str | dict | None = None
+    solver: dict | str | None = None
+    effects: tuple[str, ...] | None = None
+    restitution: float | None = Field(None, ge=0.0, le=1.0)
+    friction: float | None = Field(None, ge=0.0)
+    table_friction: float | None = Field(None, ge=0.0)
+    randomize: dict[str, Range] = Field(default_factory=dict)
+    obs_mode: Literal["vector", "dict", "pixels"] = "vector"
+    render_size: tuple[int, int] = (480, 320)
+
+    #: parameters ``randomize`` may name (set by subclasses)
+    RANDOMIZABLE: ClassVar[tuple[str, ...]] = ()
+
+    @field_validator("effects")
+    @classmethod
+    def _known_effects(cls, v):
+        if v is not None:
+            for e in v:
+                if e not in EFFECTS:
+                    raise ValueError(f"unknown effect {e!r}; allowed: {sorted(EFFECTS)}")
+        return v
+
+    @field_validator("render_size")
+    @classmethod
+    def _size(cls, v):
+        if not (16 <= v[0] <= 4096 and 16 <= v[1] <= 4096):
+            raise ValueError(f"must be two sizes in [16, 4096] pixels (got {v})")
+        return v
+
+    @field_validator("randomize")
+    @classmethod
+    def _ranges(cls, v):
+        allowed = cls.RANDOMIZABLE
+        for key, (lo, hi) in v.items():
+            if key not in allowed:
+                raise ValueError(f"unknown parameter {key!r}; allowed: {list(allowed)}")
+            if not lo <= hi:
+                raise ValueError(f"{key}: needs low <= high (got [{lo}, {hi}])")
+            if key.endswith("mass") and lo <= 0:
+                raise ValueError(f"{key}: masses must be > 0 (got [{lo}, {hi}])")
+            if key == "restitution" and not (0 <= lo and hi <= 1):
+                raise ValueError(f"restitution: must lie in [0, 1] (got [{lo}, {hi}])")
+            if lo < 0:
+                raise ValueError(f"{key}: must be >= 0 (got [{lo}, {hi}])")
+        return v
+
+
+class _StrikeConfig(EnvConfig):
+    """One-strike envs.
+
+    Attributes:
+        speed_range: (min, max) strike speed of the striker, m/s.
+        approach_max: largest approach angle from the target's normal, degrees.
+        time_cap: simulated time after which a strike ends whatever happens, s.
+        striker_mass, target_mass: kg (``target`` = the rod or the puck).
+    """
+
+    speed_range: Range = (0.5, 4.0)
+    approach_max: float = Field(75.0, gt=0.0, lt=90.0)
+    time_cap: float = Field(2.0, gt=0.0, le=60.0)
+    striker_mass: float | None = Field(None, gt=0.0)
+    target_mass: float | None = Field(None, gt=0.0)
+
+    @field_validator("speed_range")
+    @classmethod
+    def _speeds(cls, v):
+        if not 0 < v[0] <= v[1]:
+            raise ValueError(f"needs 0 < min <= max (m/s), got {list(v)}")
+        return v
+
+
+class RodSpinConfig(_StrikeConfig):
+    """``SpinStrike/RodSpin-v0``.
+
+    Attributes:
+        goal: ``target`` (reach a target spin drawn per episode) or ``max`` (most spin).
+        target_spin: (min, max) magnitude of the target spin, rad/s; its sign is drawn too.
+        reward_width: the reward's width sigma, as a fraction of the target's magnitude.
+        rod_length, rod_thickness: m.  rod_inertia: ``capsule`` (exact), ``thin_rod``
+            (the seed's m r^2/3) or a number, kg m^2.
+    """
+
+    RANDOMIZABLE: ClassVar[tuple[str, ...]] = ("striker_mass", "target_mass", "restitution",
+                                               "rod_length")
+    goal: Literal["target", "max"] = "target"
+    target_spin: Range = (2.0, 20.0)
+    reward_width: float = Field(0.1, gt=0.0)
+    rod_length: float | None = Field(None, gt=0.0)
+    rod_thickness: float | None = Field(None, ge=0.0)
+    rod_inertia: Literal["capsule", "thin_rod"] | float = "capsule"
+
+    @field_validator("target_spin")
+    @classmethod
+    def _spins(cls, v):
+        if not 0 < v[0] <= v[1]:
+            raise ValueError(f"needs 0 < min <= max (rad/s), got {list(v)}")
+        return v
+
+
+class PuckSpeedConfig(_StrikeConfig):
+    """``SpinStrike/PuckSpeed-v0``.
+
+    Attributes:
+        target_speed: (min, max) target speed of the puck, m/s; its heading is uniform.
+        reward_width: sigma of the reward, as a fraction of the target speed.
+    """
+
+    RANDOMIZABLE: ClassVar[tuple[str, ...]] = ("striker_mass", "target_mass", "restitution",
+                                               "friction")
+    target_speed: Range = (0.75, 3.0)
+    reward_width: float = Field(0.1, gt=0.0)
+
+    @field_validator("target_speed")
+    @classmethod
+    def _targets(cls, v):
+        if not 0 < v[0] <= v[1]:
+            raise ValueError(f"needs 0 < min <= max (m/s), got {list(v)}")
+        return v
+
+
+class ControlConfig(EnvConfig):
+    """Control envs: the agent pushes a mallet around a walled table.
+
+    Attributes:
+        dt: control time step (one ``world.step``), s.
+        max_force: largest force on the mallet, N (the action's unit disk maps onto it).
+        max_speed: the mallet's speed limit, m/s (the force is reduced so that free flight does
+            not end a step faster).
+        mallet_mass, target_mass: kg.
+    """
+
+    RANDOMIZABLE: ClassVar[tuple[str, ...]] = ("mallet_mass", "target_mass", "restitution",
+                                               "table_friction")
+    dt: float = Field(0.02, gt=0.0, le=1.0)
+    max_force: float = Field(8.0, gt=0.0)
+    max_speed: float = Field(3.0, gt=0.0)
+    mallet_mass: float | None = Field(None, gt=0.0)
+    target_mass: float | None = Field(None, gt=0.0)
+
+
+def _format(err: ValidationError) -> str:
+    parts = []
+    for e in err.errors():
+        loc = ".".join(str(p) for p in e["loc"]) or "config"
+        msg = e["msg"].removeprefix("Value error, ")
+        if e["type"] == "extra_forbidden":
+            msg = "unknown argument"
+        elif e["type"] != "value_error" and "input" in e:
+            msg += f" (got {e['input']!r})"
+        parts.append(f"{loc}: {msg}")
+    return "; ".join(parts)
+
+
+def parse_config(model: type[EnvConfig], config: dict | None, kwargs: dict) -> EnvConfig:
+    """Merge a ``config`` dict and keyword arguments (keywords win) and validate them."""
+    merged = dict(config or {})
+    merged.update(kwargs)
+    try:
+        return model.model_validate(merged)
+    except ValidationError as exc:
+        allowed = sorted(model.model_fields)
+        raise ConfigError(f"{_format(exc)} [allowed arguments: {', '.join(allowed)}]") from None
+
+
+def load_packaged_scene(name: str) -> dict:
+    """The raw dict of a packaged scene ``configs/scenes/<name>.yaml``."""
+    text = resources.files("configs.scenes").joinpath(f"{name}.yaml").read_text()
+    return yaml.safe_load(text)
+
+
+def build_scene(default: str, cfg: EnvConfig, body_overrides: dict[str, dict]) -> Scene:
+    """Packaged (or user) scene with the env's overrides applied, validated once."""
+    if cfg.scene is None:
+        data = load_packaged_scene(default)
+    elif isinstance(cfg.scene, dict):
+        data = copy.deepcopy(cfg.scene)
+    else:
+        text = cfg.scene
+        data = yaml.safe_load(Path(text).read_text()) if "\n" not in text else yaml.safe_load(text)
+    effects = list(cfg.effects) if cfg.effects is not None else list(data.get("effects", []))
+    if cfg.friction and "contact_friction" not in effects:
+        effects.append("contact_friction")
+    if cfg.table_friction and "table_friction" not in effects:
+        effects.append("table_friction")
+    if "friction" in cfg.randomize and "contact_friction" not in effects:
+        effects.append("contact_friction")
+    if "table_friction" in cfg.randomize and "table_friction" not in effects:
+        effects.append("table_friction")
+    data["effects"] = effects
+    if cfg.solver is not None:
+        data["solver"] = {"mode": cfg.solver} if isinstance(cfg.solver, str) else dict(cfg.solver)
+    mats = dict(data.get("materials", {}))
+    if cfg.restitution is not None:
+        mats["restitution"] = cfg.restitution
+    if cfg.friction is not None:
+        mats["friction"] = cfg.friction
+    data["materials"] = mats
+    if cfg.table_friction is not None:
+        data["table"] = dict(data.get("table", {}), friction=cfg.table_friction)
+    bodies = {b["name"]: b for b in data.get("bodies", [])}
+    for name, changes in body_overrides.items():
+        if name not in bodies:
+            raise ConfigError(f"scene: needs a body named {name!r} (has {sorted(bodies)})")
+        bodies[name].update({k: v for k, v in changes.items() if v is not None})
+    try:
+        return load_scene(data)
+    except SceneError as exc:
+        raise ConfigError(f"scene: {exc}") from None

@@ -1,0 +1,381 @@
+"""The machinery every SpinStrike env shares, written once for a batch.
+
+A :class:`Task` holds a batched :class:`physics.World` and does the env's work for B elements at
+once: reset chosen elements from rows of uniforms, step all of them with a batch of actions,
+observe, reward. :class:`SpinStrikeEnv` is a Gymnasium ``Env`` over a task with B = 1;
+:class:`SpinStrikeVectorEnv` is a native Gymnasium ``VectorEnv`` over a task with B = N (what
+``gym.make_vec`` builds through ``vector_entry_point``). Both draw their randomness from
+per-element streams (``envs.rng``), so element i of a vector env seeded s follows a single env
+seeded s + i bit for bit.
+
+Actions: float32 Boxes in [-1, 1]. A NaN or infinite action raises ``ValueError``; finite values
+outside the box are clipped to it (as Gymnasium's ``ClipAction`` would), silently.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from envs.config import EnvConfig, parse_config
+from envs.rendering import Frame, Renderer
+from envs.rng import UniformStream
+
+__all__ = ["ObsField", "SpinStrikeEnv", "SpinStrikeVectorEnv", "Task", "check_actions",
+           "layout_table"]
+
+
+@dataclass(frozen=True)
+class ObsField:
+    """One entry of a flat observation: its name, bounds and meaning (with units)."""
+
+    name: str
+    low: float
+    high: float
+    doc: str
+
+
+def layout_table(layout: tuple[ObsField, ...]) -> str:
+    """The observation layout as a docstring table (so the docs cannot drift from the code)."""
+    rows = ["    | index | name | low | high | meaning |", "    |---|---|---|---|---|"]
+    for i, f in enumerate(layout):
+        rows.append(f"    | {i} | {f.name} | {f.low:g} | {f.high:g} | {f.doc} |")
+    return "\n".join(rows)
+
+
+def check_actions(actions: Any, space: spaces.Box) -> np.ndarray:
+    """Validate a batch of actions: NaN/inf raise, out-of-range values are clipped."""
+    a = np.asarray(actions, dtype=np.float64)
+    if a.shape != space.shape:
+        try:
+            a = a.reshape(space.shape)
+        except ValueError:
+            raise ValueError(f"action: expected shape {space.shape}, got {a.shape}") from None
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"action: must be finite numbers in [-1, 1] (got {a.tolist()}); "
+                         "finite values outside the box are clipped")
+    return np.clip(a, space.low, space.high)
+
+
+class Task:
+    """A batched env: subclasses implement the physics-facing parts.
+
+    Class attributes:
+        CONFIG: the config model.  LAYOUT: flat observation fields.  ACTIONS: action names.
+        GOAL: slice of LAYOUT holding the desired goal (goal-conditioned mode), or None.
+        UNIFORMS: uniforms drawn per reset of an element.
+    """
+
+    CONFIG: ClassVar[type[EnvConfig]]
+    LAYOUT: ClassVar[tuple[ObsField, ...]]
+    ACTIONS: ClassVar[tuple[str, ...]]
+    GOAL: ClassVar[slice | None] = None
+    ACHIEVED: ClassVar[tuple[ObsField, ...]] = ()
+    UNIFORMS: ClassVar[int]
+    render_fps: ClassVar[int] = 50
+
+    def __init__(self, cfg: EnvConfig, batch_size: int) -> None:
+        self.cfg = cfg
+        self.batch_size = batch_size
+        self.obs_low = np.array([f.low for f in self.LAYOUT], dtype=np.float32)
+        self.obs_high = np.array([f.high for f in self.LAYOUT], dtype=np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (len(self.ACTIONS),), dtype=np.float32)
+        self._renderer: Renderer | None = None
+
+    # --- to implement ---------------------------------------------------------------------
+    def reset(self, env: np.ndarray, uniforms: np.ndarray) -> dict[str, np.ndarray]:
+        """Start new episodes in elements ``env``; returns reset info arrays (over ``env``)."""
+        raise NotImplementedError
+
+    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """Advance every element; returns (reward[B], terminated[B], info arrays [B, ...])."""
+        raise NotImplementedError
+
+    def observe(self) -> np.ndarray:
+        """Flat observations ``[B, len(LAYOUT)]`` (unclipped)."""
+        raise NotImplementedError
+
+    def achieved(self) -> np.ndarray:
+        """Achieved goals ``[B, len(ACHIEVED)]`` (goal-conditioned mode)."""
+        raise NotImplementedError
+
+    @staticmethod
+    def goal_reward(achieved: np.ndarray, desired: np.ndarray, cfg: EnvConfig) -> np.ndarray:
+        """Reward for achieved vs desired goals (vectorised over leading axes)."""
+        raise NotImplementedError
+
+    def frame(self, b: int, decorate: bool = True) -> Frame:
+        """What element ``b`` looks like now (``decorate``: with the last step's history)."""
+        raise NotImplementedError
+
+    def view_half(self) -> tuple[float, float]:
+        raise NotImplementedError
+
+    # --- shared ---------------------------------------------------------------------------
+    def observation_space(self) -> spaces.Space:
+        mode = self.cfg.obs_mode
+        vec = spaces.Box(self.obs_low, self.obs_high, dtype=np.float32)
+        if mode == "vector":
+            return vec
+        if mode == "pixels":
+            w, h = self.cfg.render_size
+            return spaces.Box(0, 255, (h, w, 3), dtype=np.uint8)
+        if self.GOAL is None:
+            raise ValueError(f"obs_mode: 'dict' needs a goal-conditioned env (goal='target'); "
+                             f"{type(self).__name__} has none")
+        keep = np.ones(len(self.LAYOUT), bool)
+        keep[self.GOAL] = False
+        glow = np.array([f.low for f in self.ACHIEVED], np.float32)
+        ghigh = np.array([f.high for f in self.ACHIEVED], np.float32)
+        return spaces.Dict({
+            "observation": spaces.Box(self.obs_low[keep], self.obs_high[keep], dtype=np.float32),
+            "achieved_goal": spaces.Box(glow, ghigh, dtype=np.float32),
+            "desired_goal": spaces.Box(glow, ghigh, dtype=np.float32),
+        })
+
+    def observations(self) -> Any:
+        """Observations of every element in the configured mode (batched)."""
+        flat = np.clip(self.observe(), self.obs_low, self.obs_high).astype(np.float32)
+        mode = self.cfg.obs_mode
+        if mode == "vector":
+            return flat
+        if mode == "pixels":
+            return np.stack([self.render(b, decorate=False) for b in range(self.batch_size)])
+        keep = np.ones(len(self.LAYOUT), bool)
+        keep[self.GOAL] = False
+        lo = np.array([f.low for f in self.ACHIEVED], np.float32)
+        hi = np.array([f.high for f in self.ACHIEVED], np.float32)
+        return {"observation": flat[:, keep],
+                "achieved_goal": np.clip(self.achieved(), lo, hi).astype(np.float32),
+                "desired_goal": flat[:, self.GOAL]}
+
+    def render(self, b: int, decorate: bool = True) -> np.ndarray:
+        if self._renderer is None:
+            self._renderer = Renderer(self.cfg.render_size, self.view_half())
+        return self._renderer.draw(self.frame(b, decorate))
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+
+def _take(tree: Any, i: int) -> Any:
+    if isinstance(tree, dict):
+        return {k: _take(v, i) for k, v in tree.items()}
+    return tree[i]
+
+
+def _scalar_info(info: dict[str, np.ndarray], i: int) -> dict[str, Any]:
+    out = {}
+    for k, v in info.items():
+        x = v[i]
+        out[k] = x.item() if isinstance(x, np.generic) else x
+    return out
+
+
+class SpinStrikeEnv(gym.Env):
+    """Gymnasium env over a :class:`Task` with one element. Subclasses set ``TASK``."""
+
+    TASK: ClassVar[type[Task]]
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array", "human"],
+                                          "render_fps": 50}
+
+    def __init__(self, render_mode: str | None = None, config: dict | None = None,
+                 **kwargs: Any) -> None:
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode: must be one of {self.metadata['render_modes']} or "
+                             f"None (got {render_mode!r})")
+        self.render_mode = render_mode
+        self._config = dict(config or {}) | kwargs
+        self.cfg = parse_config(self.TASK.CONFIG, config, kwargs)
+        self.task = self.TASK(self.cfg, 1)
+        self.action_space = self.task.action_space
+        self.observation_space = self.task.observation_space()
+        self._stream = UniformStream(1, self.TASK.UNIFORMS)
+        self._stream_seeded = False
+        self._started = False
+        if self.cfg.obs_mode == "dict":
+            self.compute_reward = self._goal_reward
+
+    # pickling (SubprocVecEnv, Ray): rebuild from the arguments, then put back the live state
+    def __getstate__(self) -> dict:
+        return {"render_mode": self.render_mode, "config": self._config,
+                "physics": self.get_physics_state(), "stream": self._stream,
+                "np_random": self._np_random, "stream_seeded": self._stream_seeded,
+                "started": self._started}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(render_mode=state["render_mode"], config=state["config"])
+        self.set_physics_state(state["physics"])
+        self._stream = state["stream"]
+        self._np_random = state["np_random"]
+        self._stream_seeded = state["stream_seeded"]
+        self._started = state["started"]
+
+    @property
+    def world(self):
+        """The batched physics world (B = 1) behind this env."""
+        return self.task.world
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        if seed is not None or not self._stream_seeded:
+            self._stream.use(0, self.np_random)
+            self._stream_seeded = True
+        env = np.zeros(1, dtype=np.int64)
+        info = self.task.reset(env, self._stream.draw(env))
+        self._started = True
+        if self.render_mode == "human":
+            self.render()
+        return _take(self.task.observations(), 0), _scalar_info(info, 0)
+
+    def step(self, action):
+        if not self._started:
+            raise gym.error.ResetNeeded("call reset() before step()")
+        a = check_actions(action, self.action_space)
+        reward, terminated, info = self.task.step(a[None].astype(np.float64))
+        obs = _take(self.task.observations(), 0)
+        if self.render_mode == "human":
+            self.render()
+        return obs, float(reward[0]), bool(terminated[0]), False, _scalar_info(info, 0)
+
+    def _goal_reward(self, achieved_goal, desired_goal, info):
+        """Goal-conditioned reward (``obs_mode='dict'``), vectorised like SB3's HER expects.
+
+        Bound as ``compute_reward`` only in dict mode: SB3 takes any env with a
+        ``compute_reward`` for a goal env.
+        """
+        return self.task.goal_reward(np.asarray(achieved_goal), np.asarray(desired_goal),
+                                     self.cfg)
+
+    def get_physics_state(self) -> dict:
+        """The full physical state (world arrays and the episode's task data), for replays."""
+        return {"world": self.task.world.get_state(), "task": self.task.snapshot()}
+
+    def set_physics_state(self, state: dict) -> None:
+        """Put back a state from :meth:`get_physics_state` (then ``step`` continues from it)."""
+        self.task.world.restore(state["world"])
+        self.task.restore(state["task"])
+        self._started = True
+
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode")
+            return None
+        image = self.task.render(0)
+        if self.render_mode == "human":
+            self.task._renderer.show(image, self.metadata["render_fps"])
+            return None
+        return image
+
+    def close(self) -> None:
+        self.task.close()
+
+
+class SpinStrikeVectorEnv(VectorEnv):
+    """Native vector env: N elements in one batched world (``AutoresetMode.SAME_STEP``).
+
+    A finished element is reset within the same ``step``; its last observation and info are in
+    ``info["final_obs"]`` / ``info["final_info"]`` (with ``_final_obs`` masks), as Gymnasium's
+    ``SyncVectorEnv`` does in SAME_STEP mode. ``max_episode_steps`` truncates by itself.
+    """
+
+    TASK: ClassVar[type[Task]]
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 50,
+                                          "autoreset_mode": AutoresetMode.SAME_STEP}
+
+    def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None,
+                 render_mode: str | None = None, config: dict | None = None,
+                 **kwargs: Any) -> None:
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode: must be one of {self.metadata['render_modes']} or "
+                             f"None (got {render_mode!r})")
+        if int(num_envs) < 1:
+            raise ValueError(f"num_envs: must be >= 1 (got {num_envs})")
+        self.num_envs = int(num_envs)
+        self.render_mode = render_mode
+        self.max_episode_steps = max_episode_steps
+        self.cfg = parse_config(self.TASK.CONFIG, config, kwargs)
+        self.task = self.TASK(self.cfg, self.num_envs)
+        self.single_action_space = self.task.action_space
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.single_observation_space = self.task.observation_space()
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self._stream = UniformStream(self.num_envs, self.TASK.UNIFORMS)
+        self._steps = np.zeros(self.num_envs, dtype=np.int64)
+        self._started = False
+
+    @property
+    def world(self):
+        return self.task.world
+
+    def reset(self, *, seed: int | list | None = None, options: dict | None = None):
+        if seed is not None:
+            seeds = [seed + i for i in range(self.num_envs)] if isinstance(seed, int) else list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"seed: expected {self.num_envs} seeds, got {len(seeds)}")
+            self._stream.seed(seeds)
+        self._np_random = self._stream.generators[0]
+        env = np.arange(self.num_envs)
+        info = self.task.reset(env, self._stream.draw(env))
+        self._steps[:] = 0
+        self._started = True
+        return self.task.observations(), info
+
+    def step(self, actions):
+        if not self._started:
+            raise gym.error.ResetNeeded("call reset() before step()")
+        a = check_actions(actions, self.action_space)
+        reward, terminated, info = self.task.step(a)
+        self._steps += 1
+        truncated = np.zeros(self.num_envs, dtype=bool)
+        if self.max_episode_steps is not None:
+            truncated = (self._steps >= self.max_episode_steps) & ~terminated
+        done = terminated | truncated
+        obs = self.task.observations()
+        everyone = np.ones(self.num_envs, dtype=bool)
+        out = {}
+        for k, v in info.items():
+            out[k] = v
+            out[f"_{k}"] = everyone
+        if done.any():
+            env = np.flatnonzero(done)
+            final_obs = np.full(self.num_envs, None, dtype=object)
+            for i in env:
+                final_obs[i] = _take(obs, i)
+            final_info = {}
+            for k, v in info.items():
+                final_info[k] = v
+                final_info[f"_{k}"] = done
+            reset_info = self.task.reset(env, self._stream.draw(env))
+            self._steps[env] = 0
+            obs = self.task.observations()
+            for k, v in reset_info.items():
+                v = np.asarray(v)
+                if k in out:
+                    full = out[k].copy()
+                else:
+                    full = np.zeros((self.num_envs, *v.shape[1:]), dtype=v.dtype)
+                    out[f"_{k}"] = done
+                full[env] = v
+                out[k] = full
+            out.update(final_obs=final_obs, _final_obs=done, final_info=final_info,
+                       _final_info=done)
+        info = out
+        return obs, reward.astype(np.float64), terminated, truncated, info
+
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode")
+            return None
+        return tuple(self.task.render(b) for b in range(self.num_envs))
+
+    def close_extras(self, **kwargs: Any) -> None:
+        self.task.close()

@@ -1,0 +1,52 @@
+"""Per-element random streams for batched envs, bit-identical to single envs.
+
+Element ``i`` of a vector env seeded ``s`` draws exactly what a single env seeded ``s + i`` draws
+(Gymnasium's convention): each element owns a ``numpy.random.Generator`` made by
+``gymnasium.utils.seeding.np_random``, and every episode consumes one row of uniforms from it.
+Rows are drawn in blocks, so the Python loop over elements runs once per ``BLOCK`` resets of an
+element, not at every reset.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium.utils import seeding
+
+__all__ = ["BLOCK", "UniformStream"]
+
+#: episodes' worth of uniforms drawn at once per element
+BLOCK = 64
+
+
+class UniformStream:
+    """``width`` uniforms in [0, 1) per element per episode."""
+
+    def __init__(self, batch_size: int, width: int) -> None:
+        self.batch_size = batch_size
+        self.width = width
+        self.generators: list[np.random.Generator] = [seeding.np_random()[0]
+                                                      for _ in range(batch_size)]
+        self._buffer = np.zeros((batch_size, BLOCK, width))
+        self._next = np.full(batch_size, BLOCK)
+
+    def seed(self, seeds, env: np.ndarray | None = None) -> None:
+        """Reseed elements (all, or ``env``) with the given seeds (one per element, or None)."""
+        idx = np.arange(self.batch_size) if env is None else np.asarray(env)
+        for i, s in zip(idx, seeds, strict=True):
+            self.generators[i] = seeding.np_random(None if s is None else int(s))[0]
+            self._next[i] = BLOCK
+
+    def use(self, env: int, generator: np.random.Generator) -> None:
+        """Draw element ``env`` from an existing generator (a single env's ``np_random``)."""
+        self.generators[env] = generator
+        self._next[env] = BLOCK
+
+    def draw(self, env: np.ndarray) -> np.ndarray:
+        """One row of uniforms for each element in ``env``: ``[len(env), width]``."""
+        env = np.asarray(env, dtype=np.int64)
+        for i in env[self._next[env] >= BLOCK]:
+            self._buffer[i] = self.generators[i].random((BLOCK, self.width))
+            self._next[i] = 0
+        rows = self._buffer[env, self._next[env]]
+        self._next[env] += 1
+        return rows

@@ -1,0 +1,115 @@
+"""Stable-Baselines3 ``VecEnv`` adapter over a native SpinStrike vector env.
+
+SB3 does not accept Gymnasium vector envs. :class:`SB3VecEnv` wraps one, so SB3 trains on the
+batched world, and fills in per environment what SB3's ``Monitor`` and ``TimeLimit`` handling
+would: ``terminal_observation``, ``TimeLimit.truncated`` and ``episode`` = ``{"r", "l", "t"}``
+on the step an episode ends. Other per-step info stays on the vector env (``info`` arrays), so a
+step does not build N dicts. Importing this module needs ``stable-baselines3``.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv
+
+__all__ = ["SB3VecEnv", "make_sb3_vec_env"]
+
+
+def _index(obs: Any, i: int) -> Any:
+    if isinstance(obs, dict):
+        return {k: v[i] for k, v in obs.items()}
+    return obs[i]
+
+
+class SB3VecEnv(VecEnv):
+    """An SB3 ``VecEnv`` backed by a :class:`envs.core.SpinStrikeVectorEnv`."""
+
+    def __init__(self, venv: gym.vector.VectorEnv) -> None:
+        self.venv = venv
+        super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
+        self.render_mode = venv.render_mode
+        self._actions: np.ndarray | None = None
+        self._returns = np.zeros(self.num_envs)
+        self._lengths = np.zeros(self.num_envs, dtype=np.int64)
+        self._t0 = time.time()
+        self.last_info: dict[str, Any] = {}
+
+    def reset(self):
+        seeds = None
+        if any(s is not None for s in self._seeds):
+            seeds = [s if s is not None else int(np.random.SeedSequence().entropy % 2**31)
+                     for s in self._seeds]
+        obs, info = self.venv.reset(seed=seeds)
+        self._reset_seeds()
+        self._reset_options()
+        self._returns[:] = 0.0
+        self._lengths[:] = 0
+        self.last_info = info
+        return obs
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self._actions = actions
+
+    def step_wait(self):
+        obs, reward, terminated, truncated, info = self.venv.step(self._actions)
+        self.last_info = info
+        done = terminated | truncated
+        self._returns += reward
+        self._lengths += 1
+        infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
+        if done.any():
+            final = info["final_obs"]
+            elapsed = round(time.time() - self._t0, 6)
+            for i in np.flatnonzero(done):
+                infos[i] = {
+                    "terminal_observation": final[i],
+                    "TimeLimit.truncated": bool(truncated[i] and not terminated[i]),
+                    "episode": {"r": float(self._returns[i]), "l": int(self._lengths[i]),
+                                "t": elapsed},
+                }
+            self._returns[done] = 0.0
+            self._lengths[done] = 0
+        return obs, reward.astype(np.float32), done, infos
+
+    def close(self) -> None:
+        self.venv.close()
+
+    def get_images(self):
+        frames = self.venv.render()
+        return list(frames) if frames is not None else [None] * self.num_envs
+
+    def get_attr(self, attr_name: str, indices=None) -> list[Any]:
+        value = getattr(self.venv, attr_name)
+        return [value for _ in self._get_indices(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
+        setattr(self.venv, attr_name, value)
+
+    def env_method(self, method_name: str, *args, indices=None, **kwargs) -> list[Any]:
+        if method_name == "compute_reward":  # HER, on a goal-conditioned env
+            achieved, desired = args[0], args[1]
+            result = self.venv.task.goal_reward(np.asarray(achieved), np.asarray(desired),
+                                                self.venv.cfg)
+            return [result for _ in self._get_indices(indices)]
+        method = getattr(self.venv, method_name)
+        return [method(*args, **kwargs) for _ in self._get_indices(indices)]
+
+    def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
+        return [False for _ in self._get_indices(indices)]
+
+
+def make_sb3_vec_env(env_id: str, n_envs: int, seed: int | None = None,
+                     env_kwargs: dict | None = None) -> SB3VecEnv:
+    """Native batched vector env of ``env_id`` (``gym.make_vec``) wrapped for SB3."""
+    import envs  # noqa: F401  (registers the ids)
+
+    venv = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point",
+                        **(env_kwargs or {}))
+    vec = SB3VecEnv(venv)
+    if seed is not None:
+        vec.seed(seed)
+    return vec

@@ -1,0 +1,355 @@
+"""Every registered env: checkers, seeding, vector/single parity, rewards vs closed forms,
+bad actions, video, pickling, state get/set, observation modes and config errors."""
+
+import math
+import pickle
+import subprocess
+import sys
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+import envs
+import envs.strike
+from envs import ConfigError
+
+ENV_IDS = list(envs.ENV_IDS)
+STRIKE_IDS = ["SpinStrike/RodSpin-v0", "SpinStrike/PuckSpeed-v0"]
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("kwargs", [{}, {"render_mode": "rgb_array"},
+                                    {"obs_mode": "pixels", "render_size": (64, 48)}])
+def test_checkers_pass_without_warnings(env_id, kwargs):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        env = gym.make(env_id, **kwargs)
+        check_env(env.unwrapped)
+        sb3_check_env(env.unwrapped)
+        env.close()
+
+
+@pytest.mark.parametrize("env_id", STRIKE_IDS)
+def test_goal_conditioned_mode_passes_checkers(env_id):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        env = gym.make(env_id, obs_mode="dict")
+        check_env(env.unwrapped)
+        sb3_check_env(env.unwrapped)
+    obs, info = env.reset(seed=3)
+    obs2, r, *_ = env.step(env.action_space.sample())
+    assert r == pytest.approx(env.unwrapped.compute_reward(
+        obs2["achieved_goal"], obs2["desired_goal"], info), rel=1e-5)
+    # vectorised over a batch of goals, as HER calls it
+    batch = env.unwrapped.compute_reward(np.stack([obs2["achieved_goal"]] * 4),
+                                         np.stack([obs2["desired_goal"]] * 4), [info] * 4)
+    assert batch.shape == (4,)
+
+
+def test_registered_without_prior_import():
+    code = ("import gymnasium as gym; e = gym.make('envs:SpinStrike/RodSpin-v0'); "
+            "print(e.reset(seed=0)[0].shape)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "(4,)"
+
+
+def _actions(space, n, seed):
+    rng = np.random.default_rng(seed)
+    return rng.uniform(-1, 1, (n, *space.shape)).astype(np.float32)
+
+
+def _single_rollout(env_id, seed, actions, **kwargs):
+    env = gym.make(env_id, **kwargs)
+    obs, _ = env.reset(seed=seed)
+    rows = [obs]
+    for a in actions:
+        obs, r, term, trunc, info = env.step(a)
+        rows.append((obs, r, term, trunc))
+        if term or trunc:
+            obs, _ = env.reset()
+            rows.append(obs)
+    return rows
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_same_seed_same_trajectory(env_id):
+    acts = _actions(gym.make(env_id).action_space, 12, seed=1)
+    a = _single_rollout(env_id, 7, acts)
+    b = _single_rollout(env_id, 7, acts)
+    c = _single_rollout(env_id, 8, acts)
+    flat = [np.concatenate([np.ravel(x) for x in (r if isinstance(r, tuple) else (r,))])
+            for r in a]
+    flat_b = [np.concatenate([np.ravel(x) for x in (r if isinstance(r, tuple) else (r,))])
+              for r in b]
+    flat_c = [np.concatenate([np.ravel(x) for x in (r if isinstance(r, tuple) else (r,))])
+              for r in c]
+    assert all(np.array_equal(x, y) for x, y in zip(flat, flat_b, strict=True))
+    assert not all(np.array_equal(x, y) for x, y in zip(flat, flat_c, strict=False))
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_vector_env_matches_single_envs_in_lock_step(env_id):
+    n, seed, steps, limit = 3, 11, 14, 5
+    kwargs = {"max_episode_steps": limit} if "Control" in env_id else {}
+    vec = gym.make_vec(env_id, num_envs=n, **kwargs)
+    assert vec.metadata["autoreset_mode"] == gym.vector.AutoresetMode.SAME_STEP
+    acts = _actions(vec.single_action_space, steps * n, seed=2).reshape(steps, n, -1)
+    singles = [gym.make(env_id, **kwargs) for _ in range(n)]
+    obs_v, _ = vec.reset(seed=seed)
+    obs_s = [s.reset(seed=seed + i)[0] for i, s in enumerate(singles)]
+    for i in range(n):
+        assert np.array_equal(obs_v[i], obs_s[i])
+    for k in range(steps):
+        obs_v, r_v, term_v, trunc_v, info = vec.step(acts[k])
+        for i, s in enumerate(singles):
+            o, r, term, trunc, _ = s.step(acts[k, i])
+            assert r == r_v[i] and term == term_v[i] and trunc == trunc_v[i]
+            if term or trunc:
+                assert info["_final_obs"][i]
+                assert np.array_equal(info["final_obs"][i], o)
+                o, _ = s.reset()
+            assert np.array_equal(obs_v[i], o)
+    vec.close()
+
+
+def _seed_strike_action(env, target, theta, striker_mass, rod_mass):
+    """The seed's §1 strike for ``target`` spin: the striker's line through the tip's cap
+    centre at angle theta to the rod's normal (approaching from beyond the tip)."""
+    u = env.unwrapped
+    w = u.world
+    h, rho, rs = w.half_length[0, 0], w.radius[0, 0], w.radius[0, 1]
+    c = math.cos(theta)
+    # seed §1 in the striker's frame: |w| = 6 m2 c V / ((m1 + (3c^2 + 1) m2) r)
+    speed = abs(target) * (rod_mass + (3 * c * c + 1) * striker_mass) * h / (6 * striker_mass * c)
+    lo, hi = u.cfg.speed_range
+    a = np.array([h * c / (h + rho + rs), -theta / math.radians(u.cfg.approach_max),
+                  2 * (speed - lo) / (hi - lo) - 1], dtype=np.float32)
+    if target > 0:  # mirror the strike to spin the other way
+        a[:2] *= -1
+    return a
+
+
+@pytest.mark.parametrize("theta_deg", [0.0, 20.0, 45.0, 60.0])
+def test_seed_formula_strike_scores_at_least_099(theta_deg):
+    ms, mr = 0.02, 0.1
+    env = gym.make("SpinStrike/RodSpin-v0", rod_inertia="thin_rod", rod_thickness=1e-3,
+                   striker_mass=ms, target_mass=mr, speed_range=(0.5, 12.0))
+    for seed in range(4):
+        _, info = env.reset(seed=seed)
+        target = info["target_spin"]
+        a = _seed_strike_action(env, target, math.radians(theta_deg), ms, mr)
+        _, reward, terminated, _, info = env.step(a)
+        assert terminated
+        assert info["n_contacts"] == 1 and not info["second_contact"]
+        assert reward >= 0.99
+        # exact physics; the float32 action quantises the strike speed at ~1e-8
+        assert info["spin"] == pytest.approx(target, rel=1e-6)
+        assert info["best_reward"] == 1.0
+
+
+def test_a_miss_scores_the_formula_for_zero_spin():
+    env = gym.make("SpinStrike/RodSpin-v0")
+    _, info = env.reset(seed=0)
+    # offset 1 puts the striker's line at the rod's full reach from its centre; tilted by the
+    # approach angle, it passes the tip with room to spare
+    _, reward, _, _, info = env.step(np.array([1.0, 0.5, 0.0], np.float32))
+    assert info["n_contacts"] == 0
+    assert reward == pytest.approx(math.exp(-0.5 / 0.1**2))
+
+
+def _max_env(ms, cap=2.0):
+    env = gym.make("SpinStrike/RodSpin-v0", goal="max", rod_inertia="thin_rod",
+                   rod_thickness=1e-3, striker_mass=ms, target_mass=0.1, time_cap=cap)
+    env.reset(seed=0)
+    u = env.unwrapped
+    reach = u.world.half_length[0, 0] + u.world.radius[0, 0] + u.world.radius[0, 1]
+    return env, u.task.analytic()["lever"][0], u.world.half_length[0, 0], reach
+
+
+def test_goal_max_is_scaled_by_the_analytic_maximum():
+    # light striker: the best lever is the tip, and a tip strike bounces the striker back
+    env, lever, h, reach = _max_env(0.02)
+    assert lever == h
+    _, reward, _, _, info = env.step(np.array([h / reach, 0.0, 1.0], np.float32))
+    assert info["n_contacts"] == 1
+    assert reward == pytest.approx(1.0, rel=1e-6)  # float32 action quantisation
+
+
+def test_goal_max_optimum_is_inside_the_rod_for_heavier_strikers():
+    """With sqrt(I K) < h the best single impact is at lever sqrt(I K) < h (theta > 0), not at
+    the tip. There the striker follows the rod and its far end comes round: a second contact
+    takes the spin away again, which a time cap shorter than that return isolates."""
+    env, lever, h, reach = _max_env(0.1, cap=0.1)
+    assert lever < h
+    rewards = {}
+    for name, at in (("optimum", lever), ("tip", h)):
+        env.reset(seed=0)
+        _, rewards[name], _, _, info = env.step(np.array([at / reach, 0.0, 1.0], np.float32))
+        assert info["n_contacts"] == 1
+    assert rewards["optimum"] == pytest.approx(1.0, rel=1e-6)
+    assert rewards["tip"] < rewards["optimum"]
+    env, *_ = _max_env(0.1)
+    _, reward, _, _, info = env.step(np.array([lever / reach, 0.0, 1.0], np.float32))
+    assert info["second_contact"] and reward < 1.0
+
+
+def test_puck_centred_strike_matches_closed_form():
+    env = gym.make("SpinStrike/PuckSpeed-v0")
+    _, info = env.reset(seed=5)
+    target = info["target_velocity"]
+    u = env.unwrapped
+    gain = u.task.analytic()["gain"][0]
+    speed = np.hypot(*target) / gain
+    lo, hi = u.cfg.speed_range
+    a = np.array([0.0, math.atan2(target[1], target[0]) / math.pi,
+                  2 * (speed - lo) / (hi - lo) - 1], np.float32)
+    _, reward, _, _, info = env.step(a)
+    assert info["best_reward"] == 1.0  # the default ranges make every target reachable
+    assert reward > 0.999
+    np.testing.assert_allclose(info["velocity"], target, rtol=1e-6)
+
+
+def test_puck_picks_up_spin_with_contact_friction():
+    env = gym.make("SpinStrike/PuckSpeed-v0", friction=0.3)
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(np.array([0.5, 0.2, 0.5], np.float32))
+    assert abs(info["spin"]) > 0.1
+    env = gym.make("SpinStrike/PuckSpeed-v0")
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(np.array([0.5, 0.2, 0.5], np.float32))
+    assert info["spin"] == 0.0
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_nan_action_raises_and_out_of_range_is_clipped(env_id):
+    env = gym.make(env_id)
+    env.reset(seed=0)
+    shape = env.action_space.shape
+    with pytest.raises(ValueError, match="action: must be finite"):
+        env.step(np.full(shape, np.nan, np.float32))
+    state = env.unwrapped.get_physics_state()
+    big = np.full(shape, 7.0, np.float32)
+    r_big = env.step(big)[1]
+    env.unwrapped.set_physics_state(state)
+    r_one = env.step(np.ones(shape, np.float32))[1]
+    assert r_big == r_one
+
+
+def test_record_video_writes_mp4(tmp_path):
+    import imageio_ffmpeg
+    from gymnasium.wrappers import RecordVideo
+    from moviepy import VideoFileClip
+
+    folder = tmp_path / "videos"
+    env = gym.make("SpinStrike/RodSpinControl-v0", render_mode="rgb_array",
+                   max_episode_steps=30)
+    env = RecordVideo(env, str(folder), episode_trigger=lambda e: True, disable_logger=True)
+    env.reset(seed=0)
+    for _ in range(30):
+        *_, term, trunc, _ = env.step(env.action_space.sample())
+        if term or trunc:
+            break
+    env.close()
+    files = list(folder.glob("*.mp4"))
+    assert len(files) == 1
+    # pinned down with moviepy 2.2.1: the reset frame and one per step, none dropped
+    frames, seconds = imageio_ffmpeg.count_frames_and_secs(str(files[0]))
+    assert frames == 31 and seconds == pytest.approx(31 / 50)
+    clip = VideoFileClip(str(files[0]))
+    assert sum(1 for _ in clip.iter_frames()) == 31
+    clip.close()
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_rgb_array_frames(env_id):
+    env = gym.make(env_id, render_mode="rgb_array", render_size=(160, 120))
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    frame = env.render()
+    assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
+    assert frame.std() > 5  # something is drawn
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_pickle_round_trip_continues_identically(env_id):
+    env = gym.make(env_id)
+    env.reset(seed=4)
+    acts = _actions(env.action_space, 4, seed=9)
+    env.step(acts[0])
+    clone = pickle.loads(pickle.dumps(env.unwrapped))
+    for a in acts[1:]:
+        o1, r1, t1, *_ = env.unwrapped.step(a)
+        o2, r2, t2, *_ = clone.step(a)
+        assert np.array_equal(o1, o2) and r1 == r2
+        if t1:
+            assert np.array_equal(env.unwrapped.reset()[0], clone.reset()[0])
+
+
+def test_physics_state_replay():
+    env = gym.make("SpinStrike/PuckSpeedControl-v0")
+    env.reset(seed=2)
+    acts = _actions(env.action_space, 20, seed=3)
+    for a in acts[:5]:
+        env.step(a)
+    snap = env.unwrapped.get_physics_state()
+    first = [env.step(a)[0] for a in acts[5:]]
+    env.unwrapped.set_physics_state(snap)
+    again = [env.step(a)[0] for a in acts[5:]]
+    assert all(np.array_equal(x, y) for x, y in zip(first, again, strict=True))
+
+
+def test_config_dict_and_kwargs_and_errors():
+    env = gym.make("SpinStrike/RodSpin-v0", config={"restitution": 0.5, "goal": "max"})
+    assert env.unwrapped.cfg.restitution == 0.5 and env.unwrapped.cfg.goal == "max"
+    with pytest.raises(ConfigError, match="colour: unknown argument"):
+        gym.make("SpinStrike/RodSpin-v0", colour="red")
+    with pytest.raises(ConfigError, match="restitution: Input should be less than or equal to 1"):
+        gym.make("SpinStrike/RodSpin-v0", restitution=1.5)
+    with pytest.raises(ConfigError, match="randomize.*unknown parameter 'gravity'"):
+        gym.make("SpinStrike/RodSpin-v0", randomize={"gravity": [1, 2]})
+    with pytest.raises(ConfigError, match="effects.*unknown effect 'magnetism'"):
+        gym.make("SpinStrike/RodSpinControl-v0", effects=["rotation", "walls", "magnetism"])
+    with pytest.raises(ConfigError, match="solver"):
+        gym.make("SpinStrike/RodSpin-v0", solver={"mode": "verlet"})
+    with pytest.raises(ValueError, match="render_mode"):
+        envs.strike.RodSpinEnv(render_mode="ascii")
+
+
+@pytest.mark.parametrize("solver", [{"mode": "fixed", "substeps": 4}, {"mode": "pymunk"}])
+def test_envs_run_on_other_solvers(solver):
+    for env_id in ENV_IDS:
+        env = gym.make(env_id, solver=solver)
+        env.reset(seed=0)
+        for a in _actions(env.action_space, 3, 0):
+            obs, r, term, trunc, _ = env.step(a)
+            assert np.all(np.isfinite(obs)) and np.isfinite(r)
+            if term:
+                env.reset()
+
+
+def test_randomized_parameters_are_drawn_per_episode_and_observed():
+    env = gym.make("SpinStrike/RodSpin-v0", randomize={"striker_mass": [0.01, 1.0],
+                                                       "restitution": [0.5, 1.0]})
+    seen = set()
+    for seed in range(5):
+        obs, _ = env.reset(seed=seed)
+        seen.add((round(float(obs[1]), 6), round(float(obs[2]), 6)))
+        w = env.unwrapped.world
+        assert obs[1] == pytest.approx(np.log10(w.mass[0, 1] / w.mass[0, 0]), abs=1e-6)
+        assert 0.5 <= obs[2] <= 1.0
+    assert len(seen) == 5
+
+
+def test_control_mallet_keeps_its_speed_limit_in_free_flight():
+    env = gym.make("SpinStrike/RodSpinControl-v0")
+    env.reset(seed=0)
+    top = 0.0
+    for _ in range(40):
+        _, _, _, _, info = env.step(np.array([1.0, 0.05], np.float32))
+        if info["hits"] == 0:
+            top = max(top, info["mallet_speed"])
+    assert top <= env.unwrapped.cfg.max_speed * (1 + 1e-9)
