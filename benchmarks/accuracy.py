@@ -44,16 +44,17 @@ import platform
 import subprocess
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
 import physics
-from benchmarks.cases import CASES, Case, Variant, get_case
+from benchmarks.cases import CASES, Variant, get_case
 
-__all__ = ["Setting", "main", "measure", "run", "settings"]
+__all__ = ["Setting", "errors", "main", "measure", "run", "settings"]
 
 EXACT_TOLERANCES = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
 FIXED_STEPS = (1, 2, 4, 8, 16, 32, 64, 128, 256)
@@ -194,6 +195,17 @@ def measure(setting: Setting, case: str, variant: Variant, phases: Sequence[floa
             m.contacts = float(last.contacts[0])
             m.seconds = _time_step(world, dt, min_time) / batch
     return m
+
+
+def errors(setting: Setting, variant: Variant,
+           phases: Sequence[float] = PHASES) -> list[tuple[float, float, float, bool]]:
+    """(velocity, spin, energy error, hit) of every run of ``setting`` on ``variant``, untimed."""
+    out = []
+    for block, dt in setting.runs(variant, phases):
+        world = physics.World(variant.scene, solver=block)
+        world.step(dt)
+        out.append(_errors(world, variant) + (bool(world.last_step.contacts[0] > 0),))
+    return out
 
 
 def _warm_up() -> None:
@@ -547,28 +559,35 @@ def plot(ms: list[Measurement], path: Path) -> None:
         if key == "tunnel":
             missed, total = r["tunnel_missed"]
             return missed / total if total else math.nan
-        return max(r[key], ERROR_FLOOR)
+        return max(r[key], ERROR_FLOOR) if math.isfinite(r[key]) else math.nan
 
     panels = ((axes[0], "vel_max", "worst velocity error (all but tunnel)", True),
               (axes[1], "vel_offline_median", "median velocity error, off-line impacts", True),
               (axes[2], "tunnel", "fraction of tunnel runs missed", False))
     for ax, key, title, logy in panels:
+        ax.set_title(title, fontsize=10)
+        if not any(math.isfinite(value(r, key)) for r in rows):
+            ax.text(0.5, 0.5, "no such runs in this selection", ha="center",
+                    transform=ax.transAxes)
+            continue
         for (solver, its), group in groups.items():
             color, marker = styles[solver]
+            group = [r for r in group if math.isfinite(value(r, key))]
             xs = [r["seconds"] * 1e6 for r in group]
             ys = [value(r, key) for r in group]
             alpha = {None: 1.0, 1: 0.5, 10: 1.0, 100: 0.75}.get(its, 1.0)
             ls = {None: "-", 1: ":", 10: "-", 100: "--"}.get(its, "-")
             label = solver if its is None else f"pymunk, {its} iterations"
             ax.plot(xs, ys, ls, color=color, marker=marker, alpha=alpha, label=label)
-            for r, x, y in zip(group, xs, ys):
+            for r, x, y in zip(group, xs, ys, strict=True):
                 s = r["setting"]
                 if solver != "pymunk" or its == 10:
                     txt = f"{s.tolerance:.0e}" if solver == "exact" else f"{s.steps}"
                     ax.annotate(txt, (x, y), textcoords="offset points", xytext=(4, 3),
                                 fontsize=7, color=color)
         if logy:
-            pts = [(r["seconds"] * 1e6, value(r, key)) for r in rows]
+            pts = [(r["seconds"] * 1e6, value(r, key)) for r in rows
+                   if math.isfinite(value(r, key))]
             front = pareto_front(pts)
             ax.step([pts[i][0] for i in front], [pts[i][1] for i in front], "k--",
                     where="post", lw=1, alpha=0.6, label="Pareto front")
@@ -579,7 +598,6 @@ def plot(ms: list[Measurement], path: Path) -> None:
             ax.set_ylim(-0.05, 1.05)
         ax.set_xscale("log")
         ax.set_xlabel("time per collision (µs)")
-        ax.set_title(title, fontsize=10)
         ax.grid(True, which="major", alpha=0.3)
     axes[0].legend(fontsize=8, loc="best")
     fig.suptitle("SpinStrike solvers: accuracy against time (labels: exact tolerance in m; "

@@ -279,7 +279,7 @@ def _first_root(bodies, motions, pairs, half, t_from, horizon, skip_first=False)
 
 def _energy(bodies, v, w):
     return sum(0.5 * B.mass * (vx * vx + vy * vy) + 0.5 * B.inertia * wi * wi
-               for B, (vx, vy), wi in zip(bodies, v, w))
+               for B, (vx, vy), wi in zip(bodies, v, w, strict=True))
 
 
 def reference_contact(bodies: list[Body], e: float = 1.0, half: tuple[float, float] | None = None,
@@ -332,7 +332,8 @@ def reference_contact(bodies: list[Body], e: float = 1.0, half: tuple[float, flo
         if not wall:
             v[b] = [v[b][0] + j * nx / B.mass, v[b][1] + j * ny / B.mass]
             w[b] = w[b] + rnb * j / B.inertia
-        after = [_Motion(p[0], p[1], p[2], vi[0], vi[1], wi, t) for p, vi, wi in zip(poses, v, w)]
+        after = [_Motion(p[0], p[1], p[2], vi[0], vi[1], wi, t)
+                 for p, vi, wi in zip(poses, v, w, strict=True)]
         t_next, _ = _first_root(bodies, after, pairs, half, t, horizon, skip_first=True)
         return {
             "t": float(t), "pair": pair, "point": (float(px), float(py)),
@@ -364,7 +365,8 @@ def _variant(name, bodies, *, e=1.0, half=None, horizon=1.0, normal_fixed=False,
     w0 = [B.omega for B in bodies]
     return Variant(name, scene, t, t + window, v, w, ref["speed"], length,
                    _energy(bodies, v0, w0), _energy(bodies, v, w), normal_fixed, source,
-                   np.array([B.mass for B in bodies]), np.array([B.inertia for B in bodies]), ref["t_next"], ref)
+                   np.array([B.mass for B in bodies]), np.array([B.inertia for B in bodies]),
+                   ref["t_next"], ref)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -1,0 +1,331 @@
+"""The pymunk backend: parity with the exact solver where pymunk is exact, and the World contract
+(state, contacts and their sign convention, walls, parameters, effects, determinism)."""
+
+import math
+import pickle
+
+import numpy as np
+import pytest
+
+import physics
+import physics.pymunk_backend as backend
+from physics import SceneError
+from physics.analytic import rod_strike
+from tests.physics.scenes import seed_strike
+
+PYMUNK = {"mode": "pymunk", "substeps": 100, "iterations": 10}
+
+
+def _pair(va=(1.0, 0.0), vb=(0.0, 0.0), yb=0.0, e=1.0, mu=0.0, ma=0.1, mb=0.3):
+    effects = ["rotation"] + (["contact_friction"] if mu else [])
+    return {
+        "effects": effects,
+        "materials": {"restitution": e, "friction": mu},
+        "bodies": [
+            {"name": "a", "shape": "disk", "radius": 0.03, "mass": ma, "position": [-0.1, 0.0],
+             "velocity": list(va)},
+            {"name": "b", "shape": "disk", "radius": 0.02, "mass": mb, "position": [0.1, yb],
+             "velocity": list(vb)},
+        ],
+    }
+
+
+# ---------------------------------------------------------------------------------------------
+# (a) parity where pymunk is exact
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("ratio", [1e-3, 1.0, 1e3])
+def test_seed_head_on_pymunk_agrees_with_exact_and_closed_form(ratio):
+    scene = seed_strike(0.0, ratio, 1.0)
+    results = []
+    for solver in ({"mode": "exact", "tolerance": 1e-9}, PYMUNK):
+        world = physics.World(scene, solver=solver)
+        contacts = world.step(0.06)
+        assert len(contacts) == 1
+        results.append((world.state.velocities[0].copy(), world.state.omegas[0].copy()))
+    (v_exact, w_exact), (v_pm, w_pm) = results
+    assert np.abs(v_pm - v_exact).max() <= 1e-9
+    assert np.abs(w_pm - w_exact).max() * 0.2 <= 1e-9
+    V1, V2, W1 = rod_strike(ratio, 1.0, 0.2, 0.0, 1.0)
+    assert v_pm[0, 0] == pytest.approx(V1, abs=1e-9)
+    assert v_pm[1, 0] == pytest.approx(V2, abs=1e-9)
+    assert w_pm[0] == pytest.approx(W1, abs=1e-9 / 0.2)
+
+
+def test_thin_rod_inertia_override_reaches_pymunk():
+    """The seed's I = m r^2/3 ('thin_rod') is what pymunk uses: oblique seed case, theta = 60."""
+    theta = math.radians(60)
+    world = physics.World(seed_strike(theta, 1.0, 2.0), solver=PYMUNK)
+    world.step(0.06)
+    V1, V2, W1 = rod_strike(1.0, 2.0, 0.2, theta, 1.0)
+    assert world.state.velocities[0, 1, 0] == pytest.approx(V2, abs=1e-9)
+    assert world.state.omegas[0, 0] == pytest.approx(W1, abs=1e-9)
+
+
+# ---------------------------------------------------------------------------------------------
+# (d) backend basics
+# ---------------------------------------------------------------------------------------------
+
+
+def test_unsupported_effect_raises_scene_error_naming_it(monkeypatch):
+    monkeypatch.setattr(backend, "SUPPORTED_EFFECTS", frozenset({"rotation", "walls"}))
+    scene = {"effects": ["rotation", "table_friction"], "table": {"friction": 0.1},
+             "bodies": [{"name": "p", "shape": "disk", "radius": 0.02, "mass": 0.1}]}
+    with pytest.raises(SceneError, match="table_friction"):
+        physics.World(scene, solver=PYMUNK)
+    physics.World(scene)  # the exact solver is unaffected
+
+
+def test_contact_sign_convention_normal_from_a_to_b():
+    """a moving +x hits b: n = +x, j = the momentum b receives; b moving instead: n still a->b."""
+    for va, vb, sign in (((1.0, 0.0), (0.0, 0.0), 1.0), ((0.0, 0.0), (-1.0, 0.0), 1.0)):
+        world = physics.World(_pair(va, vb), solver=PYMUNK)
+        before = world.state.velocities[0, 1].copy()
+        contacts = world.step(0.3)
+        assert len(contacts) == 1
+        assert (contacts.body_a[0], contacts.body_b[0]) == (0, 1)
+        np.testing.assert_allclose(contacts.normal[0], [sign, 0.0], atol=1e-12)
+        j = contacts.impulse[0]
+        assert j > 0
+        dv = world.state.velocities[0, 1] - before
+        np.testing.assert_allclose(0.3 * dv, j * contacts.normal[0], atol=1e-12)
+        # the contact point lies between the two surfaces on the line of centres
+        assert abs(contacts.point[0, 1]) < 1e-12
+        assert 0.0 < contacts.time[0] < 0.3
+
+
+def test_oblique_contact_and_friction_sign_match_exact():
+    """Off-line impact with friction: the normal, impulse and tangential impulse agree in sign
+    and to the size of pymunk's overlap error with the exact solver."""
+    scene = _pair(yb=0.03, mu=0.3, mb=0.1)
+    ce = physics.World(scene).step(0.3)
+    fine = {"mode": "pymunk", "substeps": 3000, "iterations": 10}
+    cp = physics.World(scene, solver=fine).step(0.3)
+    assert len(ce) == len(cp) == 1
+    np.testing.assert_allclose(cp.normal[0], ce.normal[0], atol=1e-3)
+    assert cp.impulse[0] == pytest.approx(ce.impulse[0], rel=1e-3)
+    assert np.sign(cp.tangent_impulse[0]) == np.sign(ce.tangent_impulse[0]) != 0
+    assert cp.tangent_impulse[0] == pytest.approx(ce.tangent_impulse[0], rel=2e-2)
+
+
+@pytest.mark.parametrize("wall, velocity, normal", [
+    ("wall_left", (-2.0, 0.0), (-1.0, 0.0)), ("wall_right", (2.0, 0.0), (1.0, 0.0)),
+    ("wall_bottom", (0.0, -2.0), (0.0, -1.0)), ("wall_top", (0.0, 2.0), (0.0, 1.0)),
+])
+def test_walls_reflect_with_cushion_as_body_b(wall, velocity, normal):
+    scene = {"effects": ["rotation", "walls"], "table": {"size": [1.2, 0.8]},
+             "bodies": [{"name": "puck", "shape": "disk", "radius": 0.03, "mass": 0.05,
+                         "velocity": list(velocity)}]}
+    world = physics.World(scene, solver=PYMUNK)
+    contacts = world.step(0.3)  # reaches the cushion (0.57 or 0.37 m away) once
+    assert len(contacts) == 1
+    assert contacts.body_a[0] == 0 and contacts.body_b[0] == world.index(wall)
+    np.testing.assert_allclose(contacts.normal[0], normal, atol=1e-12)
+    np.testing.assert_allclose(world.state.velocities[0, 0], -np.asarray(velocity), atol=1e-12)
+    assert contacts.impulse[0] == pytest.approx(2 * 0.05 * 2.0, rel=1e-12)
+    # the cushion's surface is the table edge: the contact point lies on it
+    edge = np.array(normal) * np.array([0.6, 0.4])
+    assert np.abs(contacts.point[0] - edge)[np.nonzero(normal)[0][0]] < 0.02
+
+
+def test_set_table_moves_the_cushions():
+    scene = {"effects": ["rotation", "walls"], "table": {"size": [1.2, 0.8]},
+             "bodies": [{"name": "puck", "shape": "disk", "radius": 0.03, "mass": 0.05,
+                         "velocity": [1.0, 0.0]}]}
+    world = physics.World(scene, batch_size=2, solver=PYMUNK)
+    world.set_table(size=[0.4, 0.8], env=[1])  # right cushion at x = 0.2 in element 1 only
+    contacts = world.step(0.3)
+    assert list(contacts.batch) == [1]
+    v = world.state.velocities[:, 0, 0]
+    assert v[0] == pytest.approx(1.0) and v[1] == pytest.approx(-1.0)
+
+
+def test_set_state_then_step_equals_fresh_world():
+    """A teleport right after an impact (the pair's contact still cached by Chipmunk) into a
+    state that collides at once steps exactly like a fresh world built in that state."""
+    moved = _pair()
+    moved["bodies"][0]["position"] = [0.0499, 0.0]  # 0.1 mm from b, closing at 1 m/s
+    fresh = physics.World(moved, solver=PYMUNK)
+    c_fresh = fresh.step(0.1)
+    world = physics.World(_pair(), solver=PYMUNK)
+    world.step(0.1502)  # the impact happens at t = 0.15
+    world.set_state(positions=[[0.0499, 0.0], [0.1, 0.0]], velocities=[[1.0, 0.0], [0.0, 0.0]])
+    c = world.step(0.1)
+    assert len(c) == len(c_fresh) == 1
+    assert np.array_equal(c.impulse, c_fresh.impulse)
+    assert np.array_equal(world.get_state()["state"], fresh.get_state()["state"])
+
+
+def test_velocity_only_set_state_continues_in_place():
+    world = physics.World(_pair(), solver=PYMUNK)
+    world.step(0.05)
+    world.set_state(velocities=[[2.0, 0.0], [0.0, 0.0]])
+    world.step(0.1)
+    scene = _pair(va=(2.0, 0.0))
+    scene["bodies"][0]["position"] = [-0.1 + 0.05, 0.0]
+    fresh = physics.World(scene, solver=PYMUNK)
+    fresh.step(0.1)
+    np.testing.assert_allclose(world.state.velocities, fresh.state.velocities, rtol=0, atol=1e-12)
+
+
+def test_determinism_same_input_same_output():
+    scene = {"effects": ["rotation", "walls", "contact_friction"], "table": {"size": [1.2, 0.8]},
+             "materials": {"restitution": 0.9, "friction": 0.2},
+             "bodies": [
+                 {"name": "rod", "shape": "rod", "length": 0.4, "thickness": 0.02, "mass": 0.1,
+                  "angle": 0.3, "omega": 3.0, "velocity": [0.5, -0.2]},
+                 {"name": "puck", "shape": "disk", "radius": 0.03, "mass": 0.05,
+                  "position": [-0.4, -0.2], "velocity": [1.5, 0.8]}]}
+
+    def run(world):
+        out = []
+        for _ in range(60):
+            c = world.step(0.02)
+            out.append((world.get_state()["state"].copy(), c.impulse.copy(), c.point.copy()))
+        return out
+
+    w1 = physics.World(scene, solver=PYMUNK)
+    w2 = physics.World(scene, solver=PYMUNK)
+    a, b = run(w1), run(w2)
+    w1.reset()
+    c = run(w1)
+    assert sum(len(x[1]) for x in a) >= 3  # the run has contacts
+    for x, y, z in zip(a, b, c, strict=True):
+        for p, q, r in zip(x, y, z, strict=True):
+            assert np.array_equal(p, q) and np.array_equal(p, r)
+
+
+def test_restore_and_pickle_resume_identically():
+    scene = _pair(yb=0.02)
+    world = physics.World(scene, solver=PYMUNK)
+    world.step(0.1)
+    snap = world.get_state()
+    clone = pickle.loads(pickle.dumps(world))
+    world.step(0.3)
+    expected = world.get_state()["state"].copy()
+    world.restore(snap)
+    world.step(0.3)
+    assert np.array_equal(world.get_state()["state"], expected)
+    clone.step(0.3)
+    assert np.array_equal(clone.get_state()["state"], expected)
+
+
+def test_parameters_reach_the_spaces():
+    """set_body / set_material per element act like scenes built with those values."""
+    world = physics.World(_pair(), batch_size=3, solver=PYMUNK)
+    world.set_body("b", mass=[0.3, 0.1, 0.3])
+    world.set_material("a", "b", restitution=[1.0, 1.0, 0.5])
+    world.step(0.3)
+    for k, (mb, e) in enumerate(((0.3, 1.0), (0.1, 1.0), (0.3, 0.5))):
+        ref = physics.World(_pair(mb=mb, e=e), solver=PYMUNK)
+        ref.step(0.3)
+        np.testing.assert_array_equal(world.state.velocities[k], ref.state.velocities[0])
+        j = (1 + e) * 1.0 / (1 / 0.1 + 1 / mb)  # head-on, b at rest
+        assert world.state.velocities[k, 1, 0] == pytest.approx(j / mb, rel=1e-12)
+
+
+def test_per_pair_restitution_override():
+    scene = _pair()
+    scene["bodies"].append({"name": "c", "shape": "disk", "radius": 0.02, "mass": 0.1,
+                            "position": [-0.5, 0.0], "velocity": [-1.0, 0.0]})
+    scene["effects"].append("walls")
+    scene["table"] = {"size": [1.2, 0.8]}
+    scene["materials"]["pairs"] = [{"bodies": ["c", "walls"], "restitution": 0.25}]
+    world = physics.World(scene, solver=PYMUNK)
+    world.step(0.2)
+    assert world.state.velocities[0, 2, 0] == pytest.approx(0.25, rel=1e-12)  # c off the wall
+    assert world.state.velocities[0, 1, 0] == pytest.approx(2 * 0.1 / 0.4, rel=1e-12)  # a-b: e=1
+
+
+def test_without_rotation_nothing_spins():
+    scene = {"effects": [], "bodies": [
+        {"name": "rod", "shape": "rod", "length": 0.4, "thickness": 0.01, "mass": 0.2,
+         "angle": math.pi / 2},
+        {"name": "disk", "shape": "disk", "radius": 0.02, "mass": 0.05, "position": [-0.2, 0.15],
+         "velocity": [2.0, 0.0]}]}
+    exact = physics.World(scene)
+    exact.step(0.2)
+    world = physics.World(scene, solver=PYMUNK)
+    world.step(0.2)
+    assert np.all(world.state.omegas == 0.0) and np.all(world.state.angles[0, 0] == math.pi / 2)
+    np.testing.assert_allclose(world.state.velocities, exact.state.velocities, atol=1e-12)
+
+
+def test_pivot_pinned_rod_matches_exact_with_enough_iterations():
+    scene = {"effects": ["rotation"], "bodies": [
+        {"name": "rod", "shape": "rod", "length": 0.4, "thickness": 0.01, "mass": 0.2,
+         "pivot": True, "angle": math.pi / 2},
+        {"name": "disk", "shape": "disk", "radius": 0.02, "mass": 0.05, "position": [-0.2, 0.1],
+         "velocity": [2.0, 0.0]}]}
+    exact = physics.World(scene)
+    exact.step(0.1)
+    errors = {}
+    for its in (1, 100):
+        world = physics.World(scene, solver={"mode": "pymunk", "substeps": 200, "iterations": its})
+        world.step(0.1)
+        assert np.abs(world.state.positions[0, 0]).max() < 1e-12  # the pin holds
+        errors[its] = abs(world.state.omegas[0, 0] - exact.state.omegas[0, 0])
+    assert errors[100] < 1e-6 * abs(exact.state.omegas[0, 0])
+    assert errors[1] > 100 * errors[100]  # the pin is as rigid as the iterations make it
+
+
+def test_static_body_bounces_a_puck():
+    scene = {"effects": ["rotation"], "bodies": [
+        {"name": "post", "shape": "disk", "radius": 0.05, "static": True},
+        {"name": "puck", "shape": "disk", "radius": 0.02, "mass": 0.05, "position": [-0.3, 0.0],
+         "velocity": [1.0, 0.0]}]}
+    world = physics.World(scene, solver=PYMUNK)
+    contacts = world.step(0.5)
+    assert len(contacts) == 1 and contacts.body_a[0] == 0 and contacts.body_b[0] == 1
+    np.testing.assert_allclose(world.state.velocities[0, 1], [-1.0, 0.0], atol=1e-12)
+    np.testing.assert_array_equal(world.state.positions[0, 0], [0.0, 0.0])
+
+
+def test_table_friction_decelerates_like_the_model():
+    """Speed falls by mu g t and spin by mu g t / k (k = sqrt(I/m)), as in physics.effects."""
+    scene = {"effects": ["rotation", "table_friction"], "table": {"friction": 0.2},
+             "bodies": [{"name": "rod", "shape": "rod", "length": 0.2, "thickness": 0.02,
+                         "mass": 0.1, "velocity": [1.0, 0.5], "omega": 20.0}]}
+    world = physics.World(scene, solver=PYMUNK)
+    world.step(0.1)
+    decel = 0.2 * 9.81
+    speed = np.hypot(1.0, 0.5) - decel * 0.1
+    v = world.state.velocities[0, 0]
+    assert np.hypot(*v) == pytest.approx(speed, rel=1e-12)
+    assert v[1] / v[0] == pytest.approx(0.5, rel=1e-12)  # straight path
+    k = math.sqrt(world.inertia[0, 0] / 0.1)
+    assert world.state.omegas[0, 0] == pytest.approx(20.0 - decel / k * 0.1, rel=1e-12)
+    world.set_table(friction=0.0)  # the velocity function goes, motion is free
+    world.step(0.1)
+    assert np.hypot(*world.state.velocities[0, 0]) == pytest.approx(speed, rel=1e-12)
+
+
+def test_driven_body_gets_the_force_each_step():
+    scene = {"effects": ["rotation"], "bodies": [
+        {"name": "mallet", "shape": "disk", "radius": 0.02, "mass": 0.2, "driven": True}]}
+    world = physics.World(scene, batch_size=2, solver=PYMUNK)
+    world.set_force("mallet", [[1.0, -2.0], [0.0, 0.0]])
+    world.step(0.3)
+    np.testing.assert_allclose(world.state.velocities[:, 0], [[1.5, -3.0], [0.0, 0.0]],
+                               rtol=1e-12, atol=0)
+
+
+def test_last_step_counts_pymunk_steps_and_sweeps():
+    world = physics.World(_pair(), batch_size=2,
+                          solver={"mode": "pymunk", "substeps": 7, "iterations": 3})
+    world.step(0.3)
+    assert list(world.last_step.substeps) == [7, 7]
+    assert list(world.last_step.iterations) == [21, 21]
+    assert list(world.last_step.events) == [0, 0]
+    assert list(world.last_step.contacts) == [1, 1]
+
+
+def test_contacts_beyond_max_contacts_are_counted_as_dropped():
+    world = physics.World(_pair(), solver=PYMUNK, max_contacts=1)
+    world.set_material("a", "b", restitution=0.0)  # plastic: the pair stays in contact...
+    world.set_state(velocities=[[1.0, 0.0], [-1.0, 0.0]])  # ...pressed together, many steps
+    contacts = world.step(0.3)
+    assert len(contacts) == 1
+    assert world.last_step.contacts[0] >= 1
+    assert contacts.dropped[0] == world.last_step.contacts[0] - 1
