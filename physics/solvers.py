@@ -150,8 +150,14 @@ def _contact_pass(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact
 
 @jit
 def _separate(S, Pm, hw, PA, PB):
-    """Push overlapping pairs apart along the normal, in proportion to their inverse masses."""
+    """Push overlapping pairs apart along the normal, in proportion to their inverse masses.
+
+    One sweep in pair order; returns the deepest overlap it corrected (0 if none). A sweep can
+    push a body into a third one (a puck pressed between the mallet and a cushion), so callers
+    that must leave no overlap repeat it (``fixed_element``'s ``separate_sweeps``).
+    """
     n = S.shape[0]
+    deepest = 0.0
     for p in range(PA.shape[0]):
         a = PA[p]
         b = PB[p]
@@ -164,12 +170,15 @@ def _separate(S, Pm, hw, PA, PB):
             wb = Pm[b, INV_MASS] if wall < 0 else 0.0
             total = wa + wb
             if total > 0.0:
+                if -g > deepest:
+                    deepest = -g
                 depth = -g / total
                 S[a, X] -= nx * depth * wa
                 S[a, Y] -= ny * depth * wa
                 if wall < 0:
                     S[b, X] += nx * depth * wb
                     S[b, Y] += ny * depth * wb
+    return deepest
 
 
 @jit
@@ -200,8 +209,15 @@ def _kick(S, Pm, F, h, rotation, table_friction):
 
 @jit
 def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, rotation,
-                  contact_friction, table_friction, cpair, ctime, cgeo, cimp, stats):
-    """Advance one element by T seconds in ``substeps`` fixed substeps."""
+                  contact_friction, table_friction, cpair, ctime, cgeo, cimp, stats,
+                  separate_sweeps=1):
+    """Advance one element by T seconds in ``substeps`` fixed substeps.
+
+    ``separate_sweeps``: positional-correction sweeps per substep, repeated while one still
+    corrects an overlap deeper than ``slop``. The plain fixed solver uses 1 (its documented,
+    cheap behaviour); the exact solver's settling uses ``MAX_SWEEPS`` so that a chain of
+    contacts (mallet -> puck -> cushion) is not left overlapping.
+    """
     changed = np.zeros(S.shape[0], np.bool_)
     h = T / substeps
     for k in range(substeps):
@@ -213,7 +229,9 @@ def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, 
                                          stats)
             if not hit:
                 break
-        _separate(S, Pm, hw, PA, PB)
+        for _ in range(separate_sweeps):
+            if _separate(S, Pm, hw, PA, PB) <= slop:
+                break
     stats[STAT_SUBSTEPS] += substeps
 
 
@@ -312,7 +330,7 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
                 substeps = _settle_substeps(S, Pm, F, PA, PB, dt - t_now, settle_substep)
                 fixed_element(S, Pm, F, hw, PA, PB, MAT, dt - t_now, substeps, MAX_SWEEPS, tol,
                               t_now, rotation, contact_friction, table_friction, cpair, ctime,
-                              cgeo, cimp, stats)
+                              cgeo, cimp, stats, MAX_SWEEPS)
                 stats[STAT_FALLBACK] = 1
             break
     stats[STAT_EVENTS] += events
