@@ -98,7 +98,7 @@ def test_contact_time_and_velocities_match_independent_reference():
 def test_error_shrinks_with_tolerance():
     t_ref, v_rod, w_rod, v_disk = REF
     errors = []
-    for tol in (1e-3, 1e-5, 1e-7, 1e-9, 1e-11):
+    for tol in (1e-2, 1e-3, 1e-5, 1e-7, 1e-9, 1e-11):
         world, contacts = _simulate(tol)
         errors.append(abs(world.state.velocities[0, 1] - v_disk).max())
     assert errors[0] > 1e-5  # the coarse tolerance is visibly off...
