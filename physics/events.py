@@ -13,7 +13,9 @@ For one pair over ``[0, horizon]`` (times relative to the current state):
 Contact is where the gap *reaches zero* (located to ``tol``), not where it first comes within
 ``tol``: a pass that misses by less than ``tol``, or grazes at exactly zero gap with the velocity
 along the surface, gets no impulse. (Declaring contact at ``g <= tol`` instead deflected an exact
-tangential pass of two 5 cm disks by ~1e-4 of their speed, ``sqrt(2 tol / R)``.)
+tangential pass of two 5 cm disks by ~1e-4 of their speed, ``sqrt(2 tol / R)``.) The exception
+is a pair of bodies whose radii sum to at most ``tol`` (two zero-thickness rods): their gap never
+goes measurably below zero, so they are in contact at ``g <= tol`` while approaching.
 
 A search that needs more than ``max_iterations`` steps returns a *checkpoint*: a time before
 which the pair provably does not touch. The world advances to it and searches again, so a slow
@@ -129,12 +131,16 @@ def time_of_impact(sa, pa, fa, sb, pb, fb, wall, half_w, half_h, horizon, tol, m
     Returns:
         (t, kind, iterations) with kind ``CONTACT``, ``NONE`` (t = horizon) or ``CHECKPOINT``.
     """
+    # Two bodies whose radii sum to at most tol (zero-thickness rods) cannot overlap by more
+    # than that: their gap is a distance between segments, >= -(ra + rb), and a crossing would
+    # not show as a negative gap. For them contact stays at ``g <= tol`` while approaching.
+    thin = wall < 0 and pa[RADIUS] + pb[RADIUS] <= tol
     t = 0.0
     for it in range(max_iterations):
         g, nx, ny, _, _, _, _, _, _, vn = _probe(sa, pa, fa, sb, pb, fb, wall, half_w, half_h,
                                                  t, tmp_a, tmp_b, rotation, table_friction)
         if g <= tol:
-            if vn < 0.0 and g <= 0.0:
+            if vn < 0.0 and (g <= 0.0 or thin):
                 return t, CONTACT, it + 1
             floor = min(g, 0.0)
             delta = g - floor + 0.5 * tol
