@@ -225,15 +225,50 @@ def load_packaged_scene(name: str) -> dict:
     return yaml.safe_load(text)
 
 
+#: scene sections the env edits, and the type each must have
+_SECTIONS = {"effects": (list, "a list of effect names"), "materials": (dict, "a mapping"),
+             "table": (dict, "a mapping"), "bodies": (list, "a list of body mappings")}
+
+
+def _scene_data(source: str | dict) -> dict:
+    """The raw dict of a user's scene (a dict, a YAML string or a path to a YAML file), checked
+    just enough for the env's overrides; every problem is a :class:`ConfigError` naming it.
+
+    A string without a newline is a path when it ends in ``.yaml``/``.yml`` or exists (as in
+    :func:`physics.load_scene`), else YAML text. (Before, a missing file, a directory, malformed
+    YAML or ``bodies`` that were not a list of mappings escaped as FileNotFoundError,
+    IsADirectoryError, yaml.ParserError or TypeError.)
+    """
+    if isinstance(source, dict):
+        data = copy.deepcopy(source)
+    else:
+        text = source
+        path = Path(text)
+        if "\n" not in text and (path.suffix in (".yaml", ".yml") or path.exists()):
+            if not path.is_file():
+                problem = "is not a file" if path.exists() else "does not exist"
+                raise ConfigError(f"scene: {text!r} {problem} (give a path to a YAML scene "
+                                  "file, a YAML string or a dict)")
+            text = path.read_text()
+        try:
+            data = yaml.safe_load(text)
+        except yaml.YAMLError as exc:
+            raise ConfigError(f"scene: not valid YAML: {exc}") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"scene: must be a mapping of scene fields (table, effects, solver, "
+                          f"materials, bodies), got {type(data).__name__}")
+    for key, (kind, what) in _SECTIONS.items():
+        if key in data and not isinstance(data[key], kind):
+            raise ConfigError(f"scene.{key}: must be {what} (got {data[key]!r})")
+    for i, body in enumerate(data.get("bodies", [])):
+        if not isinstance(body, dict) or not isinstance(body.get("name"), str):
+            raise ConfigError(f"scene.bodies[{i}]: must be a mapping with a name (got {body!r})")
+    return data
+
+
 def build_scene(default: str, cfg: EnvConfig, body_overrides: dict[str, dict]) -> Scene:
     """Packaged (or user) scene with the env's overrides applied, validated once."""
-    if cfg.scene is None:
-        data = load_packaged_scene(default)
-    elif isinstance(cfg.scene, dict):
-        data = copy.deepcopy(cfg.scene)
-    else:
-        text = cfg.scene
-        data = yaml.safe_load(Path(text).read_text()) if "\n" not in text else yaml.safe_load(text)
+    data = load_packaged_scene(default) if cfg.scene is None else _scene_data(cfg.scene)
     effects = list(cfg.effects) if cfg.effects is not None else list(data.get("effects", []))
     if cfg.friction and "contact_friction" not in effects:
         effects.append("contact_friction")
