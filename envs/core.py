@@ -156,9 +156,13 @@ class Task:
                 "desired_goal": flat[:, self.GOAL]}
 
     def render(self, b: int, decorate: bool = True) -> np.ndarray:
+        return self.draw(self.frame(b, decorate))
+
+    def draw(self, frame: Frame) -> np.ndarray:
+        """Draw any frame of this task (e.g. one of a strike's animation frames)."""
         if self._renderer is None:
             self._renderer = Renderer(self.cfg.render_size, self.view_half())
-        return self._renderer.draw(self.frame(b, decorate))
+        return self._renderer.draw(frame)
 
     def close(self) -> None:
         if self._renderer is not None:

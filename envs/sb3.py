@@ -99,7 +99,11 @@ class SB3VecEnv(VecEnv):
         return [method(*args, **kwargs) for _ in self._get_indices(indices)]
 
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
-        return [False for _ in self._get_indices(indices)]
+        # the adapter reports episodes as SB3's Monitor does, and nothing else wraps the envs
+        from stable_baselines3.common.monitor import Monitor
+
+        wrapped = wrapper_class is Monitor
+        return [wrapped for _ in self._get_indices(indices)]
 
 
 def make_sb3_vec_env(env_id: str, n_envs: int, seed: int | None = None,

@@ -163,3 +163,20 @@ def test_zero_dt_and_bad_dt():
     for bad in (-0.1, math.nan, math.inf):
         with pytest.raises(SceneError, match="dt"):
             world.step(bad)
+
+
+def test_set_state_accepts_overlap_left_by_a_stepping_solver():
+    """pymunk (and fixed) leave bodies overlapping right after an impact; setting velocities
+    then must work, while moving a body deeper into another is still refused."""
+    scene = {"effects": ["rotation"], "bodies": [
+        {"name": "a", "shape": "disk", "radius": 0.03, "mass": 0.1, "position": [-0.1, 0],
+         "velocity": [1, 0]},
+        {"name": "b", "shape": "disk", "radius": 0.02, "mass": 0.3, "position": [0.1, 0]}]}
+    world = physics.World(scene, solver={"mode": "pymunk", "substeps": 100, "iterations": 10})
+    world.step(0.1503)  # just after the impact
+    assert world.gaps().min() < -1e-9
+    world.set_state(velocities=[[0, 0], [0, 0]])
+    pos = world.state.positions[0].copy()
+    pos[0, 0] += 0.01
+    with pytest.raises(SceneError, match="overlap"):
+        world.set_state(positions=pos)

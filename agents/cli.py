@@ -1,0 +1,212 @@
+"""The ``spinstrike`` command line.
+
+    spinstrike train    --algo ppo --env SpinStrike/RodSpin-v0 [--seed 0] [--timesteps N]
+    spinstrike evaluate RUN_DIR | --oracle/--random --env ID   [--episodes 50]
+    spinstrike record   RUN_DIR | --oracle --env ID            [--out rollout.mp4]
+    spinstrike envs
+    spinstrike bench    accuracy|speed [--quick]
+    spinstrike baselines [--quick]
+
+Invalid arguments, configs or env kwargs print one ``error:`` line naming what is wrong and exit
+with status 2, before anything is written.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shlex
+import sys
+from pathlib import Path
+
+__all__ = ["main"]
+
+DEFAULT_ENV = "SpinStrike/RodSpin-v0"
+
+
+def _kwargs(text: str | None) -> dict:
+    if not text:
+        return {}
+    import yaml
+
+    from agents.config import AgentConfigError
+
+    try:
+        value = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise AgentConfigError(f"--env-kwargs: not valid YAML/JSON: {exc}") from None
+    if not isinstance(value, dict):
+        raise AgentConfigError(f"--env-kwargs: must be a mapping such as "
+                               f"'{{restitution: 0.8}}' (got {text!r})")
+    return value
+
+
+def _check_env_id(env_id: str) -> None:
+    import envs
+    from agents.config import AgentConfigError
+
+    if env_id not in envs.ENV_IDS:
+        raise AgentConfigError(f"--env: unknown id {env_id!r}; allowed: {list(envs.ENV_IDS)}")
+
+
+def _policy(args):
+    from agents.config import AgentConfigError
+    from agents.oracle import RandomPolicy, oracle_for
+
+    if args.run_dir:
+        from agents.evaluate import load_model_policy
+
+        run = Path(args.run_dir)
+        if not (run / "model.zip").is_file() or not (run / "config.yml").is_file():
+            raise AgentConfigError(f"run_dir: {run} has no model.zip/config.yml (not a run)")
+        policy, meta = load_model_policy(run)
+        env_kwargs = meta["hyperparameters"][meta["env"]].get("env_kwargs", {})
+        return policy, meta["env"], env_kwargs, "agent"
+    if not args.env:
+        raise AgentConfigError("give a run directory, or --oracle/--random with --env")
+    _check_env_id(args.env)
+    if getattr(args, "random", False):
+        return RandomPolicy(args.seed), args.env, {}, "random"
+    if getattr(args, "oracle", False):
+        return oracle_for(args.env), args.env, {}, "oracle"
+    raise AgentConfigError("give a run directory, or --oracle/--random with --env")
+
+
+def cmd_train(args) -> int:
+    from agents.train import train
+
+    _check_env_id(args.env)
+    result = train(args.algo, args.env, config=args.config, seed=args.seed,
+                   timesteps=args.timesteps, out=args.out, n_envs=args.n_envs, device=args.device,
+                   resume=args.resume, force=args.force, progress=not args.no_progress,
+                   evaluate=not args.no_eval, eval_episodes=args.eval_episodes,
+                   video=not args.no_video, env_kwargs=_kwargs(args.env_kwargs),
+                   command="spinstrike " + shlex.join(sys.argv[1:]))
+    print(f"run: {result['run_dir']}  ({result['timesteps']} steps, {result['wall_time']:.1f} s)")
+    for name, (mean, std) in result.get("evaluations", {}).items():
+        print(f"  {name:>7s}: {mean:.4f} +/- {std:.4f}")
+    if "video" in result:
+        print(f"video: {result['video']}")
+    return 0
+
+
+def cmd_evaluate(args) -> int:
+    from agents.evaluate import evaluate, summarise
+
+    policy, env_id, env_kwargs, name = _policy(args)
+    results = evaluate(env_id, policy if name == "agent" else None, args.episodes, args.seed,
+                       env_kwargs, baselines=True)
+    out = Path(args.run_dir) if args.run_dir and not args.no_save else None
+    print(summarise(results, out, f"## {env_id}"))
+    if args.json:
+        print(json.dumps({r.policy: {"mean": r.mean, "std": r.std} for r in results}))
+    return 0
+
+
+def cmd_record(args) -> int:
+    from agents.record import record
+
+    policy, env_id, env_kwargs, name = _policy(args)
+    out = args.out or (str(Path(args.run_dir) / "rollout.mp4") if args.run_dir
+                       else f"{name}-{env_id.split('/')[-1]}.mp4")
+    result = record(policy, env_id, out, episodes=args.episodes, seed=args.seed,
+                    env_kwargs=env_kwargs)
+    print(f"video: {result['path']} ({result['frames']} frames at {result['fps']} fps)")
+    return 0
+
+
+def cmd_envs(args) -> int:
+    import envs
+
+    print(envs.describe())
+    return 0
+
+
+def cmd_bench(args) -> int:
+    import importlib
+
+    module = importlib.import_module(f"benchmarks.{args.which}")
+    return int(module.main(args.rest) or 0)
+
+
+def cmd_baselines(args) -> int:
+    from agents.baselines import main as baselines_main
+
+    return int(baselines_main(args.rest) or 0)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from agents.config import ALGOS
+
+    p = argparse.ArgumentParser(prog="spinstrike", description=__doc__.split("\n")[0])
+    sub = p.add_subparsers(dest="command", required=True)
+
+    t = sub.add_parser("train", help="train an SB3 agent from an rl-zoo3 hyperparameter file")
+    t.add_argument("--algo", choices=ALGOS, default="ppo")
+    t.add_argument("--env", default=DEFAULT_ENV)
+    t.add_argument("--config", help="hyperparameter YAML (default: configs/agents/<algo>.yml)")
+    t.add_argument("--seed", type=int, default=0)
+    t.add_argument("--timesteps", type=int, help="override n_timesteps")
+    t.add_argument("--n-envs", type=int, help="override n_envs")
+    t.add_argument("--env-kwargs", help="env constructor arguments as YAML, e.g. '{restitution: 0.8}'")
+    t.add_argument("--out", help="run directory (default runs/<algo>-<env>-s<seed>)")
+    t.add_argument("--resume", action="store_true", help="continue --out from its last checkpoint")
+    t.add_argument("--force", action="store_true", help="replace an existing run directory")
+    t.add_argument("--device", default="cpu")
+    t.add_argument("--eval-episodes", type=int, default=50)
+    t.add_argument("--no-eval", action="store_true")
+    t.add_argument("--no-video", action="store_true")
+    t.add_argument("--no-progress", action="store_true")
+    t.set_defaults(func=cmd_train)
+
+    for name, func, helptext in (("evaluate", cmd_evaluate, "mean +/- std return vs random and "
+                                  "oracle"), ("record", cmd_record, "write an mp4 rollout")):
+        e = sub.add_parser(name, help=helptext)
+        e.add_argument("run_dir", nargs="?")
+        e.add_argument("--env")
+        e.add_argument("--oracle", action="store_true")
+        if name == "evaluate":
+            e.add_argument("--random", action="store_true")
+            e.add_argument("--episodes", type=int, default=50)
+            e.add_argument("--seed", type=int, default=1000)
+            e.add_argument("--json", action="store_true")
+            e.add_argument("--no-save", action="store_true")
+        else:
+            e.add_argument("--out")
+            e.add_argument("--episodes", type=int, default=3)
+            e.add_argument("--seed", type=int, default=2000)
+        e.set_defaults(func=func)
+
+    s = sub.add_parser("envs", help="list the environments")
+    s.set_defaults(func=cmd_envs)
+
+    b = sub.add_parser("bench", help="benchmarks: accuracy vs time, speed")
+    b.add_argument("which", choices=("accuracy", "speed"))
+    b.add_argument("rest", nargs=argparse.REMAINDER)
+    b.set_defaults(func=cmd_bench)
+
+    r = sub.add_parser("baselines", help="train the baseline matrix and write docs/baselines.md")
+    r.add_argument("rest", nargs=argparse.REMAINDER)
+    r.set_defaults(func=cmd_baselines)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+    os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    from agents.config import AgentConfigError
+    from envs.config import ConfigError
+    from physics import SceneError
+
+    try:
+        return args.func(args)
+    except (AgentConfigError, ConfigError, SceneError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

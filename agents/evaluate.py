@@ -1,0 +1,109 @@
+"""Evaluate policies: a trained SB3 model (deterministic), a random policy and the oracle.
+
+Episodes run on single Gymnasium envs from seeds ``seed, seed+1, ...``, so every policy meets the
+same episodes. Returns and lengths are reported as mean +/- std.
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Callable
+
+import gymnasium as gym
+import numpy as np
+
+import envs  # noqa: F401  (registers the ids)
+from agents.oracle import RandomPolicy, oracle_for
+
+__all__ = ["Evaluation", "evaluate", "load_model_policy", "summarise"]
+
+Policy = Callable[[gym.Env, object], np.ndarray]
+
+
+@dataclass
+class Evaluation:
+    """Returns of one policy over ``episodes`` episodes."""
+
+    policy: str
+    episodes: int
+    mean: float
+    std: float
+    mean_length: float
+    returns: list[float]
+
+    def line(self) -> str:
+        return f"{self.policy:>8s}: {self.mean:.4f} +/- {self.std:.4f} over {self.episodes} episodes"
+
+
+def run_episodes(policy: Policy, env_id: str, episodes: int, seed: int = 1000,
+                 env_kwargs: dict | None = None, name: str = "policy") -> Evaluation:
+    """Roll ``policy`` out for ``episodes`` episodes on seeds ``seed + k``."""
+    env = gym.make(env_id, **(env_kwargs or {}))
+    returns, lengths = [], []
+    for k in range(episodes):
+        obs, _ = env.reset(seed=seed + k)
+        total, n, done = 0.0, 0, False
+        while not done:
+            obs, r, term, trunc, _ = env.step(policy(env, obs))
+            total += float(r)
+            n += 1
+            done = term or trunc
+        returns.append(total)
+        lengths.append(n)
+    env.close()
+    return Evaluation(name, episodes, float(np.mean(returns)), float(np.std(returns)),
+                      float(np.mean(lengths)), returns)
+
+
+def load_model_policy(run_dir: str | Path) -> tuple[Policy, dict]:
+    """The deterministic policy of a saved run (``model.zip``, optional ``vecnormalize.pkl``)."""
+    import yaml
+
+    from agents.config import algo_class
+
+    run_dir = Path(run_dir)
+    meta = yaml.safe_load((run_dir / "config.yml").read_text())
+    model = algo_class(meta["algo"]).load(run_dir / "model.zip", device="cpu")
+    norm = None
+    if (run_dir / "vecnormalize.pkl").exists():
+        with open(run_dir / "vecnormalize.pkl", "rb") as f:
+            norm = pickle.load(f)
+
+    def policy(env, obs):
+        if norm is not None:
+            obs = norm.normalize_obs(obs)
+        return model.predict(obs, deterministic=True)[0]
+
+    return policy, meta
+
+
+def evaluate(env_id: str, policy: Policy | None = None, episodes: int = 50, seed: int = 1000,
+             env_kwargs: dict | None = None, baselines: bool = True) -> list[Evaluation]:
+    """Evaluate ``policy`` (if given) and, with ``baselines``, the random policy and the oracle."""
+    results = []
+    if policy is not None:
+        results.append(run_episodes(policy, env_id, episodes, seed, env_kwargs, "agent"))
+    if baselines:
+        results.append(run_episodes(RandomPolicy(seed), env_id, episodes, seed, env_kwargs,
+                                    "random"))
+        results.append(run_episodes(oracle_for(env_id), env_id, episodes, seed, env_kwargs,
+                                    "oracle"))
+    return results
+
+
+def summarise(results: list[Evaluation], path: str | Path | None = None,
+              header: str = "") -> str:
+    """A markdown table of the results; also written as ``summary.md``/``summary.json``."""
+    lines = [header, "", "| policy | mean return | std | episodes |", "|---|---|---|---|"]
+    for r in results:
+        lines.append(f"| {r.policy} | {r.mean:.4f} | {r.std:.4f} | {r.episodes} |")
+    text = "\n".join(lines).strip() + "\n"
+    if path is not None:
+        path = Path(path)
+        path.mkdir(parents=True, exist_ok=True)
+        (path / "summary.md").write_text(text)
+        (path / "summary.json").write_text(json.dumps([asdict(r) for r in results], indent=2))
+    return text

@@ -1,0 +1,254 @@
+"""Train SB3 baselines from rl-zoo3 hyperparameter files.
+
+A run directory holds everything needed to reproduce and resume a run::
+
+    runs/<name>/
+        model.zip            final model            config.yml     resolved entry + metadata
+        command.txt          the command line       checkpoints/   periodic model (+ buffer)
+        tb/                  TensorBoard logs       progress.csv   SB3's training log
+        evaluations.npz      periodic evaluations   learning_curve.png
+        summary.md/.json     final evaluation vs random and oracle      rollout.mp4
+
+Training goes into ``<name>.partial`` and is renamed at the end, so an unfinished run never looks
+complete and an existing run is never overwritten (unless ``force``). A run that fails with an
+error leaves nothing behind; an interrupted one (Ctrl-C) keeps its ``.partial`` directory with
+its checkpoints, and ``resume`` continues it (or a finished run, to a larger budget) from the
+newest checkpoint.
+"""
+
+from __future__ import annotations
+
+import re
+import shlex
+import shutil
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from agents.config import AgentConfigError, RunConfig, algo_class, load_agent_config
+
+__all__ = ["TrainResult", "plot_learning_curve", "train"]
+
+OFF_POLICY = ("sac", "td3")
+
+
+class TrainResult(dict):
+    """``run_dir``, ``timesteps``, ``wall_time`` and (if evaluated) ``evaluations``."""
+
+
+def _versions() -> dict[str, str]:
+    import gymnasium
+    import numba
+    import stable_baselines3
+    import torch
+
+    versions = {"python": sys.version.split()[0], "numpy": np.__version__,
+                "numba": numba.__version__, "gymnasium": gymnasium.__version__,
+                "stable_baselines3": stable_baselines3.__version__, "torch": torch.__version__}
+    return {k: str(v) for k, v in versions.items()}
+
+
+def _make_env(cfg: RunConfig, seed: int, n_envs: int):
+    from envs.sb3 import make_sb3_vec_env
+
+    env = make_sb3_vec_env(cfg.env_id, n_envs=n_envs, seed=seed, env_kwargs=cfg.env_kwargs)
+    if cfg.normalize:
+        from stable_baselines3.common.vec_env import VecNormalize
+
+        kwargs = cfg.normalize if isinstance(cfg.normalize, dict) else {}
+        env = VecNormalize(env, gamma=cfg.model_kwargs.get("gamma", 0.99), **kwargs)
+    return env
+
+
+def _model_kwargs(cfg: RunConfig, env) -> dict[str, Any]:
+    kwargs = dict(cfg.model_kwargs)
+    noise = kwargs.pop("noise_type", None)
+    std = float(kwargs.pop("noise_std", 0.1))
+    if noise is not None:
+        from stable_baselines3.common.noise import NormalActionNoise
+
+        if noise != "normal":
+            raise AgentConfigError(f"noise_type: only 'normal' is supported (got {noise!r})")
+        n = env.action_space.shape[0]
+        kwargs["action_noise"] = NormalActionNoise(np.zeros(n), std * np.ones(n))
+    return kwargs
+
+
+def _latest_checkpoint(run_dir: Path) -> Path | None:
+    ckpts = sorted((run_dir / "checkpoints").glob("model_*_steps.zip"),
+                   key=lambda p: int(re.findall(r"_(\d+)_steps", p.name)[0]))
+    return ckpts[-1] if ckpts else None
+
+
+def plot_learning_curve(run_dir: Path, title: str) -> Path | None:
+    """``learning_curve.png`` from the periodic evaluations (mean +/- std)."""
+    path = run_dir / "evaluations.npz"
+    if not path.exists():
+        return None
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    data = np.load(path)
+    steps, results = data["timesteps"], data["results"]
+    mean, std = results.mean(1), results.std(1)
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    ax.plot(steps, mean, label="agent (deterministic)")
+    ax.fill_between(steps, mean - std, mean + std, alpha=0.25)
+    ax.set_xlabel("timesteps")
+    ax.set_ylabel("episode return")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    out = run_dir / "learning_curve.png"
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
+def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int = 0,
+          timesteps: int | None = None, out: str | Path | None = None,
+          n_envs: int | None = None, device: str = "cpu", resume: bool = False,
+          force: bool = False, progress: bool = True, evaluate: bool = True,
+          eval_episodes: int = 50, video: bool = True, env_kwargs: dict | None = None,
+          eval_freq: int | None = None, eval_episodes_during: int = 10,
+          command: str | None = None) -> TrainResult:
+    """Train ``algo`` on ``env_id``; return the run directory and what was measured.
+
+    Args:
+        config: rl-zoo3 hyperparameter file (default: the packaged ``configs/agents/<algo>.yml``).
+        timesteps, n_envs, env_kwargs: override the file's ``n_timesteps``, ``n_envs`` and
+            ``env_kwargs``.
+        out: run directory (default ``runs/<algo>-<env>-s<seed>``).
+        resume: continue ``out`` from its newest checkpoint.
+        force: replace an existing run directory.
+        evaluate, video: after training, evaluate against random and oracle, record an mp4.
+        eval_freq, eval_episodes_during: the learning curve's evaluations (default: 10 evenly
+            spaced, of 10 episodes each).
+    """
+    overrides: dict[str, Any] = {}
+    if timesteps is not None:
+        overrides["n_timesteps"] = timesteps
+    if n_envs is not None:
+        overrides["n_envs"] = n_envs
+    cfg = load_agent_config(algo, env_id, config, overrides)
+    if env_kwargs:
+        cfg.env_kwargs = {**cfg.env_kwargs, **env_kwargs}
+    if not isinstance(seed, int) or seed < 0:
+        raise AgentConfigError(f"seed: must be an integer >= 0 (got {seed!r})")
+    name = f"{algo}-{env_id.split('/')[-1]}-s{seed}"
+    run_dir = Path(out) if out is not None else Path("runs") / name
+    partial = run_dir.with_name(run_dir.name + ".partial")
+    if resume:
+        work = run_dir if run_dir.exists() else partial
+        if not (work / "config.yml").exists():
+            raise AgentConfigError(f"resume: {run_dir} is not a run directory")
+        if _latest_checkpoint(work) is None:
+            raise AgentConfigError(f"resume: {run_dir} has no checkpoint to resume from")
+    else:
+        if run_dir.exists() and not force:
+            raise AgentConfigError(f"out: {run_dir} exists; pass --force to replace it or "
+                                   "--resume to continue it")
+        work = partial
+        if work.exists():
+            shutil.rmtree(work)
+    # everything is validated: build the env before touching the disk, so a bad env kwarg
+    # (raised by the env's own validation) leaves nothing behind either
+    env = _make_env(cfg, seed, cfg.n_envs)
+    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
+    from stable_baselines3.common.logger import Logger, make_output_format
+
+    cls = algo_class(algo)
+    work.mkdir(parents=True, exist_ok=True)
+    try:
+        if resume:
+            ckpt = _latest_checkpoint(work)
+            model = cls.load(ckpt, env=env, device=device)
+            if cfg.normalize and (work / "checkpoints" / "vecnormalize.pkl").exists():
+                from stable_baselines3.common.vec_env import VecNormalize
+
+                env = VecNormalize.load(str(work / "checkpoints" / "vecnormalize.pkl"),
+                                        env.venv)
+                model.set_env(env)
+            buf = ckpt.with_name(ckpt.name.replace("model_", "model_replay_buffer_")
+                                 .replace(".zip", ".pkl"))
+            if algo in OFF_POLICY and buf.exists():
+                model.load_replay_buffer(buf)
+        else:
+            model = cls(cfg.policy, env, seed=seed, device=device, verbose=0,
+                        **_model_kwargs(cfg, env))
+            meta = {"algo": algo, "env": env_id, "seed": seed, "source": cfg.source,
+                    "versions": _versions(), "hyperparameters": cfg.as_yaml_dict()}
+            (work / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
+            (work / "command.txt").write_text((command or shlex.join(sys.argv)) + "\n")
+        model.set_logger(Logger(str(work), [make_output_format("csv", str(work)),
+                                            make_output_format("tensorboard", str(work / "tb"))]))
+        n_envs_ = cfg.n_envs
+        freq = eval_freq or max(cfg.n_timesteps // 10, 1)
+        from envs.sb3 import make_sb3_vec_env
+
+        eval_env = make_sb3_vec_env(env_id, n_envs=1, seed=seed + 10_000,
+                                    env_kwargs=cfg.env_kwargs)
+        if cfg.normalize:
+            from stable_baselines3.common.vec_env import VecNormalize
+
+            eval_env = VecNormalize(eval_env, training=False, norm_reward=False)
+        callbacks = CallbackList([
+            CheckpointCallback(save_freq=max(freq // n_envs_, 1), save_path=str(work / "checkpoints"),
+                               name_prefix="model", save_replay_buffer=algo in OFF_POLICY,
+                               save_vecnormalize=bool(cfg.normalize)),
+            EvalCallback(eval_env, n_eval_episodes=eval_episodes_during,
+                         eval_freq=max(freq // n_envs_, 1),
+                         log_path=str(work), best_model_save_path=None, deterministic=True,
+                         verbose=0),
+        ])
+        start = time.time()
+        remaining = cfg.n_timesteps - (model.num_timesteps if resume else 0)
+        if remaining > 0:
+            model.learn(remaining, callback=callbacks, progress_bar=progress,
+                        reset_num_timesteps=not resume)
+        wall = time.time() - start
+        model.save(work / "model.zip")
+        if cfg.normalize:
+            model.get_vec_normalize_env().save(str(work / "vecnormalize.pkl"))
+        env.close()
+        eval_env.close()
+        plot_learning_curve(work, f"{algo.upper()} on {env_id}")
+        if work != run_dir:
+            if run_dir.exists():
+                shutil.rmtree(run_dir)
+            work.rename(run_dir)
+    except KeyboardInterrupt:
+        print(f"interrupted: continue with --resume --out {run_dir}", file=sys.stderr)
+        raise
+    except BaseException:
+        if not resume:
+            shutil.rmtree(work, ignore_errors=True)
+        raise
+    result = TrainResult(run_dir=str(run_dir), timesteps=int(model.num_timesteps), wall_time=wall)
+    meta = yaml.safe_load((run_dir / "config.yml").read_text())
+    meta.setdefault("runs", []).append({"timesteps": int(model.num_timesteps),
+                                        "wall_time_s": round(wall, 2)})
+    (run_dir / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
+    if evaluate:
+        from agents.evaluate import evaluate as run_eval
+        from agents.evaluate import load_model_policy, summarise
+
+        policy, _ = load_model_policy(run_dir)
+        results = run_eval(env_id, policy, episodes=eval_episodes, env_kwargs=cfg.env_kwargs)
+        summarise(results, run_dir, f"## {algo.upper()} on {env_id} (seed {seed}, "
+                                    f"{model.num_timesteps} steps, {wall:.0f} s)")
+        result["evaluations"] = {r.policy: (r.mean, r.std) for r in results}
+    if video:
+        from agents.evaluate import load_model_policy
+        from agents.record import record
+
+        policy, _ = load_model_policy(run_dir)
+        result["video"] = record(policy, env_id, run_dir / "rollout.mp4", episodes=3,
+                                 env_kwargs=cfg.env_kwargs)["path"]
+    return result

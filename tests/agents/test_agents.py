@@ -1,0 +1,142 @@
+"""Baselines plumbing on tiny budgets: every algorithm on every env trains, saves, loads and
+evaluates; the CLI runs end to end; videos have frames; runs resume; bad configs fail cleanly."""
+
+import subprocess
+import sys
+
+import imageio_ffmpeg
+import numpy as np
+import pytest
+import yaml
+
+import envs
+from agents.cli import main
+from agents.config import ALGOS, AgentConfigError, load_agent_config
+from agents.evaluate import evaluate, load_model_policy
+from agents.train import train
+
+
+@pytest.mark.parametrize("algo", ALGOS)
+@pytest.mark.parametrize("env_id", list(envs.ENV_IDS))
+def test_each_algorithm_trains_saves_loads_and_evaluates(algo, env_id, tmp_path):
+    over = {"learning_starts": 50} if algo != "ppo" else {"n_steps": 16, "batch_size": 32}
+    cfg = load_agent_config(algo, env_id, overrides=over)
+    cfg_file = tmp_path / f"{algo}.yml"
+    cfg_file.write_text(yaml.safe_dump({env_id: cfg.raw}))
+    result = train(algo, env_id, config=cfg_file, timesteps=128, n_envs=2,
+                   out=tmp_path / "run", progress=False, evaluate=False, video=False,
+                   eval_freq=64, eval_episodes_during=2)
+    run = tmp_path / "run"
+    assert result["timesteps"] >= 128
+    for name in ("model.zip", "config.yml", "command.txt", "progress.csv", "evaluations.npz"):
+        assert (run / name).is_file(), name
+    assert list((run / "checkpoints").glob("model_*_steps.zip"))
+    assert list((run / "tb").rglob("events.out.tfevents.*"))
+    policy, meta = load_model_policy(run)
+    assert meta["algo"] == algo and meta["env"] == env_id
+    [agent] = evaluate(env_id, policy, episodes=2, baselines=False)
+    assert agent.episodes == 2 and np.isfinite(agent.mean)
+
+
+def test_cli_train_evaluate_record_envs(tmp_path, capsys):
+    run = tmp_path / "ppo"
+    assert main(["train", "--algo", "ppo", "--env", "SpinStrike/PuckSpeed-v0", "--timesteps",
+                 "256", "--n-envs", "4", "--out", str(run), "--eval-episodes", "3",
+                 "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "oracle: 1.0000" in out and "video:" in out
+    summary = (run / "summary.md").read_text()
+    assert "| agent |" in summary and "| random |" in summary and "| oracle |" in summary
+    frames, seconds = imageio_ffmpeg.count_frames_and_secs(str(run / "rollout.mp4"))
+    assert frames > 3 * 15 and seconds > 0
+    assert main(["evaluate", str(run), "--episodes", "3", "--json"]) == 0
+    assert '"oracle"' in capsys.readouterr().out
+    video = tmp_path / "oracle.mp4"
+    assert main(["record", "--oracle", "--env", "SpinStrike/RodSpinControl-v0", "--out",
+                 str(video), "--episodes", "1"]) == 0
+    frames, _ = imageio_ffmpeg.count_frames_and_secs(str(video))
+    assert frames == 251  # reset + 250 steps
+    assert main(["envs"]) == 0
+    assert "SpinStrike/RodSpinControl-v0" in capsys.readouterr().out
+
+
+def test_installed_entry_point_lists_envs():
+    out = subprocess.run(["spinstrike", "envs"], capture_output=True, text=True, check=True)
+    for env_id in envs.ENV_IDS:
+        assert env_id in out.stdout
+
+
+def test_resumed_run_continues_from_its_checkpoint(tmp_path):
+    run = tmp_path / "run"
+    train("ppo", "SpinStrike/RodSpin-v0", timesteps=256, n_envs=4, out=run, progress=False,
+          evaluate=False, video=False, eval_freq=128)
+    first = np.load(run / "evaluations.npz")["timesteps"]
+    result = train("ppo", "SpinStrike/RodSpin-v0", timesteps=512, n_envs=4, out=run,
+                   resume=True, progress=False, evaluate=False, video=False, eval_freq=128)
+    assert result["timesteps"] >= 512
+    meta = yaml.safe_load((run / "config.yml").read_text())
+    assert len(meta["runs"]) == 2
+    steps = np.loadtxt(run / "progress.csv", delimiter=",", skiprows=1, usecols=None,
+                       dtype=str)
+    assert len(steps) > 0
+    assert np.load(run / "evaluations.npz")["timesteps"].max() > first.max()
+
+
+def test_bad_inputs_fail_before_anything_is_written(tmp_path, capsys):
+    bad = tmp_path / "bad.yml"
+    bad.write_text("SpinStrike/RodSpin-v0:\n  n_timesteps: 100\n  learning_rat: 0.1\n")
+    with pytest.raises(AgentConfigError, match=r"learning_rat: unknown key"):
+        load_agent_config("ppo", "SpinStrike/RodSpin-v0", bad)
+    out = tmp_path / "run"
+    cases = [
+        (["train", "--config", str(bad), "--out", str(out)], "learning_rat: unknown key"),
+        (["train", "--env", "SpinStrike/Nope-v0", "--out", str(out)], "unknown id"),
+        (["train", "--config", str(tmp_path / "missing.yml"), "--out", str(out)],
+         "does not exist"),
+        (["train", "--env-kwargs", "{restitution: 3}", "--out", str(out)], "restitution"),
+        (["train", "--env-kwargs", "[1, 2]", "--out", str(out)], "must be a mapping"),
+        (["evaluate", str(tmp_path)], "not a run"),
+        (["record"], "run directory"),
+    ]
+    for argv, needle in cases:
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert err.startswith("error:") and needle in err, (argv, err)
+        assert not out.exists() and not out.with_name("run.partial").exists()
+    bad.write_text("SpinStrike/RodSpin-v0:\n  n_timesteps: 100\n  policy_kwargs: 'dict(a=1)'\n")
+    with pytest.raises(AgentConfigError, match="policy_kwargs: must be a YAML mapping"):
+        load_agent_config("ppo", "SpinStrike/RodSpin-v0", bad)
+    bad.write_text("SpinStrike/Other-v0:\n  n_timesteps: 100\n")
+    with pytest.raises(AgentConfigError, match="unknown env id 'SpinStrike/Other-v0'"):
+        load_agent_config("ppo", "SpinStrike/RodSpin-v0", bad)
+
+
+def test_existing_run_is_not_overwritten(tmp_path):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "model.zip").write_text("precious")
+    with pytest.raises(AgentConfigError, match="exists"):
+        train("ppo", "SpinStrike/RodSpin-v0", timesteps=64, out=run, progress=False,
+              evaluate=False, video=False)
+    assert (run / "model.zip").read_text() == "precious"
+
+
+def test_packaged_configs_cover_every_env_and_algorithm():
+    for algo in ALGOS:
+        for env_id in envs.ENV_IDS:
+            cfg = load_agent_config(algo, env_id)
+            assert cfg.env_id == env_id and cfg.n_timesteps > 0
+            assert "policy_kwargs" in cfg.model_kwargs
+
+
+def test_rl_zoo3_trains_from_our_config(tmp_path):
+    from pathlib import Path
+
+    import agents
+
+    conf = Path(agents.__file__).resolve().parent.parent / "configs" / "agents" / "ppo.yml"
+    cmd = [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env",
+           "SpinStrike/RodSpin-v0", "--gym-packages", "envs", "-conf", str(conf), "-n", "1024",
+           "-f", str(tmp_path), "--eval-freq", "-1", "--seed", "0"]
+    subprocess.run(cmd, check=True, capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    assert list(tmp_path.rglob("SpinStrike-RodSpin-v0.zip"))
