@@ -333,7 +333,11 @@ class Scene(_Model):
             reach_x = b.half_length * abs(math.cos(b.angle)) + b.core_radius
             reach_y = b.half_length * abs(math.sin(b.angle)) + b.core_radius
             x, y = b.position
-            _require(abs(x) + reach_x <= half_w and abs(y) + reach_y <= half_h,
+            # touching a cushion is legal: allow the round-off of adding the reach (a disk of
+            # radius 0.05 at x = -0.55 reaches 0.6000000000000001 on a table 1.2 m wide)
+            slack_x = 4 * _ULP * (abs(x) + reach_x)
+            slack_y = 4 * _ULP * (abs(y) + reach_y)
+            _require(abs(x) + reach_x <= half_w + slack_x and abs(y) + reach_y <= half_h + slack_y,
                      f"bodies[{i}].position",
                      f"{b.name!r} must lie inside the table [-{half_w}, {half_w}] x "
                      f"[-{half_h}, {half_h}] m (it reaches to x = {x:+.4g} +/- {reach_x:.4g}, "
@@ -344,6 +348,8 @@ class Scene(_Model):
         return tuple(b.name for b in self.bodies)
 
 
+#: float64 machine epsilon (relative round-off)
+_ULP = 2.0**-52
 _FIELD = re.compile(r"[A-Za-z_][\w.\[\]]*")
 _SOLVER_TAGS = {"exact", "fixed", "pymunk"}
 
