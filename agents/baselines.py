@@ -1,0 +1,183 @@
+"""The baseline matrix: every env x PPO, SAC, TD3 x seeds, beside random and the oracle, and the
+accuracy-transfer study; writes ``docs/baselines.md`` and learning-curve plots.
+
+    spinstrike baselines            # the full matrix (about an hour on 2 cores)
+    spinstrike baselines --quick    # one seed, a tenth of the budgets (a smoke test)
+    python -m agents.baselines --envs SpinStrike/RodSpin-v0 --algos ppo
+
+Runs live in ``runs/baselines/<algo>-<env>-s<seed>`` and finished ones are reused, so an
+interrupted matrix picks up where it stopped. Every agent is evaluated on the same 50 episodes
+(seeds 1000..1049) as the random policy and the oracle.
+
+*Does accuracy matter for learning?* PPO is trained on ``RodSpin-v0`` with the ``fixed`` solver
+(1 substep per chunk) and with pymunk, and every agent is then evaluated on the ``exact`` solver,
+beside agents trained on ``exact``, with the wall time each training took.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shlex
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+import envs
+from agents.config import ALGOS, load_agent_config
+
+__all__ = ["main"]
+
+EVAL_EPISODES = 50
+TRANSFER_SOLVERS = {"exact": None, "fixed (1 substep)": {"mode": "fixed", "substeps": 1},
+                    "pymunk (10 steps, 10 iterations)": {"mode": "pymunk", "substeps": 10,
+                                                        "iterations": 10}}
+
+
+def _machine() -> str:
+    try:
+        model = next(line.split(":", 1)[1].strip() for line in
+                     open("/proc/cpuinfo").read().splitlines() if line.startswith("model name"))
+    except (OSError, StopIteration):
+        model = platform.processor() or "unknown CPU"
+    import stable_baselines3
+    import torch
+
+    return (f"{os.cpu_count()} cores ({model}), Python {platform.python_version()}, "
+            f"torch {torch.__version__}, stable-baselines3 {stable_baselines3.__version__}")
+
+
+def _run(algo, env_id, seed, root: Path, scale: float, env_kwargs=None, tag="") -> dict:
+    from agents.evaluate import load_model_policy, run_episodes
+    from agents.train import train
+
+    name = f"{algo}-{env_id.split('/')[-1]}{tag}-s{seed}"
+    run = root / name
+    result_file = run / "baseline.json"
+    if result_file.exists():
+        return json.loads(result_file.read_text())
+    cfg = load_agent_config(algo, env_id)
+    steps = max(int(cfg.n_timesteps * scale), 256)
+    res = train(algo, env_id, seed=seed, timesteps=steps, out=run, force=True, progress=False,
+                evaluate=False, video=False, env_kwargs=env_kwargs)
+    policy, _ = load_model_policy(run)
+    # always evaluated on the exact solver (the transfer study trains on others)
+    ev = run_episodes(policy, env_id, EVAL_EPISODES, name="agent")
+    out = {"algo": algo, "env": env_id, "seed": seed, "timesteps": res["timesteps"],
+           "wall_time": res["wall_time"], "mean": ev.mean, "std": ev.std, "tag": tag}
+    result_file.write_text(json.dumps(out))
+    return out
+
+
+def _curves(env_id: str, root: Path, algos, seeds, out: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.5, 3.8))
+    for algo in algos:
+        curves = []
+        for seed in seeds:
+            f = root / f"{algo}-{env_id.split('/')[-1]}-s{seed}" / "evaluations.npz"
+            if f.exists():
+                d = np.load(f)
+                curves.append((d["timesteps"], d["results"].mean(1)))
+        if not curves:
+            continue
+        n = min(len(c[0]) for c in curves)
+        steps = curves[0][0][:n]
+        values = np.array([c[1][:n] for c in curves])
+        ax.plot(steps, values.mean(0), label=f"{algo.upper()} ({len(curves)} seeds)")
+        ax.fill_between(steps, values.min(0), values.max(0), alpha=0.2)
+    ax.set_title(f"{env_id}: deterministic evaluation during training")
+    ax.set_xlabel("timesteps")
+    ax.set_ylabel("mean episode return")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="spinstrike baselines", description=__doc__.split("\n")[0])
+    p.add_argument("--envs", nargs="+", default=list(envs.ENV_IDS))
+    p.add_argument("--algos", nargs="+", default=list(ALGOS), choices=ALGOS)
+    p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
+    p.add_argument("--quick", action="store_true", help="one seed, a tenth of each budget")
+    p.add_argument("--root", default="runs/baselines")
+    p.add_argument("--doc", default="docs/baselines.md")
+    p.add_argument("--no-transfer", action="store_true")
+    args = p.parse_args(argv)
+    from agents.evaluate import evaluate
+
+    scale = 0.1 if args.quick else 1.0
+    seeds = args.seeds[:1] if args.quick else args.seeds
+    root = Path(args.root)
+    doc = Path(args.doc)
+    started = time.time()
+    lines = ["# Baselines", "",
+             f"Produced by `{shlex.join(['spinstrike', 'baselines', *(argv or sys.argv[1:])])}` "
+             f"on {_machine()}; {len(seeds)} seed(s) per algorithm, budgets from "
+             f"`configs/agents/*.yml`{' scaled by 0.1 (--quick)' if args.quick else ''}. Every "
+             f"policy is evaluated on the same {EVAL_EPISODES} episodes (seeds 1000..1049, "
+             "deterministic actions, exact solver). Mean +/- std is over seeds of each seed's "
+             "mean return (random and oracle: over episodes).", ""]
+    table: dict[str, list[str]] = {}
+    for env_id in args.envs:
+        rows = []
+        base = {r.policy: r for r in evaluate(env_id, None, EVAL_EPISODES, 1000)}
+        for algo in args.algos:
+            results = [_run(algo, env_id, s, root, scale) for s in seeds]
+            means = np.array([r["mean"] for r in results])
+            rows.append(f"| {algo.upper()} | {means.mean():.3f} +/- {means.std():.3f} | "
+                        f"{results[0]['timesteps']} | "
+                        f"{np.mean([r['wall_time'] for r in results]):.0f} s |")
+            print(f"{env_id} {algo}: {means.mean():.3f} +/- {means.std():.3f}", flush=True)
+        rows.append(f"| random | {base['random'].mean:.3f} +/- {base['random'].std:.3f} | - | - |")
+        oracle = "scripted chase-and-hit" if "Control" in env_id else "oracle (closed form)"
+        rows.append(f"| {oracle} | {base['oracle'].mean:.3f} +/- {base['oracle'].std:.3f} | - | - |")
+        plot = _curves(env_id, root, args.algos, seeds,
+                       doc.parent / "baselines" / f"{env_id.split('/')[-1]}.png")
+        table[env_id] = rows
+        lines += [f"## {env_id}", "", "| policy | mean return | timesteps | train wall time |",
+                  "|---|---|---|---|", *rows, "",
+                  f"![learning curves]({plot.relative_to(doc.parent).as_posix()})", ""]
+    if not args.no_transfer and "SpinStrike/RodSpin-v0" in args.envs:
+        lines += ["## Does accuracy matter for learning?", "",
+                  "PPO on `SpinStrike/RodSpin-v0`, trained with each solver, all evaluated on the "
+                  "exact solver:", "",
+                  "| trained on | return on exact | train wall time |", "|---|---|---|"]
+        for label, solver in TRANSFER_SOLVERS.items():
+            tag = "" if solver is None else "-" + solver["mode"]
+            kwargs = None if solver is None else {"solver": solver}
+            results = [_run("ppo", "SpinStrike/RodSpin-v0", s, root, scale, kwargs, tag)
+                       for s in seeds]
+            means = np.array([r["mean"] for r in results])
+            lines.append(f"| {label} | {means.mean():.3f} +/- {means.std():.3f} | "
+                         f"{np.mean([r['wall_time'] for r in results]):.0f} s |")
+            print(f"transfer {label}: {means.mean():.3f}", flush=True)
+        lines.append("")
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                                text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        commit = "unknown"
+    lines.append(f"Total wall time of this run: {time.time() - started:.0f} s (reused runs "
+                 f"count as 0). Code at commit {commit}.")
+    doc.parent.mkdir(parents=True, exist_ok=True)
+    doc.write_text("\n".join(lines) + "\n")
+    print(f"wrote {doc}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
