@@ -697,6 +697,9 @@ def _sustained_measure(scenes, solver, limits) -> Measurement:
     agg, labels = _sustained(scenes, solver)
     if not agg["finite"] or agg["escaped"]:
         return Measurement(math.inf, f"NaN or escape: {agg}")
+    if solver == "exact" and agg["fallback"] == 0:
+        # the exact solver must detect the resting bounces and settle (flagged), not grind
+        return Measurement(math.inf, "no step was settled (fallback never flagged)")
     # the worst error is the largest ratio of a measured number to its limit (<= 1 passes)
     ratios = {k: agg[k] / lim for k, lim in limits.items()}
     worst = max(ratios.values())

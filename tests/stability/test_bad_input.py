@@ -1,0 +1,216 @@
+"""Bad input at every door: scene files, the World API, env keyword arguments, ``config`` dicts
+and actions. Each gets one clear error of a documented type (``physics.SceneError``,
+``envs.ConfigError``, ``ValueError`` for actions) whose message names what is wrong."""
+
+import math
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import envs
+import physics
+from envs import ConfigError
+from physics import SceneError
+
+DISK = {"name": "p", "shape": "disk", "radius": 0.05, "mass": 0.1}
+
+# ---------------------------------------------------------------------------------------------
+# scene files and scene data
+# ---------------------------------------------------------------------------------------------
+
+BAD_SCENE_FILES = [
+    ("bodies: [ {name: p, shape: disk", "not valid YAML"),
+    ("", "must be a mapping"),
+    ("- 1\n- 2\n", "must be a mapping"),
+    ("bodies:\n  - {name: p, shape: disk, radius: 0.05, mass: heavy}\n", "bodies[0].mass"),
+    ("bodies:\n  - {name: p, shape: disk, radius: .nan, mass: 1}\n", "bodies[0].radius"),
+    ("bodies:\n  - {name: p, shape: disk, radius: -1, mass: 1}\n", "bodies[0].radius"),
+    ("bodies:\n  - {name: p, shape: disk, radius: 1, mass: 1, colour: red}\n",
+     "bodies[0].colour"),
+    ("bodies:\n  - {name: p, shape: square, radius: 1, mass: 1}\n", "bodies[0].shape"),
+    ("bodies:\n  - {name: p, shape: disk, radius: 1}\n", "bodies[0].mass"),
+    ("bodies:\n  - {name: p, shape: rod, radius: 1, mass: 1}\n", "bodies[0].length"),
+    ("bodies: []\n", "bodies"),
+    ("bodies: {p: 1}\n", "bodies"),
+    ("effects: [gravity]\nbodies:\n  - {name: p, shape: disk, radius: 1, mass: 1}\n",
+     "effects"),
+    ("effects: [rotation, walls]\nbodies:\n  - {name: p, shape: disk, radius: 1, mass: 1}\n",
+     "table.size"),
+    ("solver: {mode: magic}\nbodies:\n  - {name: p, shape: disk, radius: 1, mass: 1}\n",
+     "solver"),
+    ("solver: {mode: exact, tolerance: 0}\nbodies:\n  - {name: p, shape: disk, radius: 1, "
+     "mass: 1}\n", "solver.tolerance"),
+    ("materials: {restitution: 1.5}\nbodies:\n  - {name: p, shape: disk, radius: 1, mass: 1}\n",
+     "materials.restitution"),
+    ("materials: {friction: 0.3}\nbodies:\n  - {name: p, shape: disk, radius: 1, mass: 1}\n",
+     "materials.friction"),
+    ("bodies:\n  - {name: p, shape: disk, radius: 1, mass: 1}\n"
+     "  - {name: p, shape: disk, radius: 1, mass: 1, position: [5, 0]}\n", "used twice"),
+    ("bodies:\n  - {name: p, shape: disk, radius: 1, mass: 1}\n"
+     "  - {name: q, shape: disk, radius: 1, mass: 1, position: [1, 0]}\n", "'p' and 'q' overlap"),
+    ("table: {size: [1, 1]}\neffects: [walls]\nbodies:\n"
+     "  - {name: p, shape: disk, radius: 0.1, mass: 1, position: [0.45, 0]}\n",
+     "bodies[0].position"),
+]
+
+
+@pytest.mark.parametrize(("text", "names"), BAD_SCENE_FILES,
+                         ids=[n for _, n in BAD_SCENE_FILES])
+def test_bad_scene_file_is_one_error_naming_the_field(tmp_path, text, names):
+    path = tmp_path / "scene.yaml"
+    path.write_text(text)
+    with pytest.raises(SceneError) as info:
+        physics.World(str(path))
+    assert names in str(info.value)
+    assert "\n" not in str(info.value).strip() or "YAML" in str(info.value)
+
+
+def test_missing_scene_file_and_directory(tmp_path):
+    with pytest.raises(SceneError, match="does not exist"):
+        physics.load_scene(str(tmp_path / "nope.yaml"))
+    with pytest.raises(SceneError, match="does not exist"):
+        physics.load_scene(tmp_path)
+
+
+def test_packaged_scene_files_load():
+    for name in ("rod_spin", "puck_speed", "rod_control", "puck_control"):
+        scene = physics.load_scene(envs.config.load_packaged_scene(name))
+        assert scene.bodies
+
+
+# ---------------------------------------------------------------------------------------------
+# the World API
+# ---------------------------------------------------------------------------------------------
+
+
+def _world(**kw):
+    scene = {"effects": ["rotation"],
+             "bodies": [DISK, {"name": "m", "shape": "disk", "radius": 0.05, "mass": 0.2,
+                               "driven": True, "position": [0.5, 0.0]}]}
+    return physics.World(scene, **kw)
+
+
+@pytest.mark.parametrize(("call", "names"), [
+    (lambda w: w.step(math.nan), "dt"),
+    (lambda w: w.step(-1.0), "dt"),
+    (lambda w: w.step(math.inf), "dt"),
+    (lambda w: w.set_state(positions=np.full((1, 2, 2), np.nan)), "positions"),
+    (lambda w: w.set_state(velocities=np.ones((3, 3))), "shape"),
+    (lambda w: w.set_state(omegas=[[math.inf, 0.0]]), "omegas"),
+    (lambda w: w.set_state(positions=[[0.05, 0.0]], body="m"), "overlap"),
+    (lambda w: w.set_force("p", [1.0, 0.0]), "driven"),
+    (lambda w: w.set_force("m", [math.nan, 0.0]), "m.force"),
+    (lambda w: w.set_force("nope", [1.0, 0.0]), "unknown body 'nope'"),
+    (lambda w: w.set_body("p", mass=-1.0), "p.mass"),
+    (lambda w: w.set_body("p", mass=math.nan), "p.mass"),
+    (lambda w: w.set_body("p", length=1.0), "disk"),
+    (lambda w: w.set_material("p", "m", restitution=2.0), "restitution"),
+    (lambda w: w.set_material("p", "m", friction=0.5), "contact_friction"),
+    (lambda w: w.set_state(velocities=[[1.0, 0.0]], body="p", env=[3]), "env"),
+], ids=lambda x: x if isinstance(x, str) else "")
+def test_world_api_rejects_bad_values(call, names):
+    world = _world()
+    before = world.get_state()["state"].copy()
+    with pytest.raises(SceneError) as info:
+        call(world)
+    assert names in str(info.value)
+    assert np.array_equal(world.get_state()["state"], before)  # the world is unchanged
+
+
+@pytest.mark.parametrize(("kw", "names"), [
+    ({"batch_size": 0}, "batch_size"),
+    ({"batch_size": "2"}, "batch_size"),
+    ({"solver": {"mode": "fixed", "substeps": 0}}, "solver.substeps"),
+    ({"solver": "magic"}, "solver"),
+    ({"solver": {"mode": "exact", "bogus": 1}}, "solver.bogus"),
+])
+def test_world_constructor_rejects_bad_arguments(kw, names):
+    with pytest.raises(SceneError) as info:
+        _world(**kw)
+    assert names in str(info.value)
+
+
+# ---------------------------------------------------------------------------------------------
+# env keyword arguments, config dicts and actions
+# ---------------------------------------------------------------------------------------------
+
+
+def _make(env_id, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        env = gym.make(env_id, **kw)
+        env.reset(seed=0)
+        env.step(env.action_space.sample())
+        return env
+
+
+BAD_KWARGS = [
+    ("SpinStrike/RodSpin-v0", {"bogus": 1}, "bogus: unknown argument"),
+    ("SpinStrike/RodSpin-v0", {"restitution": 1.5}, "restitution"),
+    ("SpinStrike/RodSpin-v0", {"restitution": "high"}, "restitution"),
+    ("SpinStrike/RodSpin-v0", {"striker_mass": 0.0}, "striker_mass"),
+    ("SpinStrike/RodSpin-v0", {"speed_range": [2.0, 1.0]}, "speed_range"),
+    ("SpinStrike/RodSpin-v0", {"rod_inertia": "heavy"}, "rod_inertia"),
+    ("SpinStrike/RodSpin-v0", {"effects": ["gravity"]}, "effects"),
+    ("SpinStrike/RodSpin-v0", {"randomize": {"colour": [0, 1]}}, "colour"),
+    ("SpinStrike/RodSpin-v0", {"randomize": {"target_mass": [-1, 1]}}, "target_mass"),
+    ("SpinStrike/RodSpin-v0", {"obs_mode": "telepathy"}, "obs_mode"),
+    ("SpinStrike/RodSpin-v0", {"solver": {"mode": "fixed", "substeps": -3}}, "substeps"),
+    ("SpinStrike/RodSpin-v0", {"scene": "missing.yaml"}, "scene: 'missing.yaml' does not"),
+    ("SpinStrike/RodSpin-v0", {"scene": "bodies: [\n {name: x"}, "scene: not valid YAML"),
+    ("SpinStrike/RodSpin-v0", {"scene": {"bodies": "rod"}}, "scene.bodies"),
+    ("SpinStrike/RodSpin-v0", {"scene": {"bodies": [DISK]}}, "needs a body named"),
+    ("SpinStrike/RodSpin-v0", {"config": {"time_cap": -1}}, "time_cap"),
+    ("SpinStrike/PuckSpeed-v0", {"friction": -0.1}, "friction"),
+    ("SpinStrike/PuckSpeed-v0", {"target_speed": [0, 1]}, "target_speed"),
+    ("SpinStrike/RodSpinControl-v0", {"dt": 0.0}, "dt"),
+    ("SpinStrike/RodSpinControl-v0", {"max_force": -1.0}, "max_force"),
+    ("SpinStrike/PuckSpeedControl-v0", {"effects": ["rotation"]}, "table_friction"),
+    ("SpinStrike/PuckSpeedControl-v0", {"config": {"mallet_mass": math.nan}}, "mallet_mass"),
+]
+
+
+@pytest.mark.parametrize(("env_id", "kw", "names"), BAD_KWARGS,
+                         ids=[f"{i.split('/')[1]}-{n}" for i, _, n in BAD_KWARGS])
+def test_bad_env_arguments_are_one_config_error(env_id, kw, names):
+    with pytest.raises(ConfigError) as info:
+        _make(env_id, **kw)
+    assert names in str(info.value)
+
+
+def test_bad_render_mode_is_a_value_error():
+    with pytest.raises(ValueError, match="render_mode"):
+        _make("SpinStrike/RodSpin-v0", render_mode="hologram")
+
+
+@pytest.mark.parametrize("env_id", list(envs.ENV_IDS))
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_actions_raise_and_leave_the_env_usable(env_id, bad):
+    env = _make(env_id)
+    action = env.action_space.sample()
+    action[0] = bad
+    with pytest.raises(ValueError, match="action"):
+        env.step(action)
+    obs, reward, *_ = env.step(env.action_space.sample())  # still usable
+    assert np.all(np.isfinite(obs)) and math.isfinite(reward)
+
+
+@pytest.mark.parametrize("env_id", list(envs.ENV_IDS))
+def test_wrong_action_shape_raises(env_id):
+    env = _make(env_id)
+    with pytest.raises(ValueError, match="action"):
+        env.step(np.zeros(7, dtype=np.float32))
+
+
+def test_vector_env_rejects_nan_actions():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        vec = gym.make_vec("SpinStrike/PuckSpeedControl-v0", num_envs=3)
+    vec.reset(seed=0)
+    actions = np.zeros((3, 2), dtype=np.float32)
+    actions[1, 1] = np.nan
+    with pytest.raises(ValueError, match="action"):
+        vec.step(actions)
+    vec.close()
