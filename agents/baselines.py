@@ -142,9 +142,9 @@ def main(argv: list[str] | None = None) -> int:
                         f"{results[0]['timesteps']} | "
                         f"{np.mean([r['wall_time'] for r in results]):.0f} s |")
             print(f"{env_id} {algo}: {means.mean():.3f} +/- {means.std():.3f}", flush=True)
-        rows.append(f"| random | {base['random'].mean:.3f} +/- {base['random'].std:.3f} | - | - |")
         oracle = "scripted chase-and-hit" if "Control" in env_id else "oracle (closed form)"
-        rows.append(f"| {oracle} | {base['oracle'].mean:.3f} +/- {base['oracle'].std:.3f} | - | - |")
+        for label, key in (("random", "random"), (oracle, "oracle")):
+            rows.append(f"| {label} | {base[key].mean:.3f} +/- {base[key].std:.3f} | - | - |")
         plot = _curves(env_id, root, args.algos, seeds,
                        doc.parent / "baselines" / f"{env_id.split('/')[-1]}.png")
         table[env_id] = rows

@@ -149,7 +149,8 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--seed", type=int, default=0)
     t.add_argument("--timesteps", type=int, help="override n_timesteps")
     t.add_argument("--n-envs", type=int, help="override n_envs")
-    t.add_argument("--env-kwargs", help="env constructor arguments as YAML, e.g. '{restitution: 0.8}'")
+    t.add_argument("--env-kwargs",
+                   help="env constructor arguments as YAML, e.g. '{restitution: 0.8}'")
     t.add_argument("--out", help="run directory (default runs/<algo>-<env>-s<seed>)")
     t.add_argument("--resume", action="store_true", help="continue --out from its last checkpoint")
     t.add_argument("--force", action="store_true", help="replace an existing run directory")

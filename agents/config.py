@@ -106,6 +106,60 @@ def _policy_kwargs(value: Any, where: str) -> dict:
     return out
 
 
+def _read_entry(path: Path, env_id: str) -> tuple[str, dict]:
+    """The raw entry of ``env_id`` (or ``default``) in a hyperparameter file."""
+    import envs
+
+    if not path.is_file():
+        raise AgentConfigError(f"config: file {str(path)!r} does not exist")
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise AgentConfigError(f"config: {path} is not valid YAML: {exc}") from None
+    if not isinstance(data, dict):
+        raise AgentConfigError(f"config: {path} must map env ids to hyperparameters")
+    for key in data:
+        if key != "default" and key not in envs.ENV_IDS:
+            raise AgentConfigError(f"config: {path}: unknown env id {key!r}; allowed: "
+                                   f"{list(envs.ENV_IDS) + ['default']}")
+    entry_key = env_id if env_id in data else "default"
+    if entry_key not in data:
+        raise AgentConfigError(f"config: {path} has no entry for {env_id!r} and no 'default'")
+    return entry_key, dict(data[entry_key] or {})
+
+
+def _budget(entry: dict, where: str) -> tuple[int, int]:
+    """Pop and check ``n_timesteps`` and ``n_envs``."""
+    try:
+        n_timesteps = int(float(entry.pop("n_timesteps")))
+    except KeyError:
+        raise AgentConfigError(f"{where}.n_timesteps: required (training budget)") from None
+    except (TypeError, ValueError):
+        raise AgentConfigError(f"{where}.n_timesteps: must be a number") from None
+    if n_timesteps < 1:
+        raise AgentConfigError(f"{where}.n_timesteps: must be >= 1 (got {n_timesteps})")
+    n_envs = entry.pop("n_envs", 1)
+    if not isinstance(n_envs, int) or n_envs < 1:
+        raise AgentConfigError(f"{where}.n_envs: must be an integer >= 1 (got {n_envs!r})")
+    return n_timesteps, n_envs
+
+
+def _convert_values(entry: dict, where: str) -> None:
+    """Schedules, policy kwargs, and numbers PyYAML read as strings (``1e6``), in place."""
+    for key in ("learning_rate", "clip_range"):
+        if key in entry:
+            entry[key] = _schedule(entry[key], f"{where}.{key}")
+    if "policy_kwargs" in entry:
+        entry["policy_kwargs"] = _policy_kwargs(entry["policy_kwargs"], where)
+    for key, value in entry.items():
+        if isinstance(value, str) and key not in ("learning_rate", "clip_range", "device",
+                                                  "train_freq", "noise_type"):
+            try:
+                entry[key] = float(value)
+            except ValueError:
+                pass
+
+
 def load_agent_config(algo: str, env_id: str, path: str | Path | None = None,
                       overrides: dict | None = None) -> RunConfig:
     """Read and validate the entry for ``env_id`` in an rl-zoo3 hyperparameter file.
@@ -122,22 +176,7 @@ def load_agent_config(algo: str, env_id: str, path: str | Path | None = None,
     if env_id not in envs.ENV_IDS:
         raise AgentConfigError(f"env: unknown id {env_id!r}; allowed: {list(envs.ENV_IDS)}")
     path = Path(path) if path is not None else packaged_config_path(algo)
-    if not path.is_file():
-        raise AgentConfigError(f"config: file {str(path)!r} does not exist")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise AgentConfigError(f"config: {path} is not valid YAML: {exc}") from None
-    if not isinstance(data, dict):
-        raise AgentConfigError(f"config: {path} must map env ids to hyperparameters")
-    for key in data:
-        if key != "default" and key not in envs.ENV_IDS:
-            raise AgentConfigError(f"config: {path}: unknown env id {key!r}; allowed: "
-                                   f"{list(envs.ENV_IDS) + ['default']}")
-    entry_key = env_id if env_id in data else "default"
-    if entry_key not in data:
-        raise AgentConfigError(f"config: {path} has no entry for {env_id!r} and no 'default'")
-    entry = dict(data[entry_key] or {})
+    entry_key, entry = _read_entry(path, env_id)
     entry.update(overrides or {})
     raw = dict(entry)
     where = f"{path.name}[{entry_key}]"
@@ -146,34 +185,12 @@ def load_agent_config(algo: str, env_id: str, path: str | Path | None = None,
         if key not in RESERVED and key not in allowed:
             raise AgentConfigError(f"{where}.{key}: unknown key; allowed: "
                                    f"{sorted(set(RESERVED) | allowed)}")
-    try:
-        n_timesteps = int(float(entry.pop("n_timesteps")))
-    except KeyError:
-        raise AgentConfigError(f"{where}.n_timesteps: required (training budget)") from None
-    except (TypeError, ValueError):
-        raise AgentConfigError(f"{where}.n_timesteps: must be a number") from None
-    if n_timesteps < 1:
-        raise AgentConfigError(f"{where}.n_timesteps: must be >= 1 (got {n_timesteps})")
-    n_envs = entry.pop("n_envs", 1)
-    if not isinstance(n_envs, int) or n_envs < 1:
-        raise AgentConfigError(f"{where}.n_envs: must be an integer >= 1 (got {n_envs!r})")
+    n_timesteps, n_envs = _budget(entry, where)
     policy = entry.pop("policy", "MlpPolicy")
     normalize = entry.pop("normalize", False)
     env_kwargs = entry.pop("env_kwargs", {}) or {}
     if not isinstance(env_kwargs, dict):
         raise AgentConfigError(f"{where}.env_kwargs: must be a mapping")
-    for key in ("learning_rate", "clip_range"):
-        if key in entry:
-            entry[key] = _schedule(entry[key], f"{where}.{key}")
-    if "policy_kwargs" in entry:
-        entry["policy_kwargs"] = _policy_kwargs(entry["policy_kwargs"], where)
-    for key, value in entry.items():
-        if isinstance(value, str) and key not in ("learning_rate", "clip_range", "device",
-                                                  "train_freq"):
-            # rl-zoo3 numbers written as 1e6 are read as strings by PyYAML
-            try:
-                entry[key] = float(value)
-            except ValueError:
-                pass
+    _convert_values(entry, where)
     return RunConfig(algo, env_id, n_timesteps, policy, n_envs, normalize, env_kwargs, entry,
                      str(path), raw)

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import json
 import pickle
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Callable
 
 import gymnasium as gym
 import numpy as np
@@ -35,7 +35,8 @@ class Evaluation:
     returns: list[float]
 
     def line(self) -> str:
-        return f"{self.policy:>8s}: {self.mean:.4f} +/- {self.std:.4f} over {self.episodes} episodes"
+        return (f"{self.policy:>8s}: {self.mean:.4f} +/- {self.std:.4f} "
+                f"over {self.episodes} episodes")
 
 
 def run_episodes(policy: Policy, env_id: str, episodes: int, seed: int = 1000,

@@ -47,10 +47,10 @@ class RodSpinOracle:
         thetas: the seed's end-cap angles tried, degrees.
     """
 
-    def __init__(self, approaches=np.linspace(-0.9, 0.9, 13),
-                 levers=np.linspace(0.3, 0.98, 8), thetas=(0, 15, 30, 45, 60)) -> None:
-        self.approaches = np.asarray(approaches, float)
-        self.levers = np.asarray(levers, float)
+    def __init__(self, approaches=None, levers=None, thetas=(0, 15, 30, 45, 60)) -> None:
+        self.approaches = (np.linspace(-0.9, 0.9, 13) if approaches is None
+                           else np.asarray(approaches, float))
+        self.levers = np.linspace(0.3, 0.98, 8) if levers is None else np.asarray(levers, float)
         self.thetas = np.radians(np.asarray(thetas, float))
         self._scratch = None
 

@@ -111,6 +111,99 @@ def plot_learning_curve(run_dir: Path, title: str) -> Path | None:
     return out
 
 
+def _work_dir(run_dir: Path, resume: bool, force: bool) -> Path:
+    """Where this invocation writes: the run itself (resume) or a fresh ``.partial`` beside it."""
+    partial = run_dir.with_name(run_dir.name + ".partial")
+    if resume:
+        work = run_dir if run_dir.exists() else partial
+        if not (work / "config.yml").exists():
+            raise AgentConfigError(f"resume: {run_dir} is not a run directory")
+        if _latest_checkpoint(work) is None:
+            raise AgentConfigError(f"resume: {run_dir} has no checkpoint to resume from")
+        return work
+    if run_dir.exists() and not force:
+        raise AgentConfigError(f"out: {run_dir} exists; pass --force to replace it or "
+                               "--resume to continue it")
+    if partial.exists():
+        shutil.rmtree(partial)
+    return partial
+
+
+def _resume_model(cls, algo: str, cfg: RunConfig, work: Path, env, device: str):
+    """Load the newest checkpoint (with its replay buffer and normalisation statistics)."""
+    ckpt = _latest_checkpoint(work)
+    model = cls.load(ckpt, env=env, device=device)
+    stats = work / "checkpoints" / "vecnormalize.pkl"
+    if cfg.normalize and stats.exists():
+        from stable_baselines3.common.vec_env import VecNormalize
+
+        model.set_env(VecNormalize.load(str(stats), env.venv))
+    buf = ckpt.with_name(ckpt.name.replace("model_", "model_replay_buffer_")
+                         .replace(".zip", ".pkl"))
+    if algo in OFF_POLICY and buf.exists():
+        model.load_replay_buffer(buf)
+    return model
+
+
+def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, episodes: int):
+    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
+
+    from envs.sb3 import make_sb3_vec_env
+
+    eval_env = make_sb3_vec_env(cfg.env_id, n_envs=1, seed=seed + 10_000,
+                                env_kwargs=cfg.env_kwargs)
+    if cfg.normalize:
+        from stable_baselines3.common.vec_env import VecNormalize
+
+        eval_env = VecNormalize(eval_env, training=False, norm_reward=False)
+    every = max(freq // cfg.n_envs, 1)
+    return eval_env, CallbackList([
+        CheckpointCallback(save_freq=every, save_path=str(work / "checkpoints"),
+                           name_prefix="model", save_replay_buffer=algo in OFF_POLICY,
+                           save_vecnormalize=bool(cfg.normalize)),
+        EvalCallback(eval_env, n_eval_episodes=episodes, eval_freq=every, log_path=str(work),
+                     best_model_save_path=None, deterministic=True, verbose=0),
+    ])
+
+
+def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, eval_freq,
+           eval_episodes_during, command) -> tuple[Any, float]:
+    """Build (or resume) the model and train it to the budget; save it into ``work``."""
+    from stable_baselines3.common.logger import Logger, make_output_format
+
+    cls = algo_class(algo)
+    # everything is validated: build the env before touching the disk, so a bad env kwarg
+    # (raised by the env's own validation) leaves nothing behind either
+    env = _make_env(cfg, seed, cfg.n_envs)
+    work.mkdir(parents=True, exist_ok=True)
+    if resume:
+        model = _resume_model(cls, algo, cfg, work, env, device)
+    else:
+        model = cls(cfg.policy, env, seed=seed, device=device, verbose=0,
+                    **_model_kwargs(cfg, env))
+        meta = {"algo": algo, "env": cfg.env_id, "seed": seed, "source": cfg.source,
+                "versions": _versions(), "hyperparameters": cfg.as_yaml_dict()}
+        (work / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
+        (work / "command.txt").write_text((command or shlex.join(sys.argv)) + "\n")
+    model.set_logger(Logger(str(work), [make_output_format("csv", str(work)),
+                                        make_output_format("tensorboard", str(work / "tb"))]))
+    freq = eval_freq or max(cfg.n_timesteps // 10, 1)
+    eval_env, callbacks = _callbacks(algo, cfg, work, seed, freq, eval_episodes_during)
+    start = time.time()
+    remaining = cfg.n_timesteps - (model.num_timesteps if resume else 0)
+    if remaining > 0:
+        model.learn(remaining, callback=callbacks, progress_bar=progress,
+                    reset_num_timesteps=not resume)
+    wall = time.time() - start
+    model.save(work / "model.zip")
+    if cfg.normalize:
+        model.get_vec_normalize_env().save(str(work / "vecnormalize.pkl"))
+    env.close()
+    eval_env.close()
+    plot_learning_curve(work, f"{algo.upper()} on {cfg.env_id}")
+    return model, wall
+
+
 def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int = 0,
           timesteps: int | None = None, out: str | Path | None = None,
           n_envs: int | None = None, device: str = "cpu", resume: bool = False,
@@ -143,82 +236,11 @@ def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int
         raise AgentConfigError(f"seed: must be an integer >= 0 (got {seed!r})")
     name = f"{algo}-{env_id.split('/')[-1]}-s{seed}"
     run_dir = Path(out) if out is not None else Path("runs") / name
-    partial = run_dir.with_name(run_dir.name + ".partial")
-    if resume:
-        work = run_dir if run_dir.exists() else partial
-        if not (work / "config.yml").exists():
-            raise AgentConfigError(f"resume: {run_dir} is not a run directory")
-        if _latest_checkpoint(work) is None:
-            raise AgentConfigError(f"resume: {run_dir} has no checkpoint to resume from")
-    else:
-        if run_dir.exists() and not force:
-            raise AgentConfigError(f"out: {run_dir} exists; pass --force to replace it or "
-                                   "--resume to continue it")
-        work = partial
-        if work.exists():
-            shutil.rmtree(work)
-    # everything is validated: build the env before touching the disk, so a bad env kwarg
-    # (raised by the env's own validation) leaves nothing behind either
-    env = _make_env(cfg, seed, cfg.n_envs)
-    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
-    from stable_baselines3.common.logger import Logger, make_output_format
-
-    cls = algo_class(algo)
-    work.mkdir(parents=True, exist_ok=True)
+    work = _work_dir(run_dir, resume, force)
     try:
-        if resume:
-            ckpt = _latest_checkpoint(work)
-            model = cls.load(ckpt, env=env, device=device)
-            if cfg.normalize and (work / "checkpoints" / "vecnormalize.pkl").exists():
-                from stable_baselines3.common.vec_env import VecNormalize
-
-                env = VecNormalize.load(str(work / "checkpoints" / "vecnormalize.pkl"),
-                                        env.venv)
-                model.set_env(env)
-            buf = ckpt.with_name(ckpt.name.replace("model_", "model_replay_buffer_")
-                                 .replace(".zip", ".pkl"))
-            if algo in OFF_POLICY and buf.exists():
-                model.load_replay_buffer(buf)
-        else:
-            model = cls(cfg.policy, env, seed=seed, device=device, verbose=0,
-                        **_model_kwargs(cfg, env))
-            meta = {"algo": algo, "env": env_id, "seed": seed, "source": cfg.source,
-                    "versions": _versions(), "hyperparameters": cfg.as_yaml_dict()}
-            (work / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
-            (work / "command.txt").write_text((command or shlex.join(sys.argv)) + "\n")
-        model.set_logger(Logger(str(work), [make_output_format("csv", str(work)),
-                                            make_output_format("tensorboard", str(work / "tb"))]))
-        n_envs_ = cfg.n_envs
-        freq = eval_freq or max(cfg.n_timesteps // 10, 1)
-        from envs.sb3 import make_sb3_vec_env
-
-        eval_env = make_sb3_vec_env(env_id, n_envs=1, seed=seed + 10_000,
-                                    env_kwargs=cfg.env_kwargs)
-        if cfg.normalize:
-            from stable_baselines3.common.vec_env import VecNormalize
-
-            eval_env = VecNormalize(eval_env, training=False, norm_reward=False)
-        callbacks = CallbackList([
-            CheckpointCallback(save_freq=max(freq // n_envs_, 1), save_path=str(work / "checkpoints"),
-                               name_prefix="model", save_replay_buffer=algo in OFF_POLICY,
-                               save_vecnormalize=bool(cfg.normalize)),
-            EvalCallback(eval_env, n_eval_episodes=eval_episodes_during,
-                         eval_freq=max(freq // n_envs_, 1),
-                         log_path=str(work), best_model_save_path=None, deterministic=True,
-                         verbose=0),
-        ])
-        start = time.time()
-        remaining = cfg.n_timesteps - (model.num_timesteps if resume else 0)
-        if remaining > 0:
-            model.learn(remaining, callback=callbacks, progress_bar=progress,
-                        reset_num_timesteps=not resume)
-        wall = time.time() - start
-        model.save(work / "model.zip")
-        if cfg.normalize:
-            model.get_vec_normalize_env().save(str(work / "vecnormalize.pkl"))
-        env.close()
-        eval_env.close()
-        plot_learning_curve(work, f"{algo.upper()} on {env_id}")
+        model, wall = _learn(algo, cfg, work, seed=seed, device=device, resume=resume,
+                             progress=progress, eval_freq=eval_freq,
+                             eval_episodes_during=eval_episodes_during, command=command)
         if work != run_dir:
             if run_dir.exists():
                 shutil.rmtree(run_dir)
@@ -235,20 +257,21 @@ def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int
     meta.setdefault("runs", []).append({"timesteps": int(model.num_timesteps),
                                         "wall_time_s": round(wall, 2)})
     (run_dir / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
-    if evaluate:
-        from agents.evaluate import evaluate as run_eval
-        from agents.evaluate import load_model_policy, summarise
+    if evaluate or video:
+        from agents.evaluate import load_model_policy
 
         policy, _ = load_model_policy(run_dir)
+    if evaluate:
+        from agents.evaluate import evaluate as run_eval
+        from agents.evaluate import summarise
+
         results = run_eval(env_id, policy, episodes=eval_episodes, env_kwargs=cfg.env_kwargs)
         summarise(results, run_dir, f"## {algo.upper()} on {env_id} (seed {seed}, "
                                     f"{model.num_timesteps} steps, {wall:.0f} s)")
         result["evaluations"] = {r.policy: (r.mean, r.std) for r in results}
     if video:
-        from agents.evaluate import load_model_policy
         from agents.record import record
 
-        policy, _ = load_model_policy(run_dir)
         result["video"] = record(policy, env_id, run_dir / "rollout.mp4", episodes=3,
                                  env_kwargs=cfg.env_kwargs)["path"]
     return result

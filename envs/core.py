@@ -322,7 +322,8 @@ class SpinStrikeVectorEnv(VectorEnv):
 
     def reset(self, *, seed: int | list | None = None, options: dict | None = None):
         if seed is not None:
-            seeds = [seed + i for i in range(self.num_envs)] if isinstance(seed, int) else list(seed)
+            seeds = ([seed + i for i in range(self.num_envs)] if isinstance(seed, int)
+                     else list(seed))
             if len(seeds) != self.num_envs:
                 raise ValueError(f"seed: expected {self.num_envs} seeds, got {len(seeds)}")
             self._stream.seed(seeds)

@@ -111,7 +111,8 @@ class Renderer:
             pg.draw.circle(surf, colour, self._px(b.x, b.y), r, width_px)
             # a tick shows the disk's orientation (and so its spin)
             if width_px == 0:
-                tip = self._px(b.x + b.radius * math.cos(b.angle), b.y + b.radius * math.sin(b.angle))
+                tip = self._px(b.x + b.radius * math.cos(b.angle),
+                               b.y + b.radius * math.sin(b.angle))
                 pg.draw.line(surf, COLOURS["table"], self._px(b.x, b.y), tip, max(1, r // 4))
 
     def _spin_arrow(self, surf, b: BodyDraw) -> None:

@@ -27,7 +27,7 @@ def test_adapter_reports_episodes_like_monitor():
     obs = vec.reset()
     assert obs.shape == (3, 11)
     total = np.zeros(3)
-    for k in range(4):
+    for _ in range(4):
         obs, rew, done, infos = vec.step(np.zeros((3, 2), np.float32))
         total += rew
     assert done.all()
