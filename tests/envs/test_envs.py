@@ -353,3 +353,12 @@ def test_control_mallet_keeps_its_speed_limit_in_free_flight():
         if info["hits"] == 0:
             top = max(top, info["mallet_speed"])
     assert top <= env.unwrapped.cfg.max_speed * (1 + 1e-9)
+
+
+def test_human_render_mode_opens_a_window_headless():
+    env = gym.make("SpinStrike/RodSpinControl-v0", render_mode="human")
+    env.reset(seed=0)
+    for _ in range(3):
+        env.step(env.action_space.sample())
+    assert env.render() is None  # human mode draws to the window
+    env.close()

@@ -1,0 +1,28 @@
+"""Real training (marked slow: run with ``pytest -m slow``; minutes each on 2 cores)."""
+
+import pytest
+
+from agents.train import train
+
+pytestmark = pytest.mark.slow
+
+
+def test_ppo_reaches_90_percent_of_the_oracle_on_rodspin(tmp_path):
+    """Within the budget of configs/agents/ppo.yml."""
+    result = train("ppo", "SpinStrike/RodSpin-v0", seed=0, out=tmp_path / "run", progress=False,
+                   video=False, eval_episodes=50)
+    ev = result["evaluations"]
+    assert ev["agent"][0] >= 0.9 * ev["oracle"][0], ev
+
+
+@pytest.mark.parametrize("env_id", ["SpinStrike/RodSpinControl-v0",
+                                    "SpinStrike/PuckSpeedControl-v0"])
+def test_control_agent_beats_random_by_a_wide_margin(env_id, tmp_path):
+    """PPO against the random policy (at least twice its mean return and four of its standard
+    deviations above); the scripted chase-and-hit policy is reported beside both."""
+    result = train("ppo", env_id, seed=0, out=tmp_path / "run", progress=False, video=False,
+                   eval_episodes=20)
+    ev = result["evaluations"]
+    agent, random, scripted = ev["agent"], ev["random"], ev["oracle"]
+    print(f"{env_id}: agent {agent}, random {random}, chase-and-hit {scripted}")
+    assert agent[0] >= 2.0 * random[0] and agent[0] >= random[0] + 4.0 * random[1], ev
