@@ -10,7 +10,7 @@ is exactly the core offset's, i.e. exactly 0 for a disk.
 Flat contacts: when two segments are parallel (sin^2 of the angle between them below
 ``PARALLEL``) and their projections overlap, or a rod lies parallel to a cushion, the contact point
 is the middle of the overlap, so a flat impact gets one impulse through the middle, not one at an
-arbitrary end.
+arbitrary end; the gap stays the smallest distance (at an end), so it is continuous.
 
 All functions are numba kernels on scalars (no allocation).
 """
@@ -125,7 +125,34 @@ def capsule_capsule(xa, ya, anga, ha, ra, xb, yb, angb, hb, rb):
         else:
             nx = 1.0
             ny = 0.0
+    if ha > 0.0 and hb > 0.0:
+        # nearly parallel segments: the contact point is the middle of their overlap (a flat
+        # impact), but the gap is the smallest distance, at an end of the overlap, so that it
+        # does not jump when the segments turn out of parallel (the middle's distance hid up to
+        # sqrt(PARALLEL) x length of penetration)
+        ux = p1x - p0x
+        uy = p1y - p0y
+        vx = q1x - q0x
+        vy = q1y - q0y
+        cross = ux * vy - uy * vx
+        if cross * cross <= PARALLEL * (ux * ux + uy * uy) * (vx * vx + vy * vy):
+            d = min(d, _point_segment(p0x, p0y, q0x, q0y, q1x, q1y),
+                    _point_segment(p1x, p1y, q0x, q0y, q1x, q1y),
+                    _point_segment(q0x, q0y, p0x, p0y, p1x, p1y),
+                    _point_segment(q1x, q1y, p0x, p0y, p1x, p1y))
     return d - ra - rb, nx, ny, cax - xa, cay - ya, cbx - xb, cby - yb
+
+
+@jit
+def _point_segment(px, py, ax, ay, bx, by):
+    """Distance from a point to a segment."""
+    ux = bx - ax
+    uy = by - ay
+    uu = ux * ux + uy * uy
+    f = _clamp01(((px - ax) * ux + (py - ay) * uy) / uu) if uu > _TINY else 0.0
+    dx = px - ax - f * ux
+    dy = py - ay - f * uy
+    return math.sqrt(dx * dx + dy * dy)
 
 
 @jit
@@ -151,9 +178,12 @@ def capsule_wall(x, y, angle, h, r, wall, half_w, half_h):
     d1 = ix * p1x + iy * p1y + off
     diff = d0 - d1
     if h > 0.0 and diff * diff <= PARALLEL * 4.0 * h * h:
+        # flat on the cushion: the contact point is the middle (an impact through the middle),
+        # the gap the nearer end's, so that it does not jump when the rod turns out of parallel
+        # (the middle's distance hid up to sqrt(PARALLEL) h of penetration)
         cx = 0.5 * (p0x + p1x)
         cy = 0.5 * (p0y + p1y)
-        d = 0.5 * (d0 + d1)
+        d = min(d0, d1)
     elif d0 <= d1:
         cx, cy, d = p0x, p0y, d0
     else:
