@@ -6,7 +6,7 @@ the world flies in closed form to the earliest, resolves every pair then within 
 approaching (the *simultaneous-contact rule*: sequential impulses swept in pair order until no pair
 approaches, at most ``MAX_SWEEPS`` sweeps — this reproduces Newton's cradle; if pairs still
 approach after that, a *jam*, one block solve of all touching pairs removes the rest,
-``_jam_solve``), and searches again only for the pairs whose bodies changed. Two guards keep a
+``physics.jam``), and searches again only for the pairs whose bodies changed. Two guards keep a
 step finite:
 
 * a run of *resting bounces* (impacts closing slower than ``zeno_speed``, or time-of-impact
@@ -32,7 +32,9 @@ import numpy as np
 
 from physics.events import pair_geometry, time_of_impact
 from physics.impulse import apply_impulse, resolve
+from physics.jam import JAM_COLUMNS, MAX_JAM_PAIRS, jam_impulses
 from physics.layout import (
+    ANGLE,
     CHECKPOINT,
     FRICTION,
     FRICTION_DECEL,
@@ -150,152 +152,17 @@ def _contact_pass(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact
     return hit, resting
 
 
-#: most touching pairs the plastic block solve of a jam takes (it tries up to 2^n active sets)
-MAX_JAM_PAIRS = 10
-
-
 @jit
-def _solve_small(M, rhs, k):
-    """Solve the k x k system ``M x = rhs`` in place (partial pivoting); False if singular."""
-    scale = 0.0
-    for i in range(k):
-        scale = max(scale, abs(M[i, i]))
-    for c in range(k):
-        piv = c
-        for r in range(c + 1, k):
-            if abs(M[r, c]) > abs(M[piv, c]):
-                piv = r
-        if abs(M[piv, c]) <= 1e-13 * scale or M[piv, c] == 0.0:
-            return False
-        if piv != c:
-            for q in range(k):
-                M[c, q], M[piv, q] = M[piv, q], M[c, q]
-            rhs[c], rhs[piv] = rhs[piv], rhs[c]
-        for r in range(c + 1, k):
-            f = M[r, c] / M[c, c]
-            for q in range(c, k):
-                M[r, q] -= f * M[c, q]
-            rhs[r] -= f * rhs[c]
-    for c in range(k - 1, -1, -1):
-        acc = rhs[c]
-        for q in range(c + 1, k):
-            acc -= M[c, q] * rhs[q]
-        rhs[c] = acc / M[c, c]
-    return True
-
-
-@jit
-def _jam_solve(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, ctime, cgeo, cimp,
-               stats):
-    """Block solve of every touching pair at once (the jam fallback).
-
-    Used when ``MAX_SWEEPS`` sequential sweeps still leave a pair approaching: a light body
-    pinned between a heavy one and a cushion loses only ``m_light / m_heavy`` of the approach
-    per sweep (a 1e6 ratio would need millions). The normal impulses ``lam >= 0`` of all pairs
-    within ``slop`` are found together as the solution of the linear complementarity problem
-    ``w = vn + A lam >= 0, lam . w = 0`` (A: the pairs' Delassus matrix, from inverse masses and
-    lever arms), by trying active sets: the compression phase, the minimiser of the kinetic
-    energy over non-negative impulses, which leaves no pair approaching. Restitution follows
-    Poisson's hypothesis with the smallest ``e`` of the touching pairs: the impulses applied are
-    ``(1 + e) lam``, which changes the kinetic energy by ``-(1 - e^2)/2 lam.A.lam <= 0``
-    (exactly 0 for e = 1), so the block never adds energy. More than ``MAX_JAM_PAIRS``
-    touching pairs: nothing is done (the caller's fallbacks still apply). Returns True if
-    impulses were applied.
-    """
-    n = S.shape[0]
-    m = 0
+def _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, ctime, cgeo, cimp, stats):
+    """The sweeps did not converge (a jam): apply and record the block solve's impulses."""
     idx = np.empty(MAX_JAM_PAIRS, np.int64)
-    geo = np.empty((MAX_JAM_PAIRS, 7))  # nx, ny, cross_a, cross_b, px, py, vn
-    for p in range(PA.shape[0]):
-        a = PA[p]
-        b = PB[p]
-        wall = b - n if b >= n else -1
-        bb = a if wall >= 0 else b
-        g, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S[a], Pm[a], S[bb], Pm[bb],
-                                                                  wall, hw[0], hw[1])
-        if g <= slop:
-            if m == MAX_JAM_PAIRS:
-                return False
-            idx[m] = p
-            geo[m, 0] = nx
-            geo[m, 1] = ny
-            geo[m, 2] = oax * ny - oay * nx
-            geo[m, 3] = obx * ny - oby * nx
-            geo[m, 4] = S[a, X] + oax + ka * nx
-            geo[m, 5] = S[a, Y] + oay + ka * ny
-            geo[m, 6] = vn
-            m += 1
-    vmax = 0.0
-    e = 1.0
-    for i in range(m):
-        vmax = max(vmax, abs(geo[i, 6]))
-        e = min(e, MAT[idx[i], RESTITUTION])
-    if m == 0 or vmax == 0.0:
-        return False
-    A = np.zeros((m, m))
-    for i in range(m):
-        for k in range(m):
-            acc = 0.0
-            for si in range(2):
-                x = PA[idx[i]] if si == 0 else PB[idx[i]]
-                if x >= n:
-                    continue
-                sgn_i = -1.0 if si == 0 else 1.0
-                ci = geo[i, 2] if si == 0 else geo[i, 3]
-                for sk in range(2):
-                    y = PA[idx[k]] if sk == 0 else PB[idx[k]]
-                    if y != x:
-                        continue
-                    sgn_k = -1.0 if sk == 0 else 1.0
-                    ck = geo[k, 2] if sk == 0 else geo[k, 3]
-                    d = geo[i, 0] * geo[k, 0] + geo[i, 1] * geo[k, 1]
-                    term = Pm[x, INV_MASS] * d
-                    if rotation:
-                        term += Pm[x, INV_INERTIA] * ci * ck
-                    acc += sgn_i * sgn_k * term
-            A[i, k] = acc
-    eps = 1e-12 * vmax
-    lam = np.zeros(m)
-    M = np.empty((m, m))
-    rhs = np.empty(m)
-    sel = np.empty(m, np.int64)
-    found = False
-    for mask in range(1, 1 << m):
-        k = 0
-        for i in range(m):
-            if mask >> i & 1:
-                sel[k] = i
-                k += 1
-        for r in range(k):
-            rhs[r] = -geo[sel[r], 6]
-            for q in range(k):
-                M[r, q] = A[sel[r], sel[q]]
-        if not _solve_small(M, rhs, k):
-            continue
-        ok = True
-        for r in range(k):
-            if rhs[r] < 0.0:
-                ok = False
-        if not ok:
-            continue
-        lam[:] = 0.0
-        for r in range(k):
-            lam[sel[r]] = rhs[r]
-        for i in range(m):
-            w = geo[i, 6]
-            for q in range(m):
-                w += A[i, q] * lam[q]
-            if w < -eps:
-                ok = False
-        if ok:
-            found = True
-            break
-    if not found:
-        return False
+    geo = np.empty((MAX_JAM_PAIRS, JAM_COLUMNS))
+    lam = np.zeros(MAX_JAM_PAIRS)
+    n = S.shape[0]
+    m = jam_impulses(S, Pm, hw, PA, PB, MAT, slop, rotation, idx, geo, lam)
     for i in range(m):
         if lam[i] <= 0.0:
             continue
-        lam[i] *= 1.0 + e
         p = idx[i]
         a = PA[p]
         b = PB[p]
@@ -308,11 +175,46 @@ def _jam_solve(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, ctime,
         changed[a] = True
         if not is_wall:
             changed[b] = True
-    return True
 
 
 @jit
-def _separate(S, Pm, hw, PA, PB, weighted):
+def _sweeps(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_friction, changed,
+            cpair, ctime, cgeo, cimp, stats, sweeps, jam):
+    """Up to ``sweeps`` contact passes until none hits; then, if ``jam`` and the last pass still
+    hit, the block solve of the jam. Returns the number of resting bounces seen."""
+    resting = 0
+    hit = False
+    for _ in range(sweeps):
+        hit, r = _contact_pass(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation,
+                               contact_friction, changed, cpair, ctime, cgeo, cimp, stats)
+        resting += r
+        if not hit:
+            break
+    if hit and jam:
+        _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, ctime, cgeo, cimp, stats)
+    return resting
+
+
+@jit
+def _share(im, ii, c, equal):
+    """(translation weight, rotation weight) of one body in a positional correction along n.
+
+    ``c`` is the lever arm ``r x n``. Physical shares (``equal`` False) are the terms of the
+    effective inverse mass, ``1/m`` and ``c^2 / I``; equal shares give every movable body a total
+    of 1, split between translation and rotation in the proportion of those terms.
+    """
+    wt = im
+    wr = ii * c * c
+    if equal:
+        total = wt + wr
+        if total > 0.0:
+            wt = wt / total
+            wr = wr / total
+    return wt, wr
+
+
+@jit
+def _separate(S, Pm, hw, PA, PB, weighted, rotate):
     """Push overlapping pairs apart along the normal, in proportion to their inverse masses
     (``weighted``), or in equal shares between the movable bodies of a pair.
 
@@ -323,6 +225,11 @@ def _separate(S, Pm, hw, PA, PB, weighted):
     and a cushion takes almost all of each correction and gives it back to the cushion, so the
     overlap shrinks only by ``m_light / m_heavy`` per sweep (1e-4 m left after 64 sweeps at a
     mass ratio of 1e4); with equal shares it halves every sweep, whatever the masses.
+
+    ``rotate``: the correction may also turn the bodies about their centres, in the share of
+    their lever terms ``(r x n)^2 / I`` (the settling path). Without it a pivoted rod that had
+    turned into a puck wedged in a corner could not be separated from it at all (translation
+    is blocked on every side there): 5e-4 m of overlap was left.
     """
     n = S.shape[0]
     deepest = 0.0
@@ -331,24 +238,32 @@ def _separate(S, Pm, hw, PA, PB, weighted):
         b = PB[p]
         wall = b - n if b >= n else -1
         bb = a if wall >= 0 else b
-        g, nx, ny, _, _, _, _, _, _, _ = pair_geometry(S[a], Pm[a], S[bb], Pm[bb], wall, hw[0],
-                                                       hw[1])
+        g, nx, ny, oax, oay, _, obx, oby, _, _ = pair_geometry(S[a], Pm[a], S[bb], Pm[bb], wall,
+                                                               hw[0], hw[1])
         if g < 0.0:
-            wa = Pm[a, INV_MASS]
-            wb = Pm[b, INV_MASS] if wall < 0 else 0.0
-            if not weighted:
-                wa = 1.0 if wa > 0.0 else 0.0
-                wb = 1.0 if wb > 0.0 else 0.0
-            total = wa + wb
+            ca = oax * ny - oay * nx
+            cb = obx * ny - oby * nx
+            ira = Pm[a, INV_INERTIA] if rotate else 0.0
+            irb = Pm[b, INV_INERTIA] if rotate and wall < 0 else 0.0
+            ta, ra = _share(Pm[a, INV_MASS], ira, ca, not weighted)
+            if wall < 0:
+                tb, rb = _share(Pm[b, INV_MASS], irb, cb, not weighted)
+            else:
+                tb, rb = 0.0, 0.0
+            total = ta + ra + tb + rb
             if total > 0.0:
                 if -g > deepest:
                     deepest = -g
                 depth = -g / total
-                S[a, X] -= nx * depth * wa
-                S[a, Y] -= ny * depth * wa
+                S[a, X] -= nx * depth * ta
+                S[a, Y] -= ny * depth * ta
+                if ra > 0.0:
+                    S[a, ANGLE] -= depth * ra / ca
                 if wall < 0:
-                    S[b, X] += nx * depth * wb
-                    S[b, Y] += ny * depth * wb
+                    S[b, X] += nx * depth * tb
+                    S[b, Y] += ny * depth * tb
+                    if rb > 0.0:
+                        S[b, ANGLE] += depth * rb / cb
     return deepest
 
 
@@ -394,18 +309,11 @@ def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, 
     for k in range(substeps):
         _kick(S, Pm, F, h, rotation, table_friction)
         t = t0 + (k + 1) * h
-        hit = False
-        for _ in range(iterations):
-            hit, resting = _contact_pass(S, Pm, hw, PA, PB, MAT, slop, 0.0, t, rotation,
-                                         contact_friction, changed, cpair, ctime, cgeo, cimp,
-                                         stats)
-            if not hit:
-                break
-        if hit and separate_sweeps > 1:  # settling, and the sweeps did not converge: a jam
-            _jam_solve(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, ctime, cgeo,
-                       cimp, stats)
+        # settling (several separation sweeps) also takes the block solve of a jam
+        _sweeps(S, Pm, hw, PA, PB, MAT, slop, 0.0, t, rotation, contact_friction, changed,
+                cpair, ctime, cgeo, cimp, stats, iterations, separate_sweeps > 1)
         for sweep in range(separate_sweeps):
-            if _separate(S, Pm, hw, PA, PB, sweep == 0) <= slop:
+            if _separate(S, Pm, hw, PA, PB, sweep == 0, rotation and separate_sweeps > 1) <= slop:
                 break
     stats[STAT_SUBSTEPS] += substeps
 
@@ -486,16 +394,9 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
             if g <= tol:
                 resting += 1
         else:
-            hit = False
-            for _ in range(MAX_SWEEPS):
-                hit, r = _contact_pass(S, Pm, hw, PA, PB, MAT, tol, zeno_speed, t_now, rotation,
-                                       contact_friction, changed, cpair, ctime, cgeo, cimp, stats)
-                resting += r
-                if not hit:
-                    break
-            if hit:  # the sweeps did not converge (a jam): one plastic block solve
-                _jam_solve(S, Pm, hw, PA, PB, MAT, tol, t_now, rotation, changed, cpair, ctime,
-                           cgeo, cimp, stats)
+            resting += _sweeps(S, Pm, hw, PA, PB, MAT, tol, zeno_speed, t_now, rotation,
+                               contact_friction, changed, cpair, ctime, cgeo, cimp, stats,
+                               MAX_SWEEPS, True)
         horizon = dt - t_now
         for p in range(n_pairs):
             if p == best or changed[PA[p]] or (PB[p] < S.shape[0] and changed[PB[p]]):
