@@ -1,0 +1,340 @@
+"""Throughput, measured side by side with its peers in one run.
+
+    python -m benchmarks.speed            # everything (a few minutes); writes docs/speed.md + plots
+    python -m benchmarks.speed --quick    # smaller batches and fewer repetitions
+
+What is measured (env-steps per second unless said otherwise; fastest of the repetitions):
+
+* the native vector env of ``RodSpinControl-v0`` (exact solver) at 4096 envs, random actions and a
+  batched chase-and-hit policy that makes contact, beside a ``SyncVectorEnv`` of the same env on
+  the pymunk backend and Gymnasium's own ``CartPole-v1`` vector env (1024 envs, no collisions);
+* the single env through ``gym.make`` (all default wrappers), exact and pymunk;
+* the one-strike envs: strikes per second, single and vector;
+* the share of SB3 PPO's wall time spent in the env (native ``VecEnv`` adapter);
+* how the cost grows with the batch size (1..65536) and with the number of bodies (2..64 pucks).
+
+Contacts per step are reported beside every figure, since free flight is cheap and contacts are
+not.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+import envs  # noqa: F401
+import physics
+
+__all__ = ["main"]
+
+CONTROL = "SpinStrike/RodSpinControl-v0"
+
+
+def _best(fn, repeats: int) -> float:
+    """Fastest wall time of ``repeats`` calls of ``fn`` (s)."""
+    best = math.inf
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t)
+    return best
+
+
+def chase_and_hit_batch(task, max_speed: float) -> np.ndarray:
+    """The scripted chase-and-hit policy of ``agents.oracle.ChaseAndHit``, vectorised over a
+    control task's batch (aim at 0.8 of the rod's half length, drive through it)."""
+    w = task.world
+    pm = w.state.positions[:, task.im]
+    vm = w.state.velocities[:, task.im]
+    pt = w.state.positions[:, task.it]
+    phi = w.state.angles[:, task.it]
+    u = np.stack([np.cos(phi), np.sin(phi)], 1)
+    n = np.stack([-u[:, 1], u[:, 0]], 1)
+    flip = ((pm - pt) * n).sum(1) < 0
+    n[flip] *= -1
+    aim = pt + 0.8 * w.half_length[:, task.it, None] * u
+    contact = aim + n * (w.radius[:, task.it] + w.radius[:, task.im])[:, None]
+    waypoint = contact + n * 0.06
+    behind = ((pm - contact) * -n).sum(1) < -0.03
+    near = np.sqrt(((pm - waypoint) ** 2).sum(1)) < 0.03
+    force = (12.0 * (waypoint - pm) - vm) / max_speed
+    norm = np.maximum(np.sqrt((force**2).sum(1, keepdims=True)), 1.0)
+    force = force / norm
+    force[behind & near] = -n[behind & near]
+    return np.clip(force, -1, 1).astype(np.float32)
+
+
+def _vector_rate(env_id: str, n: int, steps: int, repeats: int, policy: str = "random",
+                 **kwargs) -> tuple[float, float]:
+    """(env-steps/s, contacts per env-step) of the native vector env."""
+    vec = gym.make_vec(env_id, num_envs=n, **kwargs)
+    vec.reset(seed=0)
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1, 1, (steps, n, vec.single_action_space.shape[0])).astype(np.float32)
+    contacts = [0]
+
+    def run():
+        for k in range(steps):
+            if policy == "chase":
+                a = chase_and_hit_batch(vec.task, vec.cfg.max_speed)
+            else:
+                a = actions[k]
+            vec.step(a)
+            contacts[0] += int(vec.world.last_step.contacts.sum())
+
+    run()  # warm up (numba compiles)
+    contacts[0] = 0
+    best = _best(run, repeats)
+    vec.close()
+    return steps * n / best, contacts[0] / (repeats * steps * n)
+
+
+def _sync_pymunk_rate(n: int, steps: int, repeats: int) -> tuple[float, float]:
+    vec = gym.vector.SyncVectorEnv([lambda: gym.make(CONTROL, solver={"mode": "pymunk"})
+                                    for _ in range(n)],
+                                   autoreset_mode=gym.vector.AutoresetMode.SAME_STEP)
+    vec.reset(seed=0)
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1, 1, (steps, n, 2)).astype(np.float32)
+    contacts = [0]
+
+    def run():
+        for k in range(steps):
+            vec.step(actions[k])
+            contacts[0] += sum(int(e.unwrapped.world.last_step.contacts.sum()) for e in vec.envs)
+
+    run()
+    contacts[0] = 0
+    best = _best(run, repeats)
+    vec.close()
+    return steps * n / best, contacts[0] / (repeats * steps * n)
+
+
+def _cartpole_rate(n: int, steps: int, repeats: int) -> float:
+    vec = gym.make_vec("CartPole-v1", num_envs=n, vectorization_mode="vector_entry_point")
+    vec.reset(seed=0)
+    actions = np.random.default_rng(0).integers(0, 2, (steps, n))
+
+    def run():
+        for k in range(steps):
+            vec.step(actions[k])
+
+    run()
+    return steps * n / _best(run, repeats)
+
+
+def _single_rate(env_id: str, steps: int, repeats: int, policy: str = "random",
+                 **kwargs) -> tuple[float, float]:
+    env = gym.make(env_id, **kwargs)
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1, 1, (steps, *env.action_space.shape)).astype(np.float32)
+    contacts = [0]
+    if policy == "chase":
+        from agents.oracle import ChaseAndHit
+
+        chase = ChaseAndHit()
+
+    def run():
+        obs = None
+        for k in range(steps):
+            a = chase(env, obs) if policy == "chase" else actions[k]
+            obs, r, term, trunc, _ = env.step(a)
+            contacts[0] += int(env.unwrapped.world.last_step.contacts.sum())
+            if term or trunc:
+                obs, _ = env.reset()
+
+    run()
+    contacts[0] = 0
+    best = _best(run, repeats)
+    env.close()
+    return steps / best, contacts[0] / (repeats * steps)
+
+
+def _ppo_env_share(steps: int) -> float:
+    """Share of PPO's wall time spent inside the env's step (native VecEnv adapter)."""
+    from stable_baselines3 import PPO
+
+    from envs.sb3 import make_sb3_vec_env
+
+    vec = make_sb3_vec_env(CONTROL, n_envs=16, seed=0)
+    spent = [0.0]
+    step_wait = vec.step_wait
+
+    def timed():
+        t = time.perf_counter()
+        out = step_wait()
+        spent[0] += time.perf_counter() - t
+        return out
+
+    vec.step_wait = timed
+    model = PPO("MlpPolicy", vec, n_steps=256, batch_size=512, device="cpu", seed=0)
+    model.learn(4096)  # warm-up
+    spent[0] = 0.0
+    t = time.perf_counter()
+    model.learn(steps, reset_num_timesteps=False)
+    return spent[0] / (time.perf_counter() - t)
+
+
+def _many_pucks_scene(n_pucks: int) -> dict:
+    side = math.ceil(math.sqrt(n_pucks))
+    rng = np.random.default_rng(1)
+    bodies = []
+    for k in range(n_pucks):
+        i, j = divmod(k, side)
+        bodies.append({"name": f"p{k}", "shape": "disk", "radius": 0.02, "mass": 0.05,
+                       "position": [-0.5 + (i + 0.5) * 1.0 / side,
+                                    -0.35 + (j + 0.5) * 0.7 / side],
+                       "velocity": rng.uniform(-1, 1, 2).tolist()})
+    return {"table": {"size": [1.2, 0.8]}, "effects": ["rotation", "walls"],
+            "materials": {"restitution": 0.95}, "bodies": bodies}
+
+
+def _world_step_time(scene: dict, batch: int, steps: int, repeats: int) -> tuple[float, float]:
+    """(seconds per world.step, contacts per element-step)."""
+    world = physics.World(scene, batch_size=batch)
+    world.step(0.02)
+    counts = [0]
+
+    def run():
+        for _ in range(steps):
+            world.step(0.02)
+            counts[0] += int(world.last_step.contacts.sum())
+
+    counts[0] = 0
+    best = _best(run, repeats)
+    return best / steps, counts[0] / (repeats * steps * batch)
+
+
+def _machine() -> str:
+    try:
+        model = next(line.split(":", 1)[1].strip() for line in
+                     open("/proc/cpuinfo").read().splitlines() if line.startswith("model name"))
+    except (OSError, StopIteration):
+        model = platform.processor()
+    import numba
+    import pymunk
+
+    return (f"{os.cpu_count()} cores ({model}); Python {platform.python_version()}, numpy "
+            f"{np.__version__}, numba {numba.__version__}, gymnasium {gym.__version__}, pymunk "
+            f"{pymunk.version}; load average at start {os.getloadavg()[0]:.2f}")
+
+
+def _plot(path: Path, xs, ys, xlabel: str, title: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 3.6))
+    ax.loglog(xs, ys, "o-")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("time per step per element (s)")
+    ax.set_title(title)
+    ax.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m benchmarks.speed",
+                                description=__doc__.split("\n")[0])
+    p.add_argument("--quick", action="store_true")
+    p.add_argument("--out", default="docs", help="where speed.md and the plots go")
+    args = p.parse_args(argv)
+    quick = args.quick
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    big = 1024 if quick else 4096
+    reps = 2 if quick else 3
+    rows = []
+    started = time.time()
+
+    def row(what, rate, contacts="-", unit="env-steps/s", note=""):
+        rows.append((what, rate, contacts, unit, note))
+        c = f"{contacts:.3f}" if isinstance(contacts, float) else contacts
+        print(f"{what:60s} {rate:14,.0f} {unit:12s} contacts/step {c} {note}", flush=True)
+
+    vec_rand, c_rand = _vector_rate(CONTROL, big, 50, reps)
+    row(f"native vector env, exact, {big} envs, random actions", vec_rand, c_rand)
+    vec_chase, c_chase = _vector_rate(CONTROL, big, 50, reps, policy="chase")
+    row(f"native vector env, exact, {big} envs, chase-and-hit", vec_chase, c_chase)
+    sync_rate, c_sync = _sync_pymunk_rate(16 if quick else 64, 50, reps)
+    row("SyncVectorEnv of single envs, pymunk backend", sync_rate, c_sync)
+    cart = _cartpole_rate(1024, 200, reps)
+    row("Gymnasium CartPole-v1 vector env, 1024 envs (yardstick)", cart)
+    single_exact, c1 = _single_rate(CONTROL, 2000, reps)
+    row("single env via gym.make, exact, random actions", single_exact, c1)
+    single_chase, c2 = _single_rate(CONTROL, 2000, reps, policy="chase")
+    row("single env via gym.make, exact, chase-and-hit", single_chase, c2)
+    single_pymunk, c3 = _single_rate(CONTROL, 2000, reps, solver={"mode": "pymunk"})
+    row("single env via gym.make, pymunk backend, random actions", single_pymunk, c3)
+    strike_single, c4 = _single_rate("SpinStrike/RodSpin-v0", 300, reps)
+    row("RodSpin-v0 single env, random strikes", strike_single, c4, "strikes/s")
+    strike_vec, c5 = _vector_rate("SpinStrike/RodSpin-v0", 1024, 10, reps)
+    row("RodSpin-v0 native vector env, 1024 envs, random strikes", strike_vec, c5, "strikes/s")
+    puck_vec, c6 = _vector_rate("SpinStrike/PuckSpeed-v0", 1024, 10, reps)
+    row("PuckSpeed-v0 native vector env, 1024 envs, random strikes", puck_vec, c6, "strikes/s")
+    share = _ppo_env_share(8192 if quick else 32768)
+    rows.append(("share of SB3 PPO wall time spent in the env (16 envs, native adapter)", share,
+                 "-", "fraction", ""))
+    print(f"PPO env share {share:.3f}")
+
+    batches = [1, 4, 16, 64, 256, 1024, 4096] + ([] if quick else [16384, 65536])
+    scene = physics.load_scene(envs.config.load_packaged_scene("rod_control"))
+    per_batch = []
+    for b in batches:
+        t, c = _world_step_time(scene, b, max(2, 2000 // b), reps)
+        per_batch.append((b, t / b, c))
+        print(f"batch {b:6d}: {t / b * 1e6:9.3f} us per element-step, contacts {c:.3f}")
+    bodies = [2, 4, 8, 16, 32, 64]
+    per_bodies = []
+    for n in bodies:
+        t, c = _world_step_time(_many_pucks_scene(n), 64, 20, reps)
+        per_bodies.append((n, t / 64, c))
+        print(f"{n:3d} pucks: {t / 64 * 1e6:9.3f} us per element-step, contacts {c:.3f}")
+    _plot(out / "speed_batch.png", [b for b, _, _ in per_batch], [t for _, t, _ in per_batch],
+          "batch size B", "world.step (RodSpinControl scene, exact): cost per element")
+    _plot(out / "speed_bodies.png", [n for n, _, _ in per_bodies],
+          [t for _, t, _ in per_bodies], "number of pucks", "world.step, walled table, B = 64")
+
+    lines = ["# Speed", "",
+             f"Generated by `python -m benchmarks.speed{' --quick' if quick else ''}` in "
+             f"{time.time() - started:.0f} s on {_machine()}. Rates are the fastest of {reps} "
+             "repetitions after a warm-up (numba compiled); ratios are between figures measured "
+             "in this same run.", "",
+             "| what | rate | unit | contacts per env-step |", "|---|---|---|---|"]
+    for what, rate, contacts, unit, _ in rows:
+        c = f"{contacts:.3f}" if isinstance(contacts, float) else contacts
+        value = f"{rate:.3f}" if unit == "fraction" else f"{rate:,.0f}"
+        lines.append(f"| {what} | {value} | {unit} | {c} |")
+    lines += ["", "Ratios in this run:", "",
+              "* native vector env (random) / SyncVectorEnv on pymunk: "
+              f"**{vec_rand / sync_rate:.1f}x**",
+              f"* native vector env (random) / CartPole-v1 vector env: {vec_rand / cart:.2f}x",
+              f"* single env exact / single env pymunk: **{single_exact / single_pymunk:.2f}x**",
+              f"* vector / single, RodSpin strikes: {strike_vec / strike_single:.1f}x", "",
+              "## Cost against batch size", "",
+              "| B | µs per element-step | contacts per element-step |", "|---|---|---|"]
+    lines += [f"| {b} | {t * 1e6:.3f} | {c:.3f} |" for b, t, c in per_batch]
+    lines += ["", "![cost per element against batch size](speed_batch.png)", "",
+              "## Cost against number of bodies", "",
+              "| pucks | µs per element-step | contacts per element-step |", "|---|---|---|"]
+    lines += [f"| {n} | {t * 1e6:.3f} | {c:.3f} |" for n, t, c in per_bodies]
+    lines += ["", "![cost per element against number of bodies](speed_bodies.png)", ""]
+    (out / "speed.md").write_text("\n".join(lines) + "\n")
+    print(f"wrote {out / 'speed.md'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
