@@ -126,7 +126,9 @@ def main(argv: list[str] | None = None) -> int:
     started = time.time()
     lines = ["# Baselines", "",
              f"Produced by `{shlex.join(['spinstrike', 'baselines', *(argv or sys.argv[1:])])}` "
-             f"on {_machine()}; {len(seeds)} seed(s) per algorithm, budgets from "
+             f"on {_machine()} (load average at start {os.getloadavg()[0]:.2f}: other jobs "
+             "shared the cores, so wall times are upper bounds); "
+             f"{len(seeds)} seed(s) per algorithm, budgets from "
              f"`configs/agents/*.yml`{' scaled by 0.1 (--quick)' if args.quick else ''}. Every "
              f"policy is evaluated on the same {EVAL_EPISODES} episodes (seeds 1000..1049, "
              "deterministic actions, exact solver). Mean +/- std is over seeds of each seed's "
@@ -172,7 +174,8 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, subprocess.CalledProcessError):
         commit = "unknown"
     lines.append(f"Total wall time of this run: {time.time() - started:.0f} s (reused runs "
-                 f"count as 0). Code at commit {commit}.")
+                 f"count as 0); load average at the end {os.getloadavg()[0]:.2f}. Code at commit "
+                 f"{commit}.")
     doc.parent.mkdir(parents=True, exist_ok=True)
     doc.write_text("\n".join(lines) + "\n")
     print(f"wrote {doc}")

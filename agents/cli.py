@@ -82,6 +82,7 @@ def cmd_train(args) -> int:
                    resume=args.resume, force=args.force, progress=not args.no_progress,
                    evaluate=not args.no_eval, eval_episodes=args.eval_episodes,
                    video=not args.no_video, env_kwargs=_kwargs(args.env_kwargs),
+                   torch_threads=args.torch_threads or None,
                    command="spinstrike " + shlex.join(sys.argv[1:]))
     print(f"run: {result['run_dir']}  ({result['timesteps']} steps, {result['wall_time']:.1f} s)")
     for name, (mean, std) in result.get("evaluations", {}).items():
@@ -155,6 +156,9 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--resume", action="store_true", help="continue --out from its last checkpoint")
     t.add_argument("--force", action="store_true", help="replace an existing run directory")
     t.add_argument("--device", default="cpu")
+    t.add_argument("--torch-threads", type=int, default=1,
+                   help="PyTorch CPU threads (default 1: fastest for small networks; 0 = torch's "
+                        "default)")
     t.add_argument("--eval-episodes", type=int, default=50)
     t.add_argument("--no-eval", action="store_true")
     t.add_argument("--no-video", action="store_true")

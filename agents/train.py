@@ -167,9 +167,13 @@ def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, epis
 
 
 def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, eval_freq,
-           eval_episodes_during, command) -> tuple[Any, float]:
+           eval_episodes_during, command, torch_threads) -> tuple[Any, float]:
     """Build (or resume) the model and train it to the budget; save it into ``work``."""
+    import torch
     from stable_baselines3.common.logger import Logger, make_output_format
+
+    if torch_threads:
+        torch.set_num_threads(torch_threads)
 
     cls = algo_class(algo)
     # everything is validated: build the env before touching the disk, so a bad env kwarg
@@ -182,7 +186,8 @@ def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, 
         model = cls(cfg.policy, env, seed=seed, device=device, verbose=0,
                     **_model_kwargs(cfg, env))
         meta = {"algo": algo, "env": cfg.env_id, "seed": seed, "source": cfg.source,
-                "versions": _versions(), "hyperparameters": cfg.as_yaml_dict()}
+                "versions": _versions(), "torch_threads": torch.get_num_threads(),
+                "hyperparameters": cfg.as_yaml_dict()}
         (work / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
         (work / "command.txt").write_text((command or shlex.join(sys.argv)) + "\n")
     model.set_logger(Logger(str(work), [make_output_format("csv", str(work)),
@@ -210,7 +215,7 @@ def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int
           force: bool = False, progress: bool = True, evaluate: bool = True,
           eval_episodes: int = 50, video: bool = True, env_kwargs: dict | None = None,
           eval_freq: int | None = None, eval_episodes_during: int = 10,
-          command: str | None = None) -> TrainResult:
+          torch_threads: int | None = 1, command: str | None = None) -> TrainResult:
     """Train ``algo`` on ``env_id``; return the run directory and what was measured.
 
     Args:
@@ -223,6 +228,8 @@ def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int
         evaluate, video: after training, evaluate against random and oracle, record an mp4.
         eval_freq, eval_episodes_during: the learning curve's evaluations (default: 10 evenly
             spaced, of 10 episodes each).
+        torch_threads: PyTorch CPU threads (1 is fastest for these small networks, and leaves
+            the other core to the env); None keeps PyTorch's default.
     """
     overrides: dict[str, Any] = {}
     if timesteps is not None:
@@ -240,7 +247,8 @@ def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int
     try:
         model, wall = _learn(algo, cfg, work, seed=seed, device=device, resume=resume,
                              progress=progress, eval_freq=eval_freq,
-                             eval_episodes_during=eval_episodes_during, command=command)
+                             eval_episodes_during=eval_episodes_during, command=command,
+                             torch_threads=torch_threads)
         if work != run_dir:
             if run_dir.exists():
                 shutil.rmtree(run_dir)
