@@ -61,6 +61,11 @@ def _fmt(x: float) -> str:
     return f"{x:.1e}"
 
 
+def _cell(text: str) -> str:
+    """Text safe inside a markdown table cell (a bare | would split it)."""
+    return text.replace("|", "\\|")
+
+
 def _solver_text(name: str) -> str:
     block = SOLVERS[name]
     if block is None:
@@ -122,8 +127,8 @@ def render(results: dict, long_results: list[tuple[str, dict]]) -> str:
             what = f"**{case.title}**: {case.checks} ({case.unit})" if first else "〃"
             first = False
             lines.append(
-                f"| `{case.name}` | {what} | {solver} | "
-                f"{claim_text(case.claims[solver])} | {_fmt(worst)} | {notes} |")
+                f"| `{case.name}` | {_cell(what)} | {solver} | "
+                f"{claim_text(case.claims[solver])} | {_fmt(worst)} | {_cell(notes)} |")
     lines += [
         "",
         "## Long runs",
