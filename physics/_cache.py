@@ -14,7 +14,7 @@ from __future__ import annotations
 import hashlib
 from pathlib import Path
 
-_KERNEL_MODULES = ("contacts.py", "events.py", "impulse.py", "layout.py", "motion.py",
+_KERNEL_MODULES = ("contacts.py", "events.py", "impulse.py", "jam.py", "layout.py", "motion.py",
                    "solvers.py", "world.py")
 
 
