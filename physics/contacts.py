@@ -27,7 +27,7 @@ __all__ = ["capsule_capsule", "capsule_wall", "closest_segment_params", "core_se
 PARALLEL = 1e-12
 _TINY = 1e-300
 
-jit = numba.njit(cache=True, nogil=True, fastmath=False)
+jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 
 
 @jit

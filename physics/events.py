@@ -27,21 +27,27 @@ from __future__ import annotations
 import numba
 
 from physics.contacts import capsule_capsule, capsule_wall
-from physics.impulse import relative_velocity
+from physics.impulse import relative_velocity_of
 from physics.layout import (
+    ANGLE,
     CHECKPOINT,
     CONTACT,
     FRICTION_DECEL,
     HALF_LENGTH,
     INV_MASS,
     NONE,
+    OMEGA,
     RADIUS,
+    VX,
+    VY,
+    X,
+    Y,
 )
 from physics.motion import ca_step, flight
 
-__all__ = ["ROUNDOFF", "pair_geometry", "time_of_impact"]
+__all__ = ["ROUNDOFF", "geometry", "pair_geometry", "time_of_impact"]
 
-jit = numba.njit(cache=True, nogil=True)
+jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 
 _BRACKET_ITERATIONS = 200
 #: relative size of round-off in a normal velocity: |vn| below this times the speeds counts as 0
@@ -49,10 +55,11 @@ ROUNDOFF = 1e-12
 
 
 @jit
-def pair_geometry(sa, pa, sb, pb, wall, half_w, half_h):
-    """Geometry and normal relative velocity of a pair at the current state.
+def geometry(xa, ya, anga, vxa, vya, wa, ha, ra, xb, yb, angb, vxb, vyb, wb, hb, rb, wall,
+             half_w, half_h):
+    """Geometry and normal relative velocity of a pair given both bodies' poses and velocities.
 
-    ``wall`` is -1 for a body-body pair, else the cushion index (``sb``/``pb`` are then unused).
+    ``wall`` is -1 for a body-body pair, else the cushion index (body b's values are unused).
 
     Returns:
         (gap, nx, ny, oax, oay, ka, obx, oby, kb, vn): normal from a to b, lever arms as core
@@ -61,72 +68,73 @@ def pair_geometry(sa, pa, sb, pb, wall, half_w, half_h):
         only when ``vn < 0``.
     """
     if wall < 0:
-        g, nx, ny, oax, oay, obx, oby = capsule_capsule(
-            sa[0], sa[1], sa[2], pa[HALF_LENGTH], pa[RADIUS],
-            sb[0], sb[1], sb[2], pb[HALF_LENGTH], pb[RADIUS])
-        kb = pb[RADIUS] + 0.5 * g
+        g, nx, ny, oax, oay, obx, oby = capsule_capsule(xa, ya, anga, ha, ra,
+                                                        xb, yb, angb, hb, rb)
+        kb = rb + 0.5 * g
     else:
-        g, nx, ny, oax, oay, obx, oby = capsule_wall(sa[0], sa[1], sa[2], pa[HALF_LENGTH],
-                                                     pa[RADIUS], wall, half_w, half_h)
+        g, nx, ny, oax, oay, obx, oby = capsule_wall(xa, ya, anga, ha, ra, wall, half_w, half_h)
         kb = 0.0
-    ka = pa[RADIUS] + 0.5 * g
-    vn, vt, scale = relative_velocity(sa, sb, wall >= 0, nx, ny, oax, oay, ka, obx, oby, kb)
+    ka = ra + 0.5 * g
+    vn, vt, scale = relative_velocity_of(vxa, vya, wa, vxb, vyb, wb, wall >= 0, nx, ny, oax, oay,
+                                         ka, obx, oby, kb)
     if abs(vn) <= ROUNDOFF * scale:
         vn = 0.0  # at rest along n to round-off (e.g. just after a plastic impact)
     return g, nx, ny, oax, oay, ka, obx, oby, kb, vn
 
 
 @jit
-def _probe(sa, pa, fa, sb, pb, fb, wall, half_w, half_h, t, tmp_a, tmp_b, rotation,
-           table_friction):
-    """Flight of both bodies to time t (into the scratch rows), then their geometry."""
-    ima = pa[INV_MASS]
-    x, y, an, vx, vy, w = flight(sa, pa, fa[0] * ima, fa[1] * ima, t, rotation, table_friction)
-    tmp_a[0] = x
-    tmp_a[1] = y
-    tmp_a[2] = an
-    tmp_a[3] = vx
-    tmp_a[4] = vy
-    tmp_a[5] = w
+def pair_geometry(S, Pm, a, b, wall, half_w, half_h):
+    """:func:`geometry` of bodies ``a`` and ``b`` (``b`` unused for a cushion) at the current
+    state ``S`` of an element with parameters ``Pm``."""
+    return geometry(S[a, X], S[a, Y], S[a, ANGLE], S[a, VX], S[a, VY], S[a, OMEGA],
+                    Pm[a, HALF_LENGTH], Pm[a, RADIUS],
+                    S[b, X], S[b, Y], S[b, ANGLE], S[b, VX], S[b, VY], S[b, OMEGA],
+                    Pm[b, HALF_LENGTH], Pm[b, RADIUS], wall, half_w, half_h)
+
+
+@jit
+def _probe(S, Pm, F, a, b, wall, half_w, half_h, t, rotation, table_friction):
+    """Flight of both bodies to time t, then their geometry; also the flown velocities and
+    spins, for the advancement bound: (geometry..., vxa, vya, wa, vxb, vyb, wb)."""
+    xa, ya, anga, vxa, vya, wa = flight(S, Pm, F, a, t, rotation, table_friction)
     if wall < 0:
-        imb = pb[INV_MASS]
-        x, y, an, vx, vy, w = flight(sb, pb, fb[0] * imb, fb[1] * imb, t, rotation, table_friction)
-        tmp_b[0] = x
-        tmp_b[1] = y
-        tmp_b[2] = an
-        tmp_b[3] = vx
-        tmp_b[4] = vy
-        tmp_b[5] = w
-    return pair_geometry(tmp_a, pa, tmp_b, pb, wall, half_w, half_h)
+        xb, yb, angb, vxb, vyb, wb = flight(S, Pm, F, b, t, rotation, table_friction)
+    else:
+        xb, yb, angb, vxb, vyb, wb = xa, ya, anga, vxa, vya, wa
+    g, nx, ny, oax, oay, ka, obx, oby, kb, vn = geometry(
+        xa, ya, anga, vxa, vya, wa, Pm[a, HALF_LENGTH], Pm[a, RADIUS],
+        xb, yb, angb, vxb, vyb, wb, Pm[b, HALF_LENGTH], Pm[b, RADIUS], wall, half_w, half_h)
+    return g, nx, ny, vn, vxa, vya, wa, vxb, vyb, wb
 
 
 @jit
-def _step_bound(delta, nx, ny, ta, pa, fa, tb, pb, fb, wall, rotation, table_friction):
-    ima = pa[INV_MASS]
-    slide_a = table_friction and pa[FRICTION_DECEL] > 0.0
-    spin_a = pa[HALF_LENGTH] * abs(ta[5]) if rotation else 0.0
+def _step_bound(delta, nx, ny, S, Pm, F, a, b, wall, vxa, vya, wa, vxb, vyb, wb, rotation,
+                table_friction):
+    ima = Pm[a, INV_MASS]
+    slide_a = table_friction and Pm[a, FRICTION_DECEL] > 0.0
+    spin_a = Pm[a, HALF_LENGTH] * abs(wa) if rotation else 0.0
     if wall >= 0:
-        return ca_step(delta, nx, ny, ta[3], ta[4], fa[0] * ima, fa[1] * ima, slide_a, spin_a,
+        return ca_step(delta, nx, ny, vxa, vya, F[a, 0] * ima, F[a, 1] * ima, slide_a, spin_a,
                        0.0, 0.0, 0.0, 0.0, False, 0.0)
-    imb = pb[INV_MASS]
-    slide_b = table_friction and pb[FRICTION_DECEL] > 0.0
-    spin_b = pb[HALF_LENGTH] * abs(tb[5]) if rotation else 0.0
-    return ca_step(delta, nx, ny, ta[3], ta[4], fa[0] * ima, fa[1] * ima, slide_a, spin_a,
-                   tb[3], tb[4], fb[0] * imb, fb[1] * imb, slide_b, spin_b)
+    imb = Pm[b, INV_MASS]
+    slide_b = table_friction and Pm[b, FRICTION_DECEL] > 0.0
+    spin_b = Pm[b, HALF_LENGTH] * abs(wb) if rotation else 0.0
+    return ca_step(delta, nx, ny, vxa, vya, F[a, 0] * ima, F[a, 1] * ima, slide_a, spin_a,
+                   vxb, vyb, F[b, 0] * imb, F[b, 1] * imb, slide_b, spin_b)
 
 
 @jit
-def time_of_impact(sa, pa, fa, sb, pb, fb, wall, half_w, half_h, horizon, tol, max_iterations,
-                   tmp_a, tmp_b, rotation, table_friction):
+def time_of_impact(S, Pm, F, a, b, wall, half_w, half_h, horizon, tol, max_iterations, rotation,
+                   table_friction):
     """First time in ``[0, horizon]`` at which the pair touches while approaching: its gap
     reaches zero, the time located to a gap in ``[0, tol]`` (or ``g <= 0`` already).
 
     Args:
-        sa, pa, fa: state row, parameter row and applied force of body a (b likewise).
-        wall: -1 for two bodies, else the cushion index of b.
+        S, Pm, F: the element's state, parameters and applied forces.
+        a, b: the bodies (``b`` unused for a cushion); wall: -1 for two bodies, else the
+            cushion index of b.
         horizon: end of the search window, s.
         tol: contact gap tolerance, m.
-        tmp_a, tmp_b: scratch rows of 6 floats.
 
     Returns:
         (t, kind, iterations) with kind ``CONTACT``, ``NONE`` (t = horizon) or ``CHECKPOINT``.
@@ -134,11 +142,11 @@ def time_of_impact(sa, pa, fa, sb, pb, fb, wall, half_w, half_h, horizon, tol, m
     # Two bodies whose radii sum to at most tol (zero-thickness rods) cannot overlap by more
     # than that: their gap is a distance between segments, >= -(ra + rb), and a crossing would
     # not show as a negative gap. For them contact stays at ``g <= tol`` while approaching.
-    thin = wall < 0 and pa[RADIUS] + pb[RADIUS] <= tol
+    thin = wall < 0 and Pm[a, RADIUS] + Pm[b, RADIUS] <= tol
     t = 0.0
     for it in range(max_iterations):
-        g, nx, ny, _, _, _, _, _, _, vn = _probe(sa, pa, fa, sb, pb, fb, wall, half_w, half_h,
-                                                 t, tmp_a, tmp_b, rotation, table_friction)
+        g, nx, ny, vn, vxa, vya, wa, vxb, vyb, wb = _probe(S, Pm, F, a, b, wall, half_w, half_h,
+                                                           t, rotation, table_friction)
         if g <= tol:
             if vn < 0.0 and (g <= 0.0 or thin):
                 return t, CONTACT, it + 1
@@ -147,16 +155,15 @@ def time_of_impact(sa, pa, fa, sb, pb, fb, wall, half_w, half_h, horizon, tol, m
         else:
             floor = 0.0
             delta = g - 0.5 * tol
-        s = _step_bound(delta, nx, ny, tmp_a, pa, fa, tmp_b, pb, fb, wall, rotation,
-                        table_friction)
+        s = _step_bound(delta, nx, ny, S, Pm, F, a, b, wall, vxa, vya, wa, vxb, vyb, wb,
+                        rotation, table_friction)
         t_new = t + s if t + s < horizon else horizon
         if g <= tol:
-            g_new = _probe(sa, pa, fa, sb, pb, fb, wall, half_w, half_h, t_new, tmp_a, tmp_b,
-                           rotation, table_friction)[0]
+            g_new = _probe(S, Pm, F, a, b, wall, half_w, half_h, t_new, rotation,
+                           table_friction)[0]
             if g_new < floor:
-                tc, kind, k = _bracket(sa, pa, fa, sb, pb, fb, wall, half_w, half_h, t, g - floor,
-                                       t_new, g_new - floor, floor, tol, tmp_a, tmp_b, rotation,
-                                       table_friction)
+                tc, kind, k = _bracket(S, Pm, F, a, b, wall, half_w, half_h, t, g - floor,
+                                       t_new, g_new - floor, floor, tol, rotation, table_friction)
                 return tc, kind, it + 1 + k
         if t_new >= horizon:
             return horizon, NONE, it + 1
@@ -167,8 +174,8 @@ def time_of_impact(sa, pa, fa, sb, pb, fb, wall, half_w, half_h, horizon, tol, m
 
 
 @jit
-def _bracket(sa, pa, fa, sb, pb, fb, wall, half_w, half_h, lo, f_lo, hi, f_hi, floor, tol, tmp_a,
-             tmp_b, rotation, table_friction):
+def _bracket(S, Pm, F, a, b, wall, half_w, half_h, lo, f_lo, hi, f_hi, floor, tol, rotation,
+             table_friction):
     """Illinois method on f = gap - floor, f(lo) >= 0 > f(hi), to 0 <= f <= tol approaching."""
     side = 0
     for k in range(_BRACKET_ITERATIONS):
@@ -180,8 +187,8 @@ def _bracket(sa, pa, fa, sb, pb, fb, wall, half_w, half_h, lo, f_lo, hi, f_hi, f
             tm = 0.5 * (lo + hi)
             if not (lo < tm < hi):
                 break
-        g, _, _, _, _, _, _, _, _, vn = _probe(sa, pa, fa, sb, pb, fb, wall, half_w, half_h, tm,
-                                               tmp_a, tmp_b, rotation, table_friction)
+        g, _, _, vn, _, _, _, _, _, _ = _probe(S, Pm, F, a, b, wall, half_w, half_h, tm, rotation,
+                                               table_friction)
         fm = g - floor
         if 0.0 <= fm <= tol and vn < 0.0:
             return tm, CONTACT, k + 1
@@ -199,4 +206,3 @@ def _bracket(sa, pa, fa, sb, pb, fb, wall, half_w, half_h, lo, f_lo, hi, f_hi, f
             side = -1
     # the interval cannot shrink further: lo is a safe time (the pair does not overlap there)
     return lo, CHECKPOINT, _BRACKET_ITERATIONS
-

@@ -25,6 +25,9 @@ friction can add energy for rotating bodies). If its lever arms turn the contact
 approaching one again, a last plastic normal impulse (e = 0) removes the approach. The ``-e`` law
 along the normal thus holds exactly where the tangential impulse has no lever on the normal
 direction (disks, or mu = 0).
+
+The kernels take an element's state ``S [N, 6]`` and parameters ``Pm [N, 6]`` with body indices
+``a`` and ``b`` (``b`` is ignored when it is a cushion): rows are read by index, not sliced.
 """
 
 from __future__ import annotations
@@ -33,31 +36,31 @@ import numba
 
 from physics.layout import INV_INERTIA, INV_MASS, OMEGA, VX, VY
 
-__all__ = ["apply_impulse", "relative_velocity", "resolve"]
+__all__ = ["apply_impulse", "relative_velocity", "relative_velocity_of", "resolve"]
 
-jit = numba.njit(cache=True, nogil=True)
+jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 
 
 @jit
-def relative_velocity(sa, sb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb):
-    """Relative velocity ``v_bp - v_ap`` at the contact point: (along n, along t, scale).
+def relative_velocity_of(vxa, vya, wa, vxb, vyb, wb, is_wall, nx, ny, oax, oay, ka, obx, oby,
+                         kb):
+    """Relative velocity ``v_bp - v_ap`` at the contact point: (along n, along t, scale), from
+    the two bodies' velocities and spins.
 
     ``scale`` (sum of the point velocities' absolute components) sizes the round-off of vn.
     """
     rax = oax + ka * nx
     ray = oay + ka * ny
-    w = sa[OMEGA]
-    vax = sa[VX] - w * ray
-    vay = sa[VY] + w * rax
+    vax = vxa - wa * ray
+    vay = vya + wa * rax
     if is_wall:
         vbx = 0.0
         vby = 0.0
     else:
         rbx = obx - kb * nx
         rby = oby - kb * ny
-        w = sb[OMEGA]
-        vbx = sb[VX] - w * rby
-        vby = sb[VY] + w * rbx
+        vbx = vxb - wb * rby
+        vby = vyb + wb * rbx
     dvx = vbx - vax
     dvy = vby - vay
     scale = abs(vax) + abs(vay) + abs(vbx) + abs(vby)
@@ -65,68 +68,75 @@ def relative_velocity(sa, sb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb):
 
 
 @jit
-def apply_impulse(sa, pa, sb, pb, is_wall, j, dx, dy, cross_a, cross_b, rotation):
-    """Apply impulse ``j d`` to body b and ``-j d`` to body a; ``cross_* = r_* x d``."""
-    ima = pa[INV_MASS]
-    sa[VX] -= j * dx * ima
-    sa[VY] -= j * dy * ima
-    if rotation:
-        sa[OMEGA] -= cross_a * j * pa[INV_INERTIA]
-    if not is_wall:
-        imb = pb[INV_MASS]
-        sb[VX] += j * dx * imb
-        sb[VY] += j * dy * imb
-        if rotation:
-            sb[OMEGA] += cross_b * j * pb[INV_INERTIA]
+def relative_velocity(S, a, b, is_wall, nx, ny, oax, oay, ka, obx, oby, kb):
+    """:func:`relative_velocity_of` for bodies ``a`` and ``b`` of the state ``S``."""
+    return relative_velocity_of(S[a, VX], S[a, VY], S[a, OMEGA], S[b, VX], S[b, VY], S[b, OMEGA],
+                                is_wall, nx, ny, oax, oay, ka, obx, oby, kb)
 
 
 @jit
-def _effective_inverse_mass(pa, pb, is_wall, cross_a, cross_b, rotation):
-    """``1/m_a + 1/m_b + (r_a x d)^2 / I_a + (r_b x d)^2 / I_b``."""
-    k = pa[INV_MASS]
+def apply_impulse(S, Pm, a, b, is_wall, j, dx, dy, cross_a, cross_b, rotation):
+    """Apply impulse ``j d`` to body b and ``-j d`` to body a; ``cross_* = r_* x d``."""
+    ima = Pm[a, INV_MASS]
+    S[a, VX] -= j * dx * ima
+    S[a, VY] -= j * dy * ima
     if rotation:
-        k += cross_a * cross_a * pa[INV_INERTIA]
+        S[a, OMEGA] -= cross_a * j * Pm[a, INV_INERTIA]
     if not is_wall:
-        k += pb[INV_MASS]
+        imb = Pm[b, INV_MASS]
+        S[b, VX] += j * dx * imb
+        S[b, VY] += j * dy * imb
         if rotation:
-            k += cross_b * cross_b * pb[INV_INERTIA]
+            S[b, OMEGA] += cross_b * j * Pm[b, INV_INERTIA]
+
+
+@jit
+def _effective_inverse_mass(Pm, a, b, is_wall, cross_a, cross_b, rotation):
+    """``1/m_a + 1/m_b + (r_a x d)^2 / I_a + (r_b x d)^2 / I_b``."""
+    k = Pm[a, INV_MASS]
+    if rotation:
+        k += cross_a * cross_a * Pm[a, INV_INERTIA]
+    if not is_wall:
+        k += Pm[b, INV_MASS]
+        if rotation:
+            k += cross_b * cross_b * Pm[b, INV_INERTIA]
     return k
 
 
 @jit
-def _friction(sa, pa, sb, pb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb, rna, rnb, mu, j, k_n,
+def _friction(S, Pm, a, b, is_wall, nx, ny, oax, oay, ka, obx, oby, kb, rna, rnb, mu, j, k_n,
               rotation):
     """Sequential Coulomb stage; returns (tangential impulse, extra plastic normal impulse)."""
-    vn, vt, _ = relative_velocity(sa, sb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb)
+    vn, vt, _ = relative_velocity(S, a, b, is_wall, nx, ny, oax, oay, ka, obx, oby, kb)
     if vt == 0.0:
         return 0.0, 0.0
     tx = -ny
     ty = nx
     rta = oax * ty - oay * tx + ka
     rtb = obx * ty - oby * tx - kb
-    k_t = _effective_inverse_mass(pa, pb, is_wall, rta, rtb, rotation)
+    k_t = _effective_inverse_mass(Pm, a, b, is_wall, rta, rtb, rotation)
     jt = -vt / k_t
     limit = mu * j
     if jt > limit:
         jt = limit
     elif jt < -limit:
         jt = -limit
-    apply_impulse(sa, pa, sb, pb, is_wall, jt, tx, ty, rta, rtb, rotation)
-    vn, vt, _ = relative_velocity(sa, sb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb)
+    apply_impulse(S, Pm, a, b, is_wall, jt, tx, ty, rta, rtb, rotation)
+    vn, vt, _ = relative_velocity(S, a, b, is_wall, nx, ny, oax, oay, ka, obx, oby, kb)
     if vn < 0.0:
         j2 = -vn / k_n
-        apply_impulse(sa, pa, sb, pb, is_wall, j2, nx, ny, rna, rnb, rotation)
+        apply_impulse(S, Pm, a, b, is_wall, j2, nx, ny, rna, rnb, rotation)
         return jt, j2
     return jt, 0.0
 
 
 @jit
-def resolve(sa, pa, sb, pb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb, e, mu, rotation,
+def resolve(S, Pm, a, b, is_wall, nx, ny, oax, oay, ka, obx, oby, kb, e, mu, rotation,
             contact_friction):
     """Resolve one contact in place.
 
     Args:
-        sa, pa: state and parameter rows of body a; sb, pb of body b (ignored for a cushion).
+        S, Pm: the element's state and parameters; a, b: the bodies (b ignored for a cushion).
         is_wall: body b is a cushion.
         nx, ny: unit normal from a to b.
         oax, oay, ka / obx, oby, kb: lever arms as core offset and distance along n.
@@ -137,19 +147,19 @@ def resolve(sa, pa, sb, pb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb, e, mu, 
         friction), tangential impulse along t = (-n_y, n_x), and the normal relative velocity
         before (negative when approaching; nothing is applied otherwise).
     """
-    vn, vt, _ = relative_velocity(sa, sb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb)
+    vn, vt, _ = relative_velocity(S, a, b, is_wall, nx, ny, oax, oay, ka, obx, oby, kb)
     if vn >= 0.0:
         return 0.0, 0.0, vn
     rna = oax * ny - oay * nx
     rnb = obx * ny - oby * nx
-    k_n = _effective_inverse_mass(pa, pb, is_wall, rna, rnb, rotation)
+    k_n = _effective_inverse_mass(Pm, a, b, is_wall, rna, rnb, rotation)
     if k_n <= 0.0:
         return 0.0, 0.0, vn
     j = -(1.0 + e) * vn / k_n
-    apply_impulse(sa, pa, sb, pb, is_wall, j, nx, ny, rna, rnb, rotation)
+    apply_impulse(S, Pm, a, b, is_wall, j, nx, ny, rna, rnb, rotation)
     jt = 0.0
     if contact_friction and mu > 0.0:
-        jt, j2 = _friction(sa, pa, sb, pb, is_wall, nx, ny, oax, oay, ka, obx, oby, kb, rna, rnb,
+        jt, j2 = _friction(S, Pm, a, b, is_wall, nx, ny, oax, oay, ka, obx, oby, kb, rna, rnb,
                            mu, j, k_n, rotation)
         j += j2
     return j, jt, vn

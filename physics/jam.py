@@ -25,7 +25,7 @@ from physics.layout import INV_INERTIA, INV_MASS, RESTITUTION, X, Y
 
 __all__ = ["JAM_COLUMNS", "MAX_JAM_PAIRS", "jam_impulses"]
 
-jit = numba.njit(cache=True, nogil=True)
+jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 
 #: most touching pairs the block solve takes (it tries up to 2^n active sets)
 MAX_JAM_PAIRS = 10
@@ -43,8 +43,8 @@ def _collect(S, Pm, hw, PA, PB, slop, idx, geo):
         b = PB[p]
         wall = b - n if b >= n else -1
         bb = a if wall >= 0 else b
-        g, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S[a], Pm[a], S[bb], Pm[bb],
-                                                                  wall, hw[0], hw[1])
+        g, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, bb, wall, hw[0],
+                                                                  hw[1])
         if g <= slop:
             if m == MAX_JAM_PAIRS:
                 return -1

@@ -23,11 +23,11 @@ import math
 
 import numba
 
-from physics.layout import ANGLE, FRICTION_DECEL, OMEGA, SPIN_DECEL, VX, VY, X, Y
+from physics.layout import ANGLE, FRICTION_DECEL, INV_MASS, OMEGA, SPIN_DECEL, VX, VY, X, Y
 
 __all__ = ["ca_step", "flight", "slide", "spin_down"]
 
-jit = numba.njit(cache=True, nogil=True)
+jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 
 
 @jit
@@ -59,34 +59,37 @@ def spin_down(angle, omega, decel, t):
 
 
 @jit
-def flight(st, pr, ax, ay, t, rotation, table_friction):
-    """Pose and velocity of a body ``t`` seconds ahead.
+def flight(S, Pm, F, i, t, rotation, table_friction):
+    """Pose and velocity of body ``i`` ``t`` seconds ahead.
 
     Args:
-        st: the body's state row (x, y, angle, vx, vy, omega).
-        pr: its parameter row (see ``physics.layout``).
-        ax, ay: acceleration from the applied force (driven bodies; 0 otherwise), m/s^2.
-        t: time ahead, s (>= 0).
+        S, Pm, F: the element's state ``[N, 6]``, parameters ``[N, 6]`` and applied forces
+            ``[N, 2]`` (see ``physics.layout``); rows are read by index, never sliced (a row view
+            costs reference-count traffic in every call).
+        i: the body.  t: time ahead, s (>= 0).
 
     Returns:
         (x, y, angle, vx, vy, omega)
     """
-    x = st[X]
-    y = st[Y]
-    vx = st[VX]
-    vy = st[VY]
-    angle = st[ANGLE]
-    omega = st[OMEGA]
-    if table_friction and pr[FRICTION_DECEL] > 0.0:
-        x, y, vx, vy = slide(x, y, vx, vy, pr[FRICTION_DECEL], t)
+    x = S[i, X]
+    y = S[i, Y]
+    vx = S[i, VX]
+    vy = S[i, VY]
+    angle = S[i, ANGLE]
+    omega = S[i, OMEGA]
+    ima = Pm[i, INV_MASS]
+    ax = F[i, 0] * ima
+    ay = F[i, 1] * ima
+    if table_friction and Pm[i, FRICTION_DECEL] > 0.0:
+        x, y, vx, vy = slide(x, y, vx, vy, Pm[i, FRICTION_DECEL], t)
     else:
         x += (vx + 0.5 * ax * t) * t
         y += (vy + 0.5 * ay * t) * t
         vx += ax * t
         vy += ay * t
     if rotation and omega != 0.0:
-        if table_friction and pr[SPIN_DECEL] > 0.0:
-            angle, omega = spin_down(angle, omega, pr[SPIN_DECEL], t)
+        if table_friction and Pm[i, SPIN_DECEL] > 0.0:
+            angle, omega = spin_down(angle, omega, Pm[i, SPIN_DECEL], t)
         else:
             angle += omega * t
     return x, y, angle, vx, vy, omega

@@ -71,8 +71,8 @@ MAX_SWEEPS = 64
 #: most substeps the settling integration of one step may take
 MAX_SETTLE_SUBSTEPS = 1_000_000
 
-jit = numba.njit(cache=True, nogil=True)
-jit_parallel = numba.njit(cache=True, nogil=True, parallel=True)
+jit = numba.njit(cache=True, nogil=True, error_model="numpy")
+jit_parallel = numba.njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 
 
 @jit
@@ -94,32 +94,27 @@ def _record(p, t, px, py, nx, ny, j, jt, cpair, ctime, cgeo, cimp, stats):
 def _advance(S, Pm, F, t, rotation, table_friction):
     """Closed-form flight of every body by t seconds."""
     for i in range(S.shape[0]):
-        st = S[i]
-        pr = Pm[i]
-        if pr[INV_MASS] == 0.0 and (pr[INV_INERTIA] == 0.0 or st[OMEGA] == 0.0):
+        if Pm[i, INV_MASS] == 0.0 and (Pm[i, INV_INERTIA] == 0.0 or S[i, OMEGA] == 0.0):
             continue
-        ima = pr[INV_MASS]
-        x, y, an, vx, vy, w = flight(st, pr, F[i, 0] * ima, F[i, 1] * ima, t, rotation,
-                                     table_friction)
-        st[0] = x
-        st[1] = y
-        st[2] = an
-        st[3] = vx
-        st[4] = vy
-        st[5] = w
+        x, y, an, vx, vy, w = flight(S, Pm, F, i, t, rotation, table_friction)
+        S[i, X] = x
+        S[i, Y] = y
+        S[i, ANGLE] = an
+        S[i, VX] = vx
+        S[i, VY] = vy
+        S[i, OMEGA] = w
 
 
 @jit
-def _search(p, S, Pm, F, hw, PA, PB, horizon, tol, max_iterations, tmp_a, tmp_b, rotation,
-            table_friction):
+def _search(p, S, Pm, F, hw, PA, PB, horizon, tol, max_iterations, rotation, table_friction):
     n = S.shape[0]
     a = PA[p]
     b = PB[p]
     if b >= n:
-        return time_of_impact(S[a], Pm[a], F[a], S[a], Pm[a], F[a], b - n, hw[0], hw[1], horizon,
-                              tol, max_iterations, tmp_a, tmp_b, rotation, table_friction)
-    return time_of_impact(S[a], Pm[a], F[a], S[b], Pm[b], F[b], -1, hw[0], hw[1], horizon, tol,
-                          max_iterations, tmp_a, tmp_b, rotation, table_friction)
+        return time_of_impact(S, Pm, F, a, a, b - n, hw[0], hw[1], horizon, tol, max_iterations,
+                              rotation, table_friction)
+    return time_of_impact(S, Pm, F, a, b, -1, hw[0], hw[1], horizon, tol, max_iterations,
+                          rotation, table_friction)
 
 
 @jit
@@ -134,13 +129,13 @@ def _contact_pass(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact
         b = PB[p]
         wall = b - n if b >= n else -1
         bb = a if wall >= 0 else b
-        g, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S[a], Pm[a], S[bb], Pm[bb],
-                                                                  wall, hw[0], hw[1])
+        g, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, bb, wall, hw[0],
+                                                                  hw[1])
         if g <= slop and vn < 0.0:
             px = S[a, X] + oax + ka * nx
             py = S[a, Y] + oay + ka * ny
-            j, jt, vn0 = resolve(S[a], Pm[a], S[bb], Pm[bb], wall >= 0, nx, ny, oax, oay, ka,
-                                 obx, oby, kb, MAT[p, RESTITUTION], MAT[p, FRICTION], rotation,
+            j, jt, vn0 = resolve(S, Pm, a, bb, wall >= 0, nx, ny, oax, oay, ka, obx, oby, kb,
+                                 MAT[p, RESTITUTION], MAT[p, FRICTION], rotation,
                                  contact_friction)
             _record(p, t, px, py, nx, ny, j, jt, cpair, ctime, cgeo, cimp, stats)
             if -vn0 < zeno_speed:
@@ -168,8 +163,8 @@ def _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, ctime, cgeo,
         b = PB[p]
         is_wall = b >= n
         bb = a if is_wall else b
-        apply_impulse(S[a], Pm[a], S[bb], Pm[bb], is_wall, lam[i], geo[i, 0], geo[i, 1],
-                      geo[i, 2], geo[i, 3], rotation)
+        apply_impulse(S, Pm, a, bb, is_wall, lam[i], geo[i, 0], geo[i, 1], geo[i, 2], geo[i, 3],
+                      rotation)
         _record(p, t, geo[i, 4], geo[i, 5], geo[i, 0], geo[i, 1], lam[i], 0.0, cpair, ctime,
                 cgeo, cimp, stats)
         changed[a] = True
@@ -238,8 +233,7 @@ def _separate(S, Pm, hw, PA, PB, weighted, rotate):
         b = PB[p]
         wall = b - n if b >= n else -1
         bb = a if wall >= 0 else b
-        g, nx, ny, oax, oay, _, obx, oby, _, _ = pair_geometry(S[a], Pm[a], S[bb], Pm[bb], wall,
-                                                               hw[0], hw[1])
+        g, nx, ny, oax, oay, _, obx, oby, _, _ = pair_geometry(S, Pm, a, bb, wall, hw[0], hw[1])
         if g < 0.0:
             ca = oax * ny - oay * nx
             cb = obx * ny - oby * nx
@@ -271,31 +265,29 @@ def _separate(S, Pm, hw, PA, PB, weighted, rotate):
 def _kick(S, Pm, F, h, rotation, table_friction):
     """Velocity update of one substep: applied forces, cloth friction; then positions."""
     for i in range(S.shape[0]):
-        st = S[i]
-        pr = Pm[i]
-        ima = pr[INV_MASS]
-        st[VX] += F[i, 0] * ima * h
-        st[VY] += F[i, 1] * ima * h
+        ima = Pm[i, INV_MASS]
+        S[i, VX] += F[i, 0] * ima * h
+        S[i, VY] += F[i, 1] * ima * h
         if table_friction:
-            dv = pr[FRICTION_DECEL] * h
+            dv = Pm[i, FRICTION_DECEL] * h
             if dv > 0.0:
-                speed = math.sqrt(st[VX] ** 2 + st[VY] ** 2)
+                speed = math.sqrt(S[i, VX] ** 2 + S[i, VY] ** 2)
                 f = max(speed - dv, 0.0) / speed if speed > 0.0 else 0.0
-                st[VX] *= f
-                st[VY] *= f
-            dw = pr[SPIN_DECEL] * h
+                S[i, VX] *= f
+                S[i, VY] *= f
+            dw = Pm[i, SPIN_DECEL] * h
             if dw > 0.0 and rotation:
-                w = st[OMEGA]
-                st[OMEGA] = max(abs(w) - dw, 0.0) * (1.0 if w > 0.0 else -1.0)
-        st[X] += st[VX] * h
-        st[Y] += st[VY] * h
+                w = S[i, OMEGA]
+                S[i, OMEGA] = max(abs(w) - dw, 0.0) * (1.0 if w > 0.0 else -1.0)
+        S[i, X] += S[i, VX] * h
+        S[i, Y] += S[i, VY] * h
         if rotation:
-            st[2] += st[OMEGA] * h
+            S[i, ANGLE] += S[i, OMEGA] * h
 
 
 @jit
 def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, rotation,
-                  contact_friction, table_friction, cpair, ctime, cgeo, cimp, stats,
+                  contact_friction, table_friction, cpair, ctime, cgeo, cimp, stats, changed,
                   separate_sweeps=1):
     """Advance one element by T seconds in ``substeps`` fixed substeps.
 
@@ -304,7 +296,6 @@ def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, 
     cheap behaviour); the exact solver's settling uses ``MAX_SWEEPS`` so that a chain of
     contacts (mallet -> puck -> cushion) is not left overlapping.
     """
-    changed = np.zeros(S.shape[0], np.bool_)
     h = T / substeps
     for k in range(substeps):
         _kick(S, Pm, F, h, rotation, table_friction)
@@ -319,6 +310,13 @@ def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, 
 
 
 @jit
+def _speed_bound(S, Pm, F, i, T):
+    """Fastest a point of body i's core can move within T: centre, spin, applied force."""
+    return (math.sqrt(S[i, VX] ** 2 + S[i, VY] ** 2) + abs(S[i, OMEGA]) * Pm[i, HALF_LENGTH]
+            + math.sqrt(F[i, 0] ** 2 + F[i, 1] ** 2) * Pm[i, INV_MASS] * T)
+
+
+@jit
 def _settle_substeps(S, Pm, F, PA, PB, T, settle_substep):
     """Substeps for settling, so that no pair closes by more than it can overlap undetected.
 
@@ -326,12 +324,6 @@ def _settle_substeps(S, Pm, F, PA, PB, T, settle_substep):
     rods: the shorter half-length), a cushion's at any depth (it is a half-plane).
     """
     n = S.shape[0]
-    speed = np.zeros(n)
-    for i in range(n):
-        st = S[i]
-        pr = Pm[i]
-        speed[i] = (math.sqrt(st[VX] ** 2 + st[VY] ** 2) + abs(st[OMEGA]) * pr[HALF_LENGTH]
-                    + math.sqrt(F[i, 0] ** 2 + F[i, 1] ** 2) * pr[INV_MASS] * T)
     h = settle_substep
     for p in range(PA.shape[0]):
         a = PA[p]
@@ -341,7 +333,7 @@ def _settle_substeps(S, Pm, F, PA, PB, T, settle_substep):
         size = Pm[a, RADIUS] + Pm[b, RADIUS]
         if size == 0.0:
             size = min(Pm[a, HALF_LENGTH], Pm[b, HALF_LENGTH])
-        closing = speed[a] + speed[b]
+        closing = _speed_bound(S, Pm, F, a, T) + _speed_bound(S, Pm, F, b, T)
         if closing > 0.0 and 0.5 * size / closing < h:
             h = 0.5 * size / closing
     steps = math.ceil(T / h)
@@ -351,18 +343,16 @@ def _settle_substeps(S, Pm, F, PA, PB, T, settle_substep):
 @jit
 def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
                   zeno_impacts, settle_substep, rotation, contact_friction, table_friction,
-                  cpair, ctime, cgeo, cimp, stats):
-    """Advance one element by dt seconds, event by event."""
+                  cpair, ctime, cgeo, cimp, stats, toi, kind, changed):
+    """Advance one element by dt seconds, event by event.
+
+    ``toi``, ``kind`` (per pair) and ``changed`` (per body) are the element's scratch rows.
+    """
     n_pairs = PA.shape[0]
-    toi = np.empty(n_pairs)
-    kind = np.empty(n_pairs, np.int8)
-    tmp_a = np.empty(6)
-    tmp_b = np.empty(6)
-    changed = np.zeros(S.shape[0], np.bool_)
     iterations = 0
     for p in range(n_pairs):
-        tc, k, it = _search(p, S, Pm, F, hw, PA, PB, dt, tol, max_iterations, tmp_a, tmp_b,
-                            rotation, table_friction)
+        tc, k, it = _search(p, S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation,
+                            table_friction)
         toi[p] = tc
         kind[p] = k
         iterations += it
@@ -390,7 +380,7 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
             b = PB[best]
             wall = b - S.shape[0] if b >= S.shape[0] else -1
             bb = a if wall >= 0 else b
-            g = pair_geometry(S[a], Pm[a], S[bb], Pm[bb], wall, hw[0], hw[1])[0]
+            g = pair_geometry(S, Pm, a, bb, wall, hw[0], hw[1])[0]
             if g <= tol:
                 resting += 1
         else:
@@ -400,8 +390,8 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
         horizon = dt - t_now
         for p in range(n_pairs):
             if p == best or changed[PA[p]] or (PB[p] < S.shape[0] and changed[PB[p]]):
-                tc, k, it = _search(p, S, Pm, F, hw, PA, PB, horizon, tol, max_iterations, tmp_a,
-                                    tmp_b, rotation, table_friction)
+                tc, k, it = _search(p, S, Pm, F, hw, PA, PB, horizon, tol, max_iterations,
+                                    rotation, table_friction)
                 toi[p] = t_now + tc if k != NONE else dt
                 kind[p] = k
                 iterations += it
@@ -410,7 +400,7 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
                 substeps = _settle_substeps(S, Pm, F, PA, PB, dt - t_now, settle_substep)
                 fixed_element(S, Pm, F, hw, PA, PB, MAT, dt - t_now, substeps, MAX_SWEEPS, tol,
                               t_now, rotation, contact_friction, table_friction, cpair, ctime,
-                              cgeo, cimp, stats, MAX_SWEEPS)
+                              cgeo, cimp, stats, changed, MAX_SWEEPS)
                 stats[STAT_FALLBACK] = 1
             break
     stats[STAT_EVENTS] += events
@@ -420,42 +410,44 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
 @jit_parallel
 def exact_batch_parallel(S, Pm, F, HW, PA, PB, MAT, dt, tol, max_events, max_iterations,
                          zeno_speed, zeno_impacts, settle_substep, rotation, contact_friction,
-                         table_friction, cpair, ctime, cgeo, cimp, stats):
+                         table_friction, cpair, ctime, cgeo, cimp, stats, toi, kind, changed):
     """``exact_element`` over the batch, in parallel threads."""
     for b in numba.prange(S.shape[0]):
         exact_element(S[b], Pm[b], F[b], HW[b], PA, PB, MAT[b], dt, tol, max_events,
                       max_iterations, zeno_speed, zeno_impacts, settle_substep, rotation,
                       contact_friction, table_friction, cpair[b], ctime[b], cgeo[b], cimp[b],
-                      stats[b])
+                      stats[b], toi[b], kind[b], changed[b])
 
 
 @jit
 def exact_batch_serial(S, Pm, F, HW, PA, PB, MAT, dt, tol, max_events, max_iterations,
                        zeno_speed, zeno_impacts, settle_substep, rotation, contact_friction,
-                       table_friction, cpair, ctime, cgeo, cimp, stats):
+                       table_friction, cpair, ctime, cgeo, cimp, stats, toi, kind, changed):
     """``exact_element`` over the batch, in this thread."""
     for b in range(S.shape[0]):
         exact_element(S[b], Pm[b], F[b], HW[b], PA, PB, MAT[b], dt, tol, max_events,
                       max_iterations, zeno_speed, zeno_impacts, settle_substep, rotation,
                       contact_friction, table_friction, cpair[b], ctime[b], cgeo[b], cimp[b],
-                      stats[b])
+                      stats[b], toi[b], kind[b], changed[b])
 
 
 @jit_parallel
 def fixed_batch_parallel(S, Pm, F, HW, PA, PB, MAT, dt, substeps, iterations, rotation,
-                         contact_friction, table_friction, cpair, ctime, cgeo, cimp, stats):
+                         contact_friction, table_friction, cpair, ctime, cgeo, cimp, stats,
+                         changed):
     """``fixed_element`` over the batch, in parallel threads."""
     for b in numba.prange(S.shape[0]):
         fixed_element(S[b], Pm[b], F[b], HW[b], PA, PB, MAT[b], dt, substeps, iterations, 0.0,
                       0.0, rotation, contact_friction, table_friction, cpair[b], ctime[b],
-                      cgeo[b], cimp[b], stats[b])
+                      cgeo[b], cimp[b], stats[b], changed[b])
 
 
 @jit
 def fixed_batch_serial(S, Pm, F, HW, PA, PB, MAT, dt, substeps, iterations, rotation,
-                       contact_friction, table_friction, cpair, ctime, cgeo, cimp, stats):
+                       contact_friction, table_friction, cpair, ctime, cgeo, cimp, stats,
+                       changed):
     """``fixed_element`` over the batch, in this thread."""
     for b in range(S.shape[0]):
         fixed_element(S[b], Pm[b], F[b], HW[b], PA, PB, MAT[b], dt, substeps, iterations, 0.0,
                       0.0, rotation, contact_friction, table_friction, cpair[b], ctime[b],
-                      cgeo[b], cimp[b], stats[b])
+                      cgeo[b], cimp[b], stats[b], changed[b])

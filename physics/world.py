@@ -288,6 +288,11 @@ class World:
         self._cgeo = np.zeros((B, M, 4))
         self._cimp = np.zeros((B, M, 2))
         self._stats = np.zeros((B, STAT_COLUMNS), dtype=np.int64)
+        # the solvers' scratch rows, allocated once instead of in every element step
+        P = len(self.pair_a)
+        self._toi = np.zeros((B, P))
+        self._kind = np.zeros((B, P), dtype=np.int8)
+        self._changed = np.zeros((B, self.n_bodies), dtype=np.bool_)
 
     def _initial_state(self) -> np.ndarray:
         s = np.zeros((self.n_bodies, STATE_COLUMNS))
@@ -618,7 +623,7 @@ class World:
                    self._materials, dt, s.tolerance, s.max_events, s.max_iterations,
                    s.zeno_speed, s.zeno_impacts, s.settle_substep, self.rotation,
                    self.contact_friction, self.table_friction, self._cpair, self._ctime,
-                   self._cgeo, self._cimp, self._stats)
+                   self._cgeo, self._cimp, self._stats, self._toi, self._kind, self._changed)
         else:
             s = self.solver
             parallel = self.batch_size >= PARALLEL_BATCH
@@ -626,7 +631,7 @@ class World:
             kernel(self._state, self._params, self._forces, self._hw, self.pair_a, self.pair_b,
                    self._materials, dt, s.substeps, s.iterations, self.rotation,
                    self.contact_friction, self.table_friction, self._cpair, self._ctime,
-                   self._cgeo, self._cimp, self._stats)
+                   self._cgeo, self._cimp, self._stats, self._changed)
         self.time += dt
         st = self._stats
         self.last_step = StepStats(st[:, STAT_EVENTS].copy(), st[:, STAT_ITERATIONS].copy(),
@@ -687,6 +692,5 @@ def _pair_gaps(S, Pm, HW, PA, PB, out):
             c = PB[p]
             wall = c - n if c >= n else -1
             cc = a if wall >= 0 else c
-            out[b, p] = pair_geometry(S[b, a], Pm[b, a], S[b, cc], Pm[b, cc], wall, HW[b, 0],
-                                      HW[b, 1])[0]
+            out[b, p] = pair_geometry(S[b], Pm[b], a, cc, wall, HW[b, 0], HW[b, 1])[0]
 

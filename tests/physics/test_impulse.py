@@ -44,17 +44,21 @@ contact = st.fixed_dictionaries({
 
 
 def _run(c, friction):
+    """One contact through the kernel; body a is row 0, body b row 1 (ignored for a cushion)."""
     sa, pa, ma, ia = _body(c["la"], c["size_a"], c["va"], c["wa"])
     if c["wall"]:
         sb, pb, mb, ib = np.zeros(6), np.zeros(PARAM_COLUMNS), 0.0, 0.0
     else:
         sb, pb, mb, ib = _body(c["lb"], c["size_b"], c["vb"], c["wb"])
+    S = np.stack([sa, sb])
+    Pm = np.stack([pa, pb])
     nx, ny = math.cos(c["normal"]), math.sin(c["normal"])
     geo = (nx, ny, *c["oa"], c["ka"], *c["ob"], c["kb"])
-    before = [sa.copy(), sb.copy()]
-    vn0, vt0, _ = relative_velocity(sa, sb, c["wall"], *geo)
-    j, jt, vn = resolve(sa, pa, sb, pb, c["wall"], *geo, c["e"], c["mu"], True, friction)
-    vn1, vt1, _ = relative_velocity(sa, sb, c["wall"], *geo)
+    before = [S[0].copy(), S[1].copy()]
+    vn0, vt0, _ = relative_velocity(S, 0, 1, c["wall"], *geo)
+    j, jt, vn = resolve(S, Pm, 0, 1, c["wall"], *geo, c["e"], c["mu"], True, friction)
+    vn1, vt1, _ = relative_velocity(S, 0, 1, c["wall"], *geo)
+    sa, sb = S[0], S[1]
     bodies = [(before[0], ma, ia), (before[1], mb, ib)], [(sa, ma, ia), (sb, mb, ib)]
     return locals()
 
@@ -97,9 +101,9 @@ def test_friction_bounded_by_mu_j_and_never_reverses_slip(c):
     if normal_only["vn0"] >= 0:
         assert full["j"] == 0.0 and full["jt"] == 0.0
         return
-    sa, sb = normal_only["sa"], normal_only["sb"]
+    S, Pm = normal_only["S"], normal_only["Pm"]
     geo = (math.cos(c["normal"]), math.sin(c["normal"]), *c["oa"], c["ka"], *c["ob"], c["kb"])
-    _, vt_mid, _ = relative_velocity(sa, sb, c["wall"], *geo)
+    _, vt_mid, _ = relative_velocity(S, 0, 1, c["wall"], *geo)
     jt = full["jt"]
     j_normal = normal_only["j"]
     assert abs(jt) <= c["mu"] * j_normal * (1 + 1e-12)
@@ -109,8 +113,8 @@ def test_friction_bounded_by_mu_j_and_never_reverses_slip(c):
     tx, ty = -ny, nx
     rta = c["oa"][0] * ty - c["oa"][1] * tx + c["ka"]
     rtb = c["ob"][0] * ty - c["ob"][1] * tx - c["kb"]
-    apply_impulse(sa, full["pa"], sb, full["pb"], c["wall"], jt, tx, ty, rta, rtb, True)
-    _, vt_after, _ = relative_velocity(sa, sb, c["wall"], *geo)
+    apply_impulse(S, Pm, 0, 1, c["wall"], jt, tx, ty, rta, rtb, True)
+    _, vt_after, _ = relative_velocity(S, 0, 1, c["wall"], *geo)
     assert vt_after * vt_mid >= -1e-12 * vt_mid**2
     assert abs(vt_after) <= abs(vt_mid) * (1 + 1e-12)
     scale = 1.0 + abs(normal_only["vn0"]) + abs(vt_mid)
