@@ -95,12 +95,19 @@ def pair_geometry(S, Pm, a, b, wall, half_w, half_h):
 @jit
 def _probe(S, Pm, F, a, b, wall, half_w, half_h, t, rotation, table_friction):
     """Flight of both bodies to time t, then their geometry; also the flown velocities and
-    spins, for the advancement bound: (geometry..., vxa, vya, wa, vxb, vyb, wb)."""
-    xa, ya, anga, vxa, vya, wa = flight(S, Pm, F, a, t, rotation, table_friction)
-    if wall < 0:
-        xb, yb, angb, vxb, vyb, wb = flight(S, Pm, F, b, t, rotation, table_friction)
+    spins, for the advancement bound: (geometry..., vxa, vya, wa, vxb, vyb, wb).
+
+    At t = 0 the state is read as it is: the closed-form flight by 0 returns it bit for bit.
+    """
+    if t == 0.0:
+        xa, ya, anga, vxa, vya, wa = S[a, X], S[a, Y], S[a, ANGLE], S[a, VX], S[a, VY], S[a, OMEGA]
+        xb, yb, angb, vxb, vyb, wb = S[b, X], S[b, Y], S[b, ANGLE], S[b, VX], S[b, VY], S[b, OMEGA]
     else:
-        xb, yb, angb, vxb, vyb, wb = xa, ya, anga, vxa, vya, wa
+        xa, ya, anga, vxa, vya, wa = flight(S, Pm, F, a, t, rotation, table_friction)
+        if wall < 0:
+            xb, yb, angb, vxb, vyb, wb = flight(S, Pm, F, b, t, rotation, table_friction)
+        else:
+            xb, yb, angb, vxb, vyb, wb = xa, ya, anga, vxa, vya, wa
     g, nx, ny, oax, oay, ka, obx, oby, kb, vn = geometry(
         xa, ya, anga, vxa, vya, wa, Pm[a, HALF_LENGTH], Pm[a, RADIUS],
         xb, yb, angb, vxb, vyb, wb, Pm[b, HALF_LENGTH], Pm[b, RADIUS], wall, half_w, half_h)

@@ -35,15 +35,44 @@ from physics.impulse import apply_impulse, resolve
 from physics.jam import JAM_COLUMNS, MAX_JAM_PAIRS, jam_impulses
 from physics.layout import (
     ANGLE,
+    CF_DT,
+    CF_SETTLE,
+    CF_TOL,
+    CF_ZENO_SPEED,
     CHECKPOINT,
+    CI_CONTACT_FRICTION,
+    CI_ITERATIONS,
+    CI_MAX_EVENTS,
+    CI_MAX_ITERATIONS,
+    CI_ROTATION,
+    CI_SUBSTEPS,
+    CI_TABLE_FRICTION,
+    CI_ZENO_IMPACTS,
+    FCFG_SIZE,
     FRICTION,
     FRICTION_DECEL,
+    H_B,
+    H_C,
+    H_FLOAT,
+    H_INT,
+    H_M,
+    H_N,
+    H_P,
     HALF_LENGTH,
+    ICFG_SIZE,
     INV_INERTIA,
     INV_MASS,
     NONE,
     OMEGA,
     RADIUS,
+    REC_COLUMNS,
+    REC_J,
+    REC_JT,
+    REC_NX,
+    REC_NY,
+    REC_PX,
+    REC_PY,
+    REC_TIME,
     RESTITUTION,
     SPIN_DECEL,
     STAT_CONTACTS,
@@ -76,17 +105,17 @@ jit_parallel = numba.njit(cache=True, nogil=True, parallel=True, error_model="nu
 
 
 @jit
-def _record(p, t, px, py, nx, ny, j, jt, cpair, ctime, cgeo, cimp, stats):
+def _record(p, t, px, py, nx, ny, j, jt, cpair, crec, stats):
     k = stats[STAT_CONTACTS]
     if k < cpair.shape[0]:
         cpair[k] = p
-        ctime[k] = t
-        cgeo[k, 0] = px
-        cgeo[k, 1] = py
-        cgeo[k, 2] = nx
-        cgeo[k, 3] = ny
-        cimp[k, 0] = j
-        cimp[k, 1] = jt
+        crec[k, REC_TIME] = t
+        crec[k, REC_PX] = px
+        crec[k, REC_PY] = py
+        crec[k, REC_NX] = nx
+        crec[k, REC_NY] = ny
+        crec[k, REC_J] = j
+        crec[k, REC_JT] = jt
     stats[STAT_CONTACTS] = k + 1
 
 
@@ -119,7 +148,7 @@ def _search(p, S, Pm, F, hw, PA, PB, horizon, tol, max_iterations, rotation, tab
 
 @jit
 def _contact_pass(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_friction,
-                  changed, cpair, ctime, cgeo, cimp, stats):
+                  changed, cpair, crec, stats):
     """One sweep: resolve every pair within ``slop`` and approaching. Returns (any, resting)."""
     n = S.shape[0]
     hit = False
@@ -137,18 +166,18 @@ def _contact_pass(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact
             j, jt, vn0 = resolve(S, Pm, a, bb, wall >= 0, nx, ny, oax, oay, ka, obx, oby, kb,
                                  MAT[p, RESTITUTION], MAT[p, FRICTION], rotation,
                                  contact_friction)
-            _record(p, t, px, py, nx, ny, j, jt, cpair, ctime, cgeo, cimp, stats)
+            _record(p, t, px, py, nx, ny, j, jt, cpair, crec, stats)
             if -vn0 < zeno_speed:
                 resting += 1
-            changed[a] = True
+            changed[a] = 1
             if wall < 0:
-                changed[b] = True
+                changed[b] = 1
             hit = True
     return hit, resting
 
 
 @jit
-def _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, ctime, cgeo, cimp, stats):
+def _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, crec, stats):
     """The sweeps did not converge (a jam): apply and record the block solve's impulses."""
     idx = np.empty(MAX_JAM_PAIRS, np.int64)
     geo = np.empty((MAX_JAM_PAIRS, JAM_COLUMNS))
@@ -165,28 +194,28 @@ def _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, ctime, cgeo,
         bb = a if is_wall else b
         apply_impulse(S, Pm, a, bb, is_wall, lam[i], geo[i, 0], geo[i, 1], geo[i, 2], geo[i, 3],
                       rotation)
-        _record(p, t, geo[i, 4], geo[i, 5], geo[i, 0], geo[i, 1], lam[i], 0.0, cpair, ctime,
-                cgeo, cimp, stats)
-        changed[a] = True
+        _record(p, t, geo[i, 4], geo[i, 5], geo[i, 0], geo[i, 1], lam[i], 0.0, cpair, crec,
+                stats)
+        changed[a] = 1
         if not is_wall:
-            changed[b] = True
+            changed[b] = 1
 
 
 @jit
 def _sweeps(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_friction, changed,
-            cpair, ctime, cgeo, cimp, stats, sweeps, jam):
+            cpair, crec, stats, sweeps, jam):
     """Up to ``sweeps`` contact passes until none hits; then, if ``jam`` and the last pass still
     hit, the block solve of the jam. Returns the number of resting bounces seen."""
     resting = 0
     hit = False
     for _ in range(sweeps):
         hit, r = _contact_pass(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation,
-                               contact_friction, changed, cpair, ctime, cgeo, cimp, stats)
+                               contact_friction, changed, cpair, crec, stats)
         resting += r
         if not hit:
             break
     if hit and jam:
-        _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, ctime, cgeo, cimp, stats)
+        _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, crec, stats)
     return resting
 
 
@@ -287,7 +316,7 @@ def _kick(S, Pm, F, h, rotation, table_friction):
 
 @jit
 def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, rotation,
-                  contact_friction, table_friction, cpair, ctime, cgeo, cimp, stats, changed,
+                  contact_friction, table_friction, cpair, crec, stats, changed,
                   separate_sweeps=1):
     """Advance one element by T seconds in ``substeps`` fixed substeps.
 
@@ -302,7 +331,7 @@ def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, 
         t = t0 + (k + 1) * h
         # settling (several separation sweeps) also takes the block solve of a jam
         _sweeps(S, Pm, hw, PA, PB, MAT, slop, 0.0, t, rotation, contact_friction, changed,
-                cpair, ctime, cgeo, cimp, stats, iterations, separate_sweeps > 1)
+                cpair, crec, stats, iterations, separate_sweeps > 1)
         for sweep in range(separate_sweeps):
             if _separate(S, Pm, hw, PA, PB, sweep == 0, rotation and separate_sweeps > 1) <= slop:
                 break
@@ -343,7 +372,7 @@ def _settle_substeps(S, Pm, F, PA, PB, T, settle_substep):
 @jit
 def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
                   zeno_impacts, settle_substep, rotation, contact_friction, table_friction,
-                  cpair, ctime, cgeo, cimp, stats, toi, kind, changed):
+                  cpair, crec, stats, toi, kind, changed):
     """Advance one element by dt seconds, event by event.
 
     ``toi``, ``kind`` (per pair) and ``changed`` (per body) are the element's scratch rows.
@@ -372,7 +401,7 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
         if best == -1:
             break
         events += 1
-        changed[:] = False
+        changed[:] = 0
         if kind[best] == CHECKPOINT:
             # a search that stalls while the pair is in contact is a sliding/rolling contact:
             # it counts toward settling like a resting bounce
@@ -385,7 +414,7 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
                 resting += 1
         else:
             resting += _sweeps(S, Pm, hw, PA, PB, MAT, tol, zeno_speed, t_now, rotation,
-                               contact_friction, changed, cpair, ctime, cgeo, cimp, stats,
+                               contact_friction, changed, cpair, crec, stats,
                                MAX_SWEEPS, True)
         horizon = dt - t_now
         for p in range(n_pairs):
@@ -399,55 +428,86 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
             if t_now < dt:
                 substeps = _settle_substeps(S, Pm, F, PA, PB, dt - t_now, settle_substep)
                 fixed_element(S, Pm, F, hw, PA, PB, MAT, dt - t_now, substeps, MAX_SWEEPS, tol,
-                              t_now, rotation, contact_friction, table_friction, cpair, ctime,
-                              cgeo, cimp, stats, changed, MAX_SWEEPS)
+                              t_now, rotation, contact_friction, table_friction, cpair, crec,
+                              stats, changed, MAX_SWEEPS)
                 stats[STAT_FALLBACK] = 1
             break
     stats[STAT_EVENTS] += events
     stats[STAT_ITERATIONS] += iterations
 
 
-@jit_parallel
-def exact_batch_parallel(S, Pm, F, HW, PA, PB, MAT, dt, tol, max_events, max_iterations,
-                         zeno_speed, zeno_impacts, settle_substep, rotation, contact_friction,
-                         table_friction, cpair, ctime, cgeo, cimp, stats, toi, kind, changed):
-    """``exact_element`` over the batch, in parallel threads."""
-    for b in numba.prange(S.shape[0]):
-        exact_element(S[b], Pm[b], F[b], HW[b], PA, PB, MAT[b], dt, tol, max_events,
-                      max_iterations, zeno_speed, zeno_impacts, settle_substep, rotation,
-                      contact_friction, table_friction, cpair[b], ctime[b], cgeo[b], cimp[b],
-                      stats[b], toi[b], kind[b], changed[b])
+@jit
+def unpack(fbuf, ibuf):
+    """The named arrays of a world's two packed buffers (see ``physics.layout``)."""
+    B = ibuf[H_B]
+    N = ibuf[H_N]
+    P = ibuf[H_P]
+    M = ibuf[H_M]
+    C = ibuf[H_C]
+    fo = ibuf[H_FLOAT:H_FLOAT + 8]
+    io = ibuf[H_INT:H_INT + 7]
+    S = fbuf[fo[0]:fo[0] + B * N * 6].reshape((B, N, 6))
+    Pm = fbuf[fo[1]:fo[1] + B * N * 6].reshape((B, N, 6))
+    F = fbuf[fo[2]:fo[2] + B * N * 2].reshape((B, N, 2))
+    HW = fbuf[fo[3]:fo[3] + B * 2].reshape((B, 2))
+    MAT = fbuf[fo[4]:fo[4] + B * P * 2].reshape((B, P, 2))
+    crec = fbuf[fo[5]:fo[5] + B * M * REC_COLUMNS].reshape((B, M, REC_COLUMNS))
+    toi = fbuf[fo[6]:fo[6] + B * P].reshape((B, P))
+    fcfg = fbuf[fo[7]:fo[7] + FCFG_SIZE]
+    PA = ibuf[io[0]:io[0] + P]
+    PB = ibuf[io[1]:io[1] + P]
+    cpair = ibuf[io[2]:io[2] + B * M].reshape((B, M))
+    stats = ibuf[io[3]:io[3] + B * C].reshape((B, C))
+    kind = ibuf[io[4]:io[4] + B * P].reshape((B, P))
+    changed = ibuf[io[5]:io[5] + B * N].reshape((B, N))
+    icfg = ibuf[io[6]:io[6] + ICFG_SIZE]
+    return S, Pm, F, HW, MAT, crec, toi, fcfg, PA, PB, cpair, stats, kind, changed, icfg
 
 
 @jit
-def exact_batch_serial(S, Pm, F, HW, PA, PB, MAT, dt, tol, max_events, max_iterations,
-                       zeno_speed, zeno_impacts, settle_substep, rotation, contact_friction,
-                       table_friction, cpair, ctime, cgeo, cimp, stats, toi, kind, changed):
-    """``exact_element`` over the batch, in this thread."""
-    for b in range(S.shape[0]):
-        exact_element(S[b], Pm[b], F[b], HW[b], PA, PB, MAT[b], dt, tol, max_events,
-                      max_iterations, zeno_speed, zeno_impacts, settle_substep, rotation,
-                      contact_friction, table_friction, cpair[b], ctime[b], cgeo[b], cimp[b],
-                      stats[b], toi[b], kind[b], changed[b])
-
-
-@jit_parallel
-def fixed_batch_parallel(S, Pm, F, HW, PA, PB, MAT, dt, substeps, iterations, rotation,
-                         contact_friction, table_friction, cpair, ctime, cgeo, cimp, stats,
-                         changed):
-    """``fixed_element`` over the batch, in parallel threads."""
-    for b in numba.prange(S.shape[0]):
-        fixed_element(S[b], Pm[b], F[b], HW[b], PA, PB, MAT[b], dt, substeps, iterations, 0.0,
-                      0.0, rotation, contact_friction, table_friction, cpair[b], ctime[b],
-                      cgeo[b], cimp[b], stats[b], changed[b])
+def _exact_one(b, fbuf, ibuf):
+    S, Pm, F, HW, MAT, crec, toi, fcfg, PA, PB, cpair, stats, kind, changed, icfg = unpack(
+        fbuf, ibuf)
+    exact_element(S[b], Pm[b], F[b], HW[b], PA, PB, MAT[b], fcfg[CF_DT], fcfg[CF_TOL],
+                  icfg[CI_MAX_EVENTS], icfg[CI_MAX_ITERATIONS], fcfg[CF_ZENO_SPEED],
+                  icfg[CI_ZENO_IMPACTS], fcfg[CF_SETTLE], icfg[CI_ROTATION] != 0,
+                  icfg[CI_CONTACT_FRICTION] != 0, icfg[CI_TABLE_FRICTION] != 0, cpair[b], crec[b],
+                  stats[b], toi[b], kind[b], changed[b])
 
 
 @jit
-def fixed_batch_serial(S, Pm, F, HW, PA, PB, MAT, dt, substeps, iterations, rotation,
-                       contact_friction, table_friction, cpair, ctime, cgeo, cimp, stats,
-                       changed):
-    """``fixed_element`` over the batch, in this thread."""
-    for b in range(S.shape[0]):
-        fixed_element(S[b], Pm[b], F[b], HW[b], PA, PB, MAT[b], dt, substeps, iterations, 0.0,
-                      0.0, rotation, contact_friction, table_friction, cpair[b], ctime[b],
-                      cgeo[b], cimp[b], stats[b], changed[b])
+def _fixed_one(b, fbuf, ibuf):
+    S, Pm, F, HW, MAT, crec, toi, fcfg, PA, PB, cpair, stats, kind, changed, icfg = unpack(
+        fbuf, ibuf)
+    fixed_element(S[b], Pm[b], F[b], HW[b], PA, PB, MAT[b], fcfg[CF_DT], icfg[CI_SUBSTEPS],
+                  icfg[CI_ITERATIONS], 0.0, 0.0, icfg[CI_ROTATION] != 0,
+                  icfg[CI_CONTACT_FRICTION] != 0, icfg[CI_TABLE_FRICTION] != 0, cpair[b], crec[b],
+                  stats[b], changed[b])
+
+
+@jit_parallel
+def exact_batch_parallel(fbuf, ibuf):
+    """``exact_element`` over a world's batch (its packed buffers), in parallel threads."""
+    for b in numba.prange(ibuf[H_B]):
+        _exact_one(b, fbuf, ibuf)
+
+
+@jit
+def exact_batch_serial(fbuf, ibuf):
+    """``exact_element`` over a world's batch (its packed buffers), in this thread."""
+    for b in range(ibuf[H_B]):
+        _exact_one(b, fbuf, ibuf)
+
+
+@jit_parallel
+def fixed_batch_parallel(fbuf, ibuf):
+    """``fixed_element`` over a world's batch (its packed buffers), in parallel threads."""
+    for b in numba.prange(ibuf[H_B]):
+        _fixed_one(b, fbuf, ibuf)
+
+
+@jit
+def fixed_batch_serial(fbuf, ibuf):
+    """``fixed_element`` over a world's batch (its packed buffers), in this thread."""
+    for b in range(ibuf[H_B]):
+        _fixed_one(b, fbuf, ibuf)

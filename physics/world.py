@@ -23,14 +23,40 @@ import numpy as np
 from physics.events import pair_geometry
 from physics.layout import (
     ANGLE,
+    CF_DT,
+    CF_SETTLE,
+    CF_TOL,
+    CF_ZENO_SPEED,
+    CI_CONTACT_FRICTION,
+    CI_ITERATIONS,
+    CI_MAX_EVENTS,
+    CI_MAX_ITERATIONS,
+    CI_ROTATION,
+    CI_SUBSTEPS,
+    CI_TABLE_FRICTION,
+    CI_ZENO_IMPACTS,
+    FLOAT_FIELDS,
     FRICTION,
     FRICTION_DECEL,
+    H_B,
+    H_C,
+    H_FLOAT,
+    H_INT,
+    H_M,
+    H_N,
+    H_P,
     HALF_LENGTH,
+    HEADER,
+    INT_FIELDS,
     INV_INERTIA,
     INV_MASS,
     OMEGA,
-    PARAM_COLUMNS,
     RADIUS,
+    REC_J,
+    REC_JT,
+    REC_NY,
+    REC_PX,
+    REC_TIME,
     RESTITUTION,
     SPIN_DECEL,
     STAT_COLUMNS,
@@ -44,10 +70,12 @@ from physics.layout import (
     VY,
     X,
     Y,
+    field_shapes,
 )
 from physics.scene import (
     WALL_NAMES,
     ExactSolver,
+    FixedSolver,
     PymunkSolver,
     Scene,
     SceneError,
@@ -175,7 +203,7 @@ class World:
         self.contact_friction = "contact_friction" in self.effects
         self.table_friction = "table_friction" in self.effects
         bodies = self.scene.bodies
-        self.n_bodies = N = len(bodies)
+        self.n_bodies = len(bodies)
         walls = WALL_NAMES if self.walls else ()
         self.names: tuple[str, ...] = tuple(b.name for b in bodies) + walls
         self.static = np.array([b.static for b in bodies])
@@ -193,15 +221,14 @@ class World:
         self.table_mu = np.full(B, table.friction)
         self.gravity = table.gravity
         size = table.size if table.size is not None else (math.inf, math.inf)
-        self._hw = np.tile(0.5 * np.asarray(size, dtype=float), (B, 1))
 
-        self._params = np.zeros((B, N, PARAM_COLUMNS))
-        self._state = np.zeros((B, N, STATE_COLUMNS))
-        self._forces = np.zeros((B, N, 2))
-        self._init_pairs()
-        self._update_params()
         self.max_contacts = int(max_contacts)
-        self._alloc_buffers()
+        pairs = self._pair_list()
+        self._alloc_buffers(len(pairs[0]))
+        self._hw[:] = 0.5 * np.asarray(size, dtype=float)
+        self._init_pairs(*pairs)
+        self._update_params()
+        self._configure_solver()
         self.time = np.zeros(B)
         self._initial = self._initial_state()
         self._state[:] = self._initial
@@ -218,7 +245,8 @@ class World:
     # construction helpers
     # ------------------------------------------------------------------------------------------
 
-    def _init_pairs(self) -> None:
+    def _pair_list(self) -> tuple[list[int], list[int]]:
+        """Every pair that can touch: body pairs (not two static bodies), then body-cushion."""
         bodies = self.scene.bodies
         N = self.n_bodies
         pa, pb = [], []
@@ -234,11 +262,12 @@ class World:
                     for w in range(4):
                         pa.append(i)
                         pb.append(N + w)
-        self.pair_a = np.asarray(pa, dtype=np.int64)
-        self.pair_b = np.asarray(pb, dtype=np.int64)
-        P = len(pa)
+        return pa, pb
+
+    def _init_pairs(self, pa: list[int], pb: list[int]) -> None:
+        self.pair_a[:] = pa
+        self.pair_b[:] = pb
         mats = self.scene.materials
-        self._materials = np.zeros((self.batch_size, P, 2))
         self._materials[:, :, RESTITUTION] = mats.restitution
         self._materials[:, :, FRICTION] = mats.friction
         for pair in mats.pairs:
@@ -281,18 +310,56 @@ class World:
         if getattr(self, "_backend", None) is not None:
             self._backend.sync_params()
 
-    def _alloc_buffers(self) -> None:
-        B, M = self.batch_size, self.max_contacts
-        self._cpair = np.zeros((B, M), dtype=np.int64)
-        self._ctime = np.zeros((B, M))
-        self._cgeo = np.zeros((B, M, 4))
-        self._cimp = np.zeros((B, M, 2))
-        self._stats = np.zeros((B, STAT_COLUMNS), dtype=np.int64)
-        # the solvers' scratch rows, allocated once instead of in every element step
-        P = len(self.pair_a)
-        self._toi = np.zeros((B, P))
-        self._kind = np.zeros((B, P), dtype=np.int8)
-        self._changed = np.zeros((B, self.n_bodies), dtype=np.bool_)
+    _VIEWS = ("_state", "_params", "_forces", "_hw", "_materials", "_crec", "_toi", "_fcfg",
+              "pair_a", "pair_b", "_cpair", "_stats", "_kind", "_changed", "_icfg", "_ctime",
+              "_cgeo", "_cimp")
+
+    def _alloc_buffers(self, n_pairs: int) -> None:
+        """One float64 and one int64 buffer holding every array the kernels touch (see
+        ``physics.layout``): state, parameters, forces, table, materials, contact records,
+        statistics, the solvers' scratch rows and the solver configuration."""
+        B, N, M = self.batch_size, self.n_bodies, self.max_contacts
+        shapes = field_shapes(B, N, n_pairs, M)
+        offsets = {}
+        for fields in (FLOAT_FIELDS, INT_FIELDS):
+            total = HEADER if fields is INT_FIELDS else 0
+            for name in fields:
+                offsets[name] = total
+                total += int(np.prod(shapes[name]))
+            if fields is FLOAT_FIELDS:
+                self._fbuf = np.zeros(total)
+            else:
+                self._ibuf = np.zeros(total, dtype=np.int64)
+        self._ibuf[[H_B, H_N, H_P, H_M, H_C]] = (B, N, n_pairs, M, STAT_COLUMNS)
+        self._ibuf[H_FLOAT:H_FLOAT + len(FLOAT_FIELDS)] = [offsets[f] for f in FLOAT_FIELDS]
+        self._ibuf[H_INT:H_INT + len(INT_FIELDS)] = [offsets[f] for f in INT_FIELDS]
+        self._offsets = offsets
+        self._make_buffer_views()
+
+    def _make_buffer_views(self) -> None:
+        shapes = field_shapes(self.batch_size, self.n_bodies, int(self._ibuf[H_P]),
+                              self.max_contacts)
+        for fields, buf in ((FLOAT_FIELDS, self._fbuf), (INT_FIELDS, self._ibuf)):
+            for name in fields:
+                o = self._offsets[name]
+                view = buf[o:o + int(np.prod(shapes[name]))].reshape(shapes[name])
+                setattr(self, name if name.startswith("pair_") else "_" + name, view)
+        self._ctime = self._crec[..., REC_TIME]
+        self._cgeo = self._crec[..., REC_PX:REC_NY + 1]
+        self._cimp = self._crec[..., REC_J:REC_JT + 1]
+
+    def _configure_solver(self) -> None:
+        s = self.solver
+        self._icfg[CI_ROTATION] = self.rotation
+        self._icfg[CI_CONTACT_FRICTION] = self.contact_friction
+        self._icfg[CI_TABLE_FRICTION] = self.table_friction
+        if isinstance(s, ExactSolver):
+            self._fcfg[[CF_TOL, CF_ZENO_SPEED, CF_SETTLE]] = (s.tolerance, s.zeno_speed,
+                                                             s.settle_substep)
+            self._icfg[[CI_MAX_EVENTS, CI_MAX_ITERATIONS, CI_ZENO_IMPACTS]] = (
+                s.max_events, s.max_iterations, s.zeno_impacts)
+        elif isinstance(s, FixedSolver):
+            self._icfg[[CI_SUBSTEPS, CI_ITERATIONS]] = (s.substeps, s.iterations)
 
     def _initial_state(self) -> np.ndarray:
         s = np.zeros((self.n_bodies, STATE_COLUMNS))
@@ -316,11 +383,14 @@ class World:
     def __getstate__(self) -> dict:
         d = self.__dict__.copy()
         d.pop("state")
+        for name in self._VIEWS:
+            d.pop(name)  # views into the two buffers, rebuilt on unpickling
         d["_backend"] = None
         return d
 
     def __setstate__(self, d: dict) -> None:
         self.__dict__.update(d)
+        self._make_buffer_views()
         self._make_views()
         if isinstance(self.solver, PymunkSolver):
             from physics.pymunk_backend import PymunkBackend
@@ -615,23 +685,14 @@ class World:
         self._stats[:] = 0
         if self._backend is not None:
             self._backend.step(dt)
-        elif isinstance(self.solver, ExactSolver):
-            s = self.solver
-            parallel = self.batch_size >= PARALLEL_BATCH
-            kernel = exact_batch_parallel if parallel else exact_batch_serial
-            kernel(self._state, self._params, self._forces, self._hw, self.pair_a, self.pair_b,
-                   self._materials, dt, s.tolerance, s.max_events, s.max_iterations,
-                   s.zeno_speed, s.zeno_impacts, s.settle_substep, self.rotation,
-                   self.contact_friction, self.table_friction, self._cpair, self._ctime,
-                   self._cgeo, self._cimp, self._stats, self._toi, self._kind, self._changed)
         else:
-            s = self.solver
+            self._fcfg[CF_DT] = dt
             parallel = self.batch_size >= PARALLEL_BATCH
-            kernel = fixed_batch_parallel if parallel else fixed_batch_serial
-            kernel(self._state, self._params, self._forces, self._hw, self.pair_a, self.pair_b,
-                   self._materials, dt, s.substeps, s.iterations, self.rotation,
-                   self.contact_friction, self.table_friction, self._cpair, self._ctime,
-                   self._cgeo, self._cimp, self._stats, self._changed)
+            if isinstance(self.solver, ExactSolver):
+                kernel = exact_batch_parallel if parallel else exact_batch_serial
+            else:
+                kernel = fixed_batch_parallel if parallel else fixed_batch_serial
+            kernel(self._fbuf, self._ibuf)
         self.time += dt
         st = self._stats
         self.last_step = StepStats(st[:, STAT_EVENTS].copy(), st[:, STAT_ITERATIONS].copy(),
