@@ -239,7 +239,15 @@ class World:
             from physics.pymunk_backend import PymunkBackend
 
             self._backend = PymunkBackend(self)
-        self.last_step = self._empty_stats()
+        self._last_stats = np.zeros_like(self._stats)
+        self._last_step = None
+        e = np.zeros(0)
+        ei = np.zeros(0, dtype=np.int64)
+        self._no_contacts = Contacts(ei, ei, ei, e, np.zeros((0, 2)), np.zeros((0, 2)), e, e,
+                                     np.zeros(self.batch_size, dtype=np.int64))
+        for arr in (e, ei, self._no_contacts.point, self._no_contacts.normal,
+                    self._no_contacts.dropped):
+            arr.flags.writeable = False
 
     # ------------------------------------------------------------------------------------------
     # construction helpers
@@ -396,10 +404,6 @@ class World:
             from physics.pymunk_backend import PymunkBackend
 
             self._backend = PymunkBackend(self)
-
-    def _empty_stats(self) -> StepStats:
-        z = np.zeros(self.batch_size, dtype=np.int64)
-        return StepStats(z, z, z, z, z.astype(bool))
 
     # ------------------------------------------------------------------------------------------
     # names and parameters
@@ -694,20 +698,29 @@ class World:
                 kernel = fixed_batch_parallel if parallel else fixed_batch_serial
             kernel(self._fbuf, self._ibuf)
         self.time += dt
-        st = self._stats
-        self.last_step = StepStats(st[:, STAT_EVENTS].copy(), st[:, STAT_ITERATIONS].copy(),
-                                   st[:, STAT_SUBSTEPS].copy(), st[:, STAT_CONTACTS].copy(),
-                                   st[:, STAT_FALLBACK].astype(bool))
+        self._finish_step()
         return self._collect()
 
+    def _finish_step(self) -> None:
+        """Freeze this step's statistics (``last_step`` is built from them on first use)."""
+        self._last_stats = self._stats.copy()
+        self._last_step = None
+
+    @property
+    def last_step(self) -> StepStats:
+        """Cost accounting of the last ``step``, per element (see :class:`StepStats`)."""
+        if self._last_step is None:
+            st = self._last_stats
+            self._last_step = StepStats(st[:, STAT_EVENTS], st[:, STAT_ITERATIONS],
+                                        st[:, STAT_SUBSTEPS], st[:, STAT_CONTACTS],
+                                        st[:, STAT_FALLBACK].astype(bool))
+        return self._last_step
+
     def _collect(self) -> Contacts:
-        counts = self._stats[:, STAT_CONTACTS]
+        counts = self._last_stats[:, STAT_CONTACTS]
+        if not counts.any():
+            return self._no_contacts
         stored = np.minimum(counts, self.max_contacts)
-        if not stored.any():
-            e = np.zeros(0)
-            ei = np.zeros(0, dtype=np.int64)
-            return Contacts(ei, ei, ei, e, np.zeros((0, 2)), np.zeros((0, 2)), e, e,
-                            counts - stored)
         b, k = np.nonzero(np.arange(self.max_contacts)[None, :] < stored[:, None])
         p = self._cpair[b, k]
         geo = self._cgeo[b, k]
