@@ -64,6 +64,8 @@ class Case:
     unit: str
     run: Callable[[str], Measurement]
     claims: dict[str, Claim] = field(default_factory=dict)
+    #: what is checked, in a few words (the README's compact table)
+    brief: str = ""
 
     def measure(self, solver: str) -> Measurement:
         if solver not in self.claims:
@@ -900,32 +902,39 @@ CASES: tuple[Case, ...] = (
          "exact: V1, V2, omega1 equal the seed's closed forms (relative to V, V2 and omega1); "
          "fixed/pymunk: linear momentum and kinetic energy (e = 1) conserved, finite",
          "rel.", _mass_ratios,
-         {"exact": Claim(1e-13), "fixed": Claim(1e-13), "pymunk": Claim(1e-9)}),
+         {"exact": Claim(1e-13), "fixed": Claim(1e-13), "pymunk": Claim(1e-9)},
+         brief="closed forms (exact), p and E kept (fixed, pymunk) at m1/m2 = 1e-12..1e12"),
     Case("light_rod_limit", "Seed §1 limit m1/m2 -> 0",
          "V1, V2, |omega1| r equal the limit forms (physics.analytic.rod_strike_light_rod) to "
-         "O(m1/m2)", "m/s", _light_rod_limit, {"exact": Claim(1e-11)}),
+         "O(m1/m2)", "m/s", _light_rod_limit, {"exact": Claim(1e-11)},
+         brief="the seed's limit forms for m1/m2 -> 0, to O(m1/m2)"),
     Case("static_and_pivots", "Static cushions, posts and pivots (inverse mass 0)",
          "v' = -e v off a static post; rod-cushion impulse, velocity and spin equal "
          "physics.analytic.rod_wall; a pivot never moves and angular momentum about it is "
          "conserved; impulse and spin equal (1+e) v / (1/m + l^2/I)", "rel.",
          _static_and_pivots,
-         {"exact": Claim(1e-12), "fixed": Claim(1e-12), "pymunk": Claim(1e-9)}),
+         {"exact": Claim(1e-12), "fixed": Claim(1e-12), "pymunk": Claim(1e-9)},
+         brief="v' = -e v off a post; rod-cushion closed form; pivot fixed, L kept"),
     Case("grazing", "Grazing contact: approach speed -> 0, normal ⟂ velocity",
          "no impulse, no sticking, no NaN when touching and sliding or passing tangentially "
          "(velocities and path unchanged); at approach angles down to 1e-11 rad, vn' = -e vn "
          "(relative to vn) and the tangential velocity untouched", "rel.", _grazing,
-         {"exact": Claim(1e-9), "fixed": Claim(1e-12), "pymunk": Claim(1e-9)}),
+         {"exact": Claim(1e-9), "fixed": Claim(1e-12), "pymunk": Claim(1e-9)},
+         brief="tangential passes get no impulse; vn' = -e vn down to 1e-11 rad"),
     Case("theta_90", "theta -> 90 deg (lever arm -> 0)",
          "seed's closed forms at theta = 90 deg - 1e-1..1e-11 rad; exactly end-on: no spin "
-         "at all", "V, V/r", _theta_90, {"exact": Claim(1e-12)}),
+         "at all", "V, V/r", _theta_90, {"exact": Claim(1e-12)},
+         brief="closed forms up to 1e-11 rad from end-on; no spin exactly end-on"),
     Case("thin_and_long_rods", "Zero-thickness, very long (1 km) and very short (1 µm) rods",
          "seed's closed forms; two zero-thickness rods meet (no pass-through) and conserve "
          "p, L and E; a zero-thickness rod flat on a cushion turning into it never overlaps it "
-         "by more than the tolerance", "rel.", _rods_thin_and_long, {"exact": Claim(1e-11)}),
+         "by more than the tolerance", "rel.", _rods_thin_and_long, {"exact": Claim(1e-11)},
+         brief="closed forms at thickness 0, 1 km, 1 µm; thin rods never pass through"),
     Case("restitution_limits", "e = 0 and e = 1 on off-line impacts",
          "normal relative point velocity after = -e x before at the reported contact point "
          "and normal; kinetic energy kept for e = 1", "rel.", _restitution_limits,
-         {"exact": Claim(1e-12)}),
+         {"exact": Claim(1e-12)},
+         brief="vn' = -e vn at the contact point for e = 0 and 1; E kept at e = 1"),
     Case("fast_strike", "Very fast strikes onto a 1 mm rod (tunnelling)",
          "exact: every strike at 1e2..1e6 radii per step bounces back, x-momentum conserved "
          "(worst relative error); fixed (1 substep) and pymunk (10): the fraction that "
@@ -933,34 +942,41 @@ CASES: tuple[Case, ...] = (
          _fast_strikes,
          {"exact": Claim(1e-12),
           "fixed": Claim(1.0, at_least=True, meaning="tunnels (documented)"),
-          "pymunk": Claim(1.0, at_least=True, meaning="tunnels (documented)")}),
+          "pymunk": Claim(1.0, at_least=True, meaning="tunnels (documented)")},
+         brief="exact bounces back at 1e2..1e6 radii per step; fixed, pymunk tunnel"),
     Case("simultaneous", "Simultaneous contacts (sequential impulses in pair order)",
          "Newton's cradle ends with only the last disk moving at V; a puck struck against a "
          "cushion sends the striker back at -V; a 45 deg corner hit reverses v; a puck "
          "striking two at once matches an independent sequential-impulse reference; E, p kept",
          "m/s", _simultaneous,
-         {"exact": Claim(1e-12), "fixed": Claim(1e-12)}),
+         {"exact": Claim(1e-12), "fixed": Claim(1e-12)},
+         brief="Newton's cradle, corner hits, two at once vs a sequential reference"),
     Case("jammed_chain", "A light puck pinned between a heavy one and a cushion (jam)",
          "mass ratios 1e2..1e6: e = 0: both at rest afterwards; e = 1: the heavy puck is "
          "reflected at its speed (less at most 2/ratio of it) with E kept; no overlap (the "
          "sequential sweeps cannot converge here: the block solve of the jam takes over)",
-         "rel.", _jammed, {"exact": Claim(1e-9)}),
+         "rel.", _jammed, {"exact": Claim(1e-9)},
+         brief="light puck jammed by a 1e2..1e6 x heavier one: stops / reflects, no overlap"),
     Case("pressed_into_cushion", "Mallet pressing a puck into a cushion / a rod into a corner "
          "(e = 0, 0.5, 0.9; Zeno bounces)", _SUSTAINED_CHECKS, "ratio to limit", _pressed,
-         {"exact": Claim(1.0), "fixed": Claim(1.0), "pymunk": Claim(1.0)}),
+         {"exact": Claim(1.0), "fixed": Claim(1.0), "pymunk": Claim(1.0)},
+         brief="puck pressed into a cushion: overlap, energy beyond work, cost per step"),
     Case("painleve", "Rod pushed by the mallet, sliding with friction along a cushion "
          "(Painlevé; mu = 0.3, 0.8, 2, e = 0, 0.5)", _SUSTAINED_CHECKS, "ratio to limit",
-         _painleve, {"exact": Claim(1.0), "fixed": Claim(1.0)}),
+         _painleve, {"exact": Claim(1.0), "fixed": Claim(1.0)},
+         brief="Painlevé: a rod pushed along a cushion, mu up to 2: the same limits"),
     Case("time_steps", "Tiny and huge time steps",
          "n steps of dt = 1e-7 / 1e-5 s reach the state of one step of n dt (walled table, "
          "4 bodies, e = 1); one step of 100 s keeps E and everything on the table",
-         "m, m/s, rel.", _time_steps, {"exact": Claim(1e-9)}),
+         "m, m/s, rel.", _time_steps, {"exact": Claim(1e-9)},
+         brief="n steps of dt (1e-7 s) = one step of n dt; one 100 s step keeps E"),
     Case("start_in_contact", "Bodies starting exactly in contact",
          "touching is legal: an approaching pair is resolved at t = 0 with the closed-form "
          "result, a separating one untouched (disk-disk, disk-cushion, rod flat on a cushion); "
          "overlap beyond the tolerance raises SceneError naming the pair", "m/s",
          _start_in_contact,
-         {"exact": Claim(1e-12), "fixed": Claim(1e-12), "pymunk": Claim(1e-5)}),
+         {"exact": Claim(1e-12), "fixed": Claim(1e-12), "pymunk": Claim(1e-5)},
+         brief="touching pairs resolved at t = 0; overlap -> SceneError naming the pair"),
 )
 
 

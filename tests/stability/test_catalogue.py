@@ -24,6 +24,6 @@ def test_catalogue_is_well_formed():
     for case in CASES:
         assert "exact" in case.claims, f"{case.name}: every case runs on the exact solver"
         assert set(case.claims) <= set(SOLVERS)
-        assert case.title and case.checks and case.unit
+        assert case.title and case.checks and case.unit and case.brief
     with pytest.raises(KeyError, match="no case"):
         by_name("nope")
