@@ -30,12 +30,13 @@ def _kwargs(text: str | None) -> dict:
         return {}
     import yaml
 
-    from agents.config import AgentConfigError
+    from agents.config import AgentConfigError, yaml_problem
 
     try:
         value = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise AgentConfigError(f"--env-kwargs: not valid YAML/JSON: {exc}") from None
+        raise AgentConfigError(f"--env-kwargs: not valid YAML/JSON ({yaml_problem(exc)})") \
+            from None
     if not isinstance(value, dict):
         raise AgentConfigError(f"--env-kwargs: must be a mapping such as "
                                f"'{{restitution: 0.8}}' (got {text!r})")
@@ -50,7 +51,15 @@ def _check_env_id(env_id: str) -> None:
         raise AgentConfigError(f"--env: unknown id {env_id!r}; allowed: {list(envs.ENV_IDS)}")
 
 
+def _check_episodes(option: str, value: int) -> None:
+    from agents.config import AgentConfigError
+
+    if value < 1:
+        raise AgentConfigError(f"{option}: must be >= 1 (got {value})")
+
+
 def _policy(args):
+    import envs
     from agents.config import AgentConfigError
     from agents.oracle import RandomPolicy, oracle_for
 
@@ -64,6 +73,9 @@ def _policy(args):
         env_kwargs = meta["hyperparameters"][meta["env"]].get("env_kwargs", {})
         return policy, meta["env"], env_kwargs, "agent"
     if not args.env:
+        for flag in ("oracle", "random"):
+            if getattr(args, flag, False):
+                raise AgentConfigError(f"--{flag}: needs --env ID; ids: {list(envs.ENV_IDS)}")
         raise AgentConfigError("give a run directory, or --oracle/--random with --env")
     _check_env_id(args.env)
     if getattr(args, "random", False):
@@ -77,6 +89,8 @@ def cmd_train(args) -> int:
     from agents.train import train
 
     _check_env_id(args.env)
+    if not args.no_eval:
+        _check_episodes("--eval-episodes", args.eval_episodes)
     result = train(args.algo, args.env, config=args.config, seed=args.seed,
                    timesteps=args.timesteps, out=args.out, n_envs=args.n_envs, device=args.device,
                    resume=args.resume, force=args.force, progress=not args.no_progress,
@@ -95,6 +109,7 @@ def cmd_train(args) -> int:
 def cmd_evaluate(args) -> int:
     from agents.evaluate import evaluate, summarise
 
+    _check_episodes("--episodes", args.episodes)
     policy, env_id, env_kwargs, name = _policy(args)
     results = evaluate(env_id, policy if name == "agent" else None, args.episodes, args.seed,
                        env_kwargs, baselines=True)
@@ -108,6 +123,7 @@ def cmd_evaluate(args) -> int:
 def cmd_record(args) -> int:
     from agents.record import record
 
+    _check_episodes("--episodes", args.episodes)
     policy, env_id, env_kwargs, name = _policy(args)
     out = args.out or (str(Path(args.run_dir) / "rollout.mp4") if args.run_dir
                        else f"{name}-{env_id.split('/')[-1]}.mp4")
@@ -209,7 +225,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.func(args)
     except (AgentConfigError, ConfigError, SceneError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print("error: " + " ".join(str(exc).split()), file=sys.stderr)  # on one line
         return 2
 
 

@@ -22,7 +22,8 @@ from typing import Any
 
 import yaml
 
-__all__ = ["ALGOS", "AgentConfigError", "RunConfig", "algo_class", "load_agent_config"]
+__all__ = ["ALGOS", "AgentConfigError", "RunConfig", "algo_class", "load_agent_config",
+           "yaml_problem"]
 
 #: algorithms the CLI trains
 ALGOS = ("ppo", "sac", "td3")
@@ -37,6 +38,14 @@ ACTIVATIONS = {"relu": "ReLU", "tanh": "Tanh", "elu": "ELU", "leaky_relu": "Leak
 
 class AgentConfigError(ValueError):
     """An invalid hyperparameter file, entry or CLI argument; the message names the key."""
+
+
+def yaml_problem(exc: yaml.YAMLError) -> str:
+    """A YAML parse error on one line: where (line, column) and what."""
+    mark = getattr(exc, "problem_mark", None)
+    problem = getattr(exc, "problem", None) or str(exc)
+    where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else ""
+    return where + " ".join(str(problem).split())
 
 
 def algo_class(algo: str):
@@ -110,12 +119,14 @@ def _read_entry(path: Path, env_id: str) -> tuple[str, dict]:
     """The raw entry of ``env_id`` (or ``default``) in a hyperparameter file."""
     import envs
 
+    if path.is_dir():
+        raise AgentConfigError(f"config: {str(path)!r} is a directory, not a YAML file")
     if not path.is_file():
         raise AgentConfigError(f"config: file {str(path)!r} does not exist")
     try:
         data = yaml.safe_load(path.read_text())
     except yaml.YAMLError as exc:
-        raise AgentConfigError(f"config: {path} is not valid YAML: {exc}") from None
+        raise AgentConfigError(f"config: {path} is not valid YAML ({yaml_problem(exc)})") from None
     if not isinstance(data, dict):
         raise AgentConfigError(f"config: {path} must map env ids to hyperparameters")
     for key in data:
@@ -130,12 +141,13 @@ def _read_entry(path: Path, env_id: str) -> tuple[str, dict]:
 
 def _budget(entry: dict, where: str) -> tuple[int, int]:
     """Pop and check ``n_timesteps`` and ``n_envs``."""
+    if "n_timesteps" not in entry:
+        raise AgentConfigError(f"{where}.n_timesteps: required (training budget)")
+    value = entry.pop("n_timesteps")
     try:
-        n_timesteps = int(float(entry.pop("n_timesteps")))
-    except KeyError:
-        raise AgentConfigError(f"{where}.n_timesteps: required (training budget)") from None
-    except (TypeError, ValueError):
-        raise AgentConfigError(f"{where}.n_timesteps: must be a number") from None
+        n_timesteps = int(float(value))
+    except (TypeError, ValueError, OverflowError):
+        raise AgentConfigError(f"{where}.n_timesteps: must be a number (got {value!r})") from None
     if n_timesteps < 1:
         raise AgentConfigError(f"{where}.n_timesteps: must be >= 1 (got {n_timesteps})")
     n_envs = entry.pop("n_envs", 1)

@@ -18,7 +18,7 @@ import numpy as np
 import envs  # noqa: F401  (registers the ids)
 from agents.oracle import RandomPolicy, oracle_for
 
-__all__ = ["Evaluation", "evaluate", "load_model_policy", "summarise"]
+__all__ = ["Evaluation", "evaluate", "load_model_policy", "read_run_config", "summarise"]
 
 Policy = Callable[[gym.Env, object], np.ndarray]
 
@@ -42,6 +42,10 @@ class Evaluation:
 def run_episodes(policy: Policy, env_id: str, episodes: int, seed: int = 1000,
                  env_kwargs: dict | None = None, name: str = "policy") -> Evaluation:
     """Roll ``policy`` out for ``episodes`` episodes on seeds ``seed + k``."""
+    if episodes < 1:
+        from agents.config import AgentConfigError
+
+        raise AgentConfigError(f"episodes: must be >= 1 (got {episodes!r})")
     env = gym.make(env_id, **(env_kwargs or {}))
     returns, lengths = [], []
     for k in range(episodes):
@@ -59,15 +63,51 @@ def run_episodes(policy: Policy, env_id: str, episodes: int, seed: int = 1000,
                       float(np.mean(lengths)), returns)
 
 
-def load_model_policy(run_dir: str | Path) -> tuple[Policy, dict]:
-    """The deterministic policy of a saved run (``model.zip``, optional ``vecnormalize.pkl``)."""
+def read_run_config(run_dir: str | Path) -> dict:
+    """A run's ``config.yml``, checked: ``algo``, ``env`` and its ``hyperparameters`` entry.
+
+    Raises:
+        AgentConfigError: naming the file and the field, for corrupt YAML or a bad field.
+    """
     import yaml
 
-    from agents.config import algo_class
+    from agents.config import ALGOS, AgentConfigError, yaml_problem
+
+    path = Path(run_dir) / "config.yml"
+    try:
+        meta = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise AgentConfigError(f"config.yml: {path} is not valid YAML "
+                               f"({yaml_problem(exc)})") from None
+    if not isinstance(meta, dict):
+        raise AgentConfigError(f"config.yml: {path} must be a mapping with algo, env and "
+                               f"hyperparameters (got {type(meta).__name__})")
+    algo, env_id = meta.get("algo"), meta.get("env")
+    if not isinstance(algo, str) or algo not in ALGOS:
+        raise AgentConfigError(f"config.yml: {path}: algo: unknown algorithm {algo!r}; "
+                               f"allowed: {list(ALGOS)}")
+    if not isinstance(env_id, str) or env_id not in envs.ENV_IDS:
+        raise AgentConfigError(f"config.yml: {path}: env: unknown id {env_id!r}; allowed: "
+                               f"{list(envs.ENV_IDS)}")
+    hyper = meta.get("hyperparameters")
+    entry = hyper.get(env_id) if isinstance(hyper, dict) else None
+    if not isinstance(entry, dict) or not isinstance(entry.get("env_kwargs") or {}, dict):
+        raise AgentConfigError(f"config.yml: {path}: hyperparameters: must map {env_id!r} to "
+                               "its entry (env_kwargs a mapping)")
+    return meta
+
+
+def load_model_policy(run_dir: str | Path) -> tuple[Policy, dict]:
+    """The deterministic policy of a saved run (``model.zip``, optional ``vecnormalize.pkl``)."""
+    from agents.config import AgentConfigError, algo_class
 
     run_dir = Path(run_dir)
-    meta = yaml.safe_load((run_dir / "config.yml").read_text())
-    model = algo_class(meta["algo"]).load(run_dir / "model.zip", device="cpu")
+    meta = read_run_config(run_dir)
+    try:
+        model = algo_class(meta["algo"]).load(run_dir / "model.zip", device="cpu")
+    except (ValueError, KeyError, EOFError, OSError) as exc:  # not a zip, not an SB3 model
+        raise AgentConfigError(f"model.zip: {run_dir / 'model.zip'} could not be loaded as a "
+                               f"{meta['algo']} model ({exc})") from None
     norm = None
     if (run_dir / "vecnormalize.pkl").exists():
         with open(run_dir / "vecnormalize.pkl", "rb") as f:

@@ -1,0 +1,170 @@
+"""The CLI refuses bad input cleanly: exit status 2, one ``error:`` line on stderr naming the
+argument, file or field, no traceback, and nothing created or changed on disk (no run directory,
+no ``.partial``). Complements ``test_agents.py::test_bad_inputs_fail_before_anything_is_written``.
+
+Nothing here trains: where a run directory is needed its files are written by hand.
+"""
+
+import hashlib
+from pathlib import Path
+
+import pytest
+import yaml
+
+from agents.cli import main
+from agents.config import AgentConfigError, load_agent_config
+
+ENV = "SpinStrike/RodSpin-v0"
+
+
+def _tree(root: Path) -> dict[str, str]:
+    """Every path under ``root`` with a digest of its content (directories: "dir")."""
+    return {str(p.relative_to(root)): "dir" if p.is_dir()
+            else hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(root.rglob("*"))}
+
+
+def _config(tmp: Path, name: str, entry: dict, env_id: str = ENV) -> str:
+    path = tmp / name
+    path.write_text(yaml.safe_dump({env_id: entry}))
+    return str(path)
+
+
+def _dir(tmp: Path, name: str) -> str:
+    (tmp / name).mkdir()
+    return str(tmp / name)
+
+
+def _fake_run(tmp: Path, name: str, config_text: str | None = None,
+              model: bytes = b"not a zip") -> str:
+    """A run directory written by hand (no training): config.yml and model.zip."""
+    run = tmp / name
+    run.mkdir()
+    if config_text is None:
+        config_text = yaml.safe_dump({"algo": "ppo", "env": ENV, "seed": 0,
+                                      "hyperparameters": {ENV: {"n_timesteps": 64}}})
+    (run / "config.yml").write_text(config_text)
+    (run / "model.zip").write_bytes(model)
+    return str(run)
+
+
+# each case: (id, build(tmp) -> argv, words the error line must contain)
+CASES = [
+    ("config-is-a-directory",
+     lambda t: ["train", "--config", _dir(t, "conf.d")],
+     ["config:", "conf.d", "is a directory"]),
+    ("config-without-env-or-default",
+     lambda t: ["train", "--config", _config(t, "other.yml", {"n_timesteps": 100},
+                                             "SpinStrike/PuckSpeed-v0")],
+     ["config:", "other.yml", f"no entry for '{ENV}'", "no 'default'"]),
+    ("n_timesteps-not-a-number",
+     lambda t: ["train", "--config", _config(t, "abc.yml", {"n_timesteps": "abc"})],
+     ["abc.yml", "n_timesteps: must be a number", "'abc'"]),
+    ("n_timesteps-negative",
+     lambda t: ["train", "--config", _config(t, "neg.yml", {"n_timesteps": -1000})],
+     ["neg.yml", "n_timesteps: must be >= 1", "-1000"]),
+    ("n_envs-zero",
+     lambda t: ["train", "--config", _config(t, "zero.yml", {"n_timesteps": 100, "n_envs": 0})],
+     ["zero.yml", "n_envs: must be an integer >= 1", "(got 0)"]),
+    ("n_envs-negative",
+     lambda t: ["train", "--config", _config(t, "m2.yml", {"n_timesteps": 100, "n_envs": -2})],
+     ["m2.yml", "n_envs: must be an integer >= 1", "(got -2)"]),
+    ("env-kwargs-unknown",
+     lambda t: ["train", "--env-kwargs", "{bogus_kwarg: 1}"],
+     ["bogus_kwarg", "unknown argument", "restitution"]),
+    ("eval-episodes-zero",
+     lambda t: ["train", "--eval-episodes", "0"],
+     ["--eval-episodes: must be >= 1"]),
+    ("out-exists-without-force",
+     lambda t: ["train", "--out", _fake_run(t, "done")],
+     ["out:", "done exists", "--force"]),
+    ("resume-without-checkpoint",
+     lambda t: ["train", "--resume", "--out", _fake_run(t, "nockpt")],
+     ["resume:", "nockpt", "no checkpoint"]),
+    ("resume-not-a-run",
+     lambda t: ["train", "--resume", "--out", _dir(t, "empty")],
+     ["resume:", "empty", "not a run directory"]),
+    ("evaluate-corrupt-config-yml",
+     lambda t: ["evaluate", _fake_run(t, "corrupt", "algo: [ppo\nenv: :\n")],
+     ["config.yml", "corrupt", "not valid YAML", "line 2"]),
+    ("evaluate-unknown-algo",
+     lambda t: ["evaluate", _fake_run(t, "dqn", yaml.safe_dump(
+         {"algo": "dqn", "env": ENV, "hyperparameters": {ENV: {}}}))],
+     ["config.yml", "dqn", "algo: unknown algorithm 'dqn'", "ppo"]),
+    ("evaluate-unknown-env",
+     lambda t: ["evaluate", _fake_run(t, "noenv", yaml.safe_dump(
+         {"algo": "ppo", "env": "SpinStrike/Nope-v0", "hyperparameters": {}}))],
+     ["config.yml", "env: unknown id 'SpinStrike/Nope-v0'"]),
+    ("evaluate-model-not-a-zip",
+     lambda t: ["evaluate", _fake_run(t, "junk")],
+     ["model.zip", "junk", "could not be loaded"]),
+    ("evaluate-episodes-zero",
+     lambda t: ["evaluate", "--oracle", "--env", ENV, "--episodes", "0"],
+     ["--episodes: must be >= 1", "(got 0)"]),
+    ("evaluate-episodes-negative",
+     lambda t: ["evaluate", "--random", "--env", ENV, "--episodes", "-3"],
+     ["--episodes: must be >= 1", "(got -3)"]),
+    ("evaluate-run-episodes-zero",  # a run directory gets no summary.md either
+     lambda t: ["evaluate", _fake_run(t, "run0"), "--episodes", "0"],
+     ["--episodes: must be >= 1"]),
+    ("record-oracle-without-env",
+     lambda t: ["record", "--oracle"],
+     ["--oracle", "needs --env"]),
+    ("record-episodes-zero",
+     lambda t: ["record", "--oracle", "--env", ENV, "--episodes", "0", "--out",
+                str(t / "v.mp4")],
+     ["--episodes: must be >= 1"]),
+]
+
+
+@pytest.fixture
+def sandbox(tmp_path, monkeypatch):
+    """An empty working directory (a default ``runs/`` or ``*.mp4`` would land here)."""
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+@pytest.mark.parametrize(("build", "words"), [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+def test_bad_input_is_one_error_line_and_writes_nothing(build, words, sandbox, capsys):
+    argv = build(sandbox)
+    if argv[0] == "train" and "--out" not in argv:
+        argv += ["--out", str(sandbox / "run")]
+    before = _tree(sandbox)
+    capsys.readouterr()
+    assert main(argv) == 2, argv
+    captured = capsys.readouterr()
+    lines = captured.err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), captured.err
+    assert "Traceback" not in captured.err + captured.out
+    for word in words:
+        assert word in lines[0], (word, lines[0])
+    assert _tree(sandbox) == before, "the CLI created or changed files"
+    assert not list(sandbox.rglob("*.partial"))
+
+
+@pytest.mark.parametrize(("argv", "argument", "value"), [
+    (["train", "--algo", "dqn"], "--algo", "'dqn'"),
+    (["bench", "nope"], "which", "'nope'"),
+    (["evaluate", "--episodes", "many"], "--episodes", "'many'"),
+], ids=["algo-not-in-list", "bench-unknown", "episodes-not-an-int"])
+def test_argparse_rejects_choices_with_status_2(argv, argument, value, sandbox, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    [line] = [x for x in err.splitlines() if "error:" in x]
+    assert f"argument {argument}:" in line and value in line, err
+    assert "Traceback" not in err
+    assert not any(sandbox.iterdir())
+
+
+def test_yaml_1e6_is_accepted_as_an_integer_budget(tmp_path):
+    """PyYAML reads ``1e6`` (no dot) as a string; the config reads it as 1000000 steps."""
+    assert yaml.safe_load("n: 1e6")["n"] == "1e6"
+    path = tmp_path / "big.yml"
+    path.write_text(f"{ENV}:\n  n_timesteps: 1e6\n  n_envs: 4\n")
+    cfg = load_agent_config("ppo", ENV, path)
+    assert cfg.n_timesteps == 1_000_000 and isinstance(cfg.n_timesteps, int)
+    assert cfg.n_envs == 4
+    path.write_text(f"{ENV}:\n  n_timesteps: 1e6x\n")
+    with pytest.raises(AgentConfigError, match=r"n_timesteps: must be a number \(got '1e6x'\)"):
+        load_agent_config("ppo", ENV, path)
