@@ -13,10 +13,14 @@ from typing import ClassVar
 
 import numpy as np
 
+from envs import fast
 from envs.config import ControlConfig, build_scene
-from envs.core import ObsField, SpinStrikeEnv, SpinStrikeVectorEnv, Task, layout_table
+from envs.core import ObsField, SpinStrikeEnv, SpinStrikeVectorEnv, Task, action_error, layout_table
+from envs.fast import limit_force
 from envs.rendering import BodyDraw, Frame
 from physics import World
+from physics.layout import CF_DT
+from physics.world import PARALLEL_BATCH
 
 __all__ = ["PuckSpeedControlEnv", "PuckSpeedControlVectorEnv", "RodSpinControlEnv",
            "RodSpinControlVectorEnv", "limit_force"]
@@ -28,34 +32,6 @@ SPEED_SCALE = 3.0
 CLEARANCE = 0.02
 
 
-def limit_force(action, velocity, mass, dt, max_force, max_speed):
-    """Force from actions in the unit disk, reduced so that free flight keeps the speed limit.
-
-    The action's box [-1, 1]^2 is mapped onto the disk of radius ``max_force`` (an action outside
-    the unit disk keeps its direction, at full force). If the mallet would end the step faster
-    than ``max_speed`` in free flight, the force is the one that ends it at the limit (projected
-    onto the speed ball; never more than ``max_force``).
-
-    Args:
-        action: [B, 2]; velocity: [B, 2] m/s; mass: [B] kg; dt: s.
-
-    Returns:
-        [B, 2] force, N.
-    """
-    a = np.asarray(action, dtype=np.float64)
-    norm = np.sqrt((a**2).sum(1, keepdims=True))
-    force = a * max_force / np.maximum(norm, 1.0)
-    v_end = velocity + force * dt / mass[:, None]
-    speed = np.sqrt((v_end**2).sum(1, keepdims=True))
-    over = speed[:, 0] > max_speed
-    if over.any():
-        target = v_end[over] * (max_speed / speed[over])
-        f = (target - velocity[over]) * mass[over, None] / dt
-        fn = np.sqrt((f**2).sum(1, keepdims=True))
-        force[over] = f * np.minimum(1.0, max_force / np.maximum(fn, 1e-300))
-    return force
-
-
 class _ControlTask(Task):
     """Mallet and target on a walled table, batched."""
 
@@ -63,6 +39,7 @@ class _ControlTask(Task):
     SCENE: ClassVar[str]
     CONFIG = ControlConfig
     ACTIONS = ("force_x", "force_y")
+    OBS_CLIPPED = True
     UNIFORMS = len(ControlConfig.RANDOMIZABLE) + 5
 
     def __init__(self, cfg, batch_size: int) -> None:
@@ -76,7 +53,20 @@ class _ControlTask(Task):
                              "'mallet' body")
         self.im = w.index("mallet")
         self.it = w.index(self.TARGET)
-        self._last_contacts = None
+        # the fused step's buffers (envs.fast): actions in; observation, reward, info out
+        self.tbuf = np.zeros((batch_size, fast.T_COLUMNS))
+        k = np.zeros(fast.K_SIZE)
+        k[[fast.K_MAX_FORCE, fast.K_MAX_SPEED, fast.K_SCALE, fast.K_MEASURE]] = (
+            cfg.max_force, cfg.max_speed, self.SCALE, self.MEASURE)
+        k[[fast.K_MALLET, fast.K_TARGET, fast.K_SPEED_SCALE, fast.K_SPIN_SCALE]] = (
+            self.im, self.it, SPEED_SCALE, SPIN_SCALE)
+        k[fast.K_FIXED] = w.solver.mode == "fixed"
+        k[fast.K_LOW:fast.K_LOW + fast.OBS_SIZE] = self.obs_low
+        k[fast.K_LOW + fast.OBS_SIZE:] = self.obs_high
+        self.kcfg = k
+        w._fcfg[CF_DT] = cfg.dt
+        self._never = np.zeros(batch_size, dtype=bool)
+        self._never.flags.writeable = False
 
     def _apply_random(self, env, u) -> None:
         for k, key in enumerate(self.CONFIG.RANDOMIZABLE):
@@ -115,53 +105,48 @@ class _ControlTask(Task):
         pos[:, self.im] = np.stack([mx, my], 1)
         angles = np.zeros((n, w.n_bodies))
         angles[:, self.it] = angle
-        w.set_state(positions=pos, angles=angles, velocities=np.zeros_like(pos),
-                    omegas=np.zeros_like(angles), env=env)
+        # apart by construction: target in the right half, mallet in the left
+        w._place(env, pos, angles, np.zeros_like(pos), np.zeros_like(angles))
         w.set_force("mallet", np.zeros((n, 2)), env=env)
         w.time[env] = 0.0
         return {}
 
-    def step(self, actions):
-        w = self.world
-        cfg = self.cfg
-        force = limit_force(actions, w.state.velocities[:, self.im], w.mass[:, self.im], cfg.dt,
-                            cfg.max_force, cfg.max_speed)
-        w.set_force("mallet", force)
-        before = self._measure()
-        contacts = w.step(cfg.dt)
-        self._last_contacts = contacts
-        after = self._measure()
-        hit = np.zeros(self.batch_size, dtype=bool)
-        hits = np.zeros(self.batch_size, dtype=np.int64)
-        impulse = np.zeros(self.batch_size)
-        if len(contacts):
-            pair = ((contacts.body_a == self.im) & (contacts.body_b == self.it)) | (
-                (contacts.body_a == self.it) & (contacts.body_b == self.im))
-            np.add.at(hits, contacts.batch[pair], 1)
-            np.add.at(impulse, contacts.batch[pair], contacts.impulse[pair])
-            hit = hits > 0
-        reward = np.where(hit, (after - before) / self.SCALE, 0.0)
-        info = {"hits": hits, "hit_impulse": impulse, "force": force,
-                "spin": w.state.omegas[:, self.it].copy(),
-                "speed": np.sqrt((w.state.velocities[:, self.it] ** 2).sum(1)),
-                "mallet_speed": np.sqrt((w.state.velocities[:, self.im] ** 2).sum(1)),
-                "reward_hit": reward.copy(), "fallback": w.last_step.fallback.copy()}
+    def step(self, actions, batch_info: bool = True):
+        a = np.asarray(actions, dtype=np.float64)
+        try:
+            self.tbuf[:, fast.T_ACTION:fast.T_ACTION + 2] = a.reshape(self.batch_size, 2)
+        except ValueError:
+            raise ValueError(f"action: expected shape ({self.batch_size}, 2) or (2,), got "
+                             f"{a.shape}") from None
+        self.world._fcfg[CF_DT] = self.cfg.dt
+        if not fast.control_step(self.world, self.tbuf, self.kcfg,
+                                 self.batch_size >= PARALLEL_BATCH):
+            raise ValueError(action_error(a))
+        t = self.tbuf
+        reward = t[:, fast.T_REWARD].copy()
+        if not batch_info:
+            return reward, self._never, None
+        info = {"hits": t[:, fast.T_HITS].astype(np.int64),
+                "hit_impulse": t[:, fast.T_IMPULSE].copy(),
+                "force": t[:, fast.T_FORCE:fast.T_FORCE + 2].copy(),
+                "spin": t[:, fast.T_SPIN].copy(), "speed": t[:, fast.T_SPEED].copy(),
+                "mallet_speed": t[:, fast.T_MALLET_SPEED].copy(),
+                "reward_hit": t[:, fast.T_REWARD].copy(),
+                "fallback": t[:, fast.T_FALLBACK] != 0}
         return reward, np.zeros(self.batch_size, dtype=bool), info
 
+    def info_row(self, b: int, info=None) -> dict:
+        """The step's info of element ``b`` as plain Python values (single env)."""
+        r = self.tbuf[b].tolist()
+        return {"hits": int(r[fast.T_HITS]), "hit_impulse": r[fast.T_IMPULSE],
+                "force": self.tbuf[b, fast.T_FORCE:fast.T_FORCE + 2].copy(),
+                "spin": r[fast.T_SPIN], "speed": r[fast.T_SPEED],
+                "mallet_speed": r[fast.T_MALLET_SPEED], "reward_hit": r[fast.T_REWARD],
+                "fallback": r[fast.T_FALLBACK] != 0}
+
     def observe(self) -> np.ndarray:
-        w = self.world
-        hw = w.table_half_size
-        p = w.state.positions
-        v = w.state.velocities
-        a = w.state.angles[:, self.it]
-        return np.stack([
-            p[:, self.im, 0] / hw[:, 0], p[:, self.im, 1] / hw[:, 1],
-            v[:, self.im, 0] / self.cfg.max_speed, v[:, self.im, 1] / self.cfg.max_speed,
-            p[:, self.it, 0] / hw[:, 0], p[:, self.it, 1] / hw[:, 1],
-            np.cos(a), np.sin(a),
-            v[:, self.it, 0] / SPEED_SCALE, v[:, self.it, 1] / SPEED_SCALE,
-            w.state.omegas[:, self.it] / SPIN_SCALE,
-        ], axis=1)
+        """Observations as the fused step (or the last reset) left them, clipped already."""
+        return self.tbuf[:, fast.T_OBS:fast.T_OBS + fast.OBS_SIZE]
 
     def snapshot(self) -> dict:
         return {}
@@ -175,8 +160,8 @@ class _ControlTask(Task):
                            w.radius[b, i], w.half_length[b, i], w.state.omegas[b, i])
                   for i in range(w.n_bodies)]
         contacts = []
-        c = self._last_contacts
-        if decorate and c is not None and len(c):
+        c = self.world._collect() if decorate else None
+        if c is not None and len(c):
             for i in np.flatnonzero(c.batch == b):
                 contacts.append((*c.point[i], *c.normal[i], c.impulse[i]))
         hw = w.table_half_size[b]
@@ -202,6 +187,7 @@ class RodSpinControlTask(_ControlTask):
     TARGET = "rod"
     SCENE = "rod_control"
     SCALE = SPIN_SCALE
+    MEASURE = fast.MEASURE_SPIN
     LAYOUT = _COMMON_LAYOUT + (
         ObsField("rod_x", -1.0, 1.0, "rod x / table half width"),
         ObsField("rod_y", -1.0, 1.0, "rod y / table half height"),
@@ -212,14 +198,13 @@ class RodSpinControlTask(_ControlTask):
         ObsField("rod_spin", -10.0, 10.0, f"rod spin / {SPIN_SCALE} rad/s (CCW > 0)"),
     )
 
-    def _measure(self) -> np.ndarray:
-        return np.abs(self.world.state.omegas[:, self.it])
 
 
 class PuckSpeedControlTask(_ControlTask):
     TARGET = "puck"
     SCENE = "puck_control"
     SCALE = SPEED_SCALE
+    MEASURE = fast.MEASURE_SPEED
     LAYOUT = _COMMON_LAYOUT + (
         ObsField("puck_x", -1.0, 1.0, "puck x / table half width"),
         ObsField("puck_y", -1.0, 1.0, "puck y / table half height"),
@@ -230,8 +215,6 @@ class PuckSpeedControlTask(_ControlTask):
         ObsField("puck_spin", -10.0, 10.0, f"puck spin / {SPIN_SCALE} rad/s"),
     )
 
-    def _measure(self) -> np.ndarray:
-        return np.sqrt((self.world.state.velocities[:, self.it] ** 2).sum(1))
 
 
 _CONTROL_DOC = """{summary}

@@ -27,7 +27,8 @@ from envs.config import EnvConfig, parse_config
 from envs.rendering import Frame, Renderer
 from envs.rng import UniformStream
 
-__all__ = ["ObsField", "SpinStrikeEnv", "SpinStrikeVectorEnv", "Task", "check_actions",
+__all__ = ["ObsField", "SpinStrikeEnv", "SpinStrikeVectorEnv", "Task", "action_error",
+           "check_actions",
            "layout_table"]
 
 
@@ -49,18 +50,25 @@ def layout_table(layout: tuple[ObsField, ...]) -> str:
     return "\n".join(rows)
 
 
-def check_actions(actions: Any, space: spaces.Box) -> np.ndarray:
-    """Validate a batch of actions: NaN/inf raise, out-of-range values are clipped."""
+def action_error(actions: Any) -> str:
+    """The message of a non-finite action."""
+    return (f"action: must be finite numbers in [-1, 1] (got {np.asarray(actions).tolist()}); "
+            "finite values outside the box are clipped")
+
+
+def check_actions(actions: Any, shape: tuple[int, int]) -> np.ndarray:
+    """Validate a batch of actions ``[B, A]``: NaN/inf raise, out-of-range values are clipped
+    to [-1, 1] (as Gymnasium's ``ClipAction`` would)."""
     a = np.asarray(actions, dtype=np.float64)
-    if a.shape != space.shape:
+    if a.shape != shape:
         try:
-            a = a.reshape(space.shape)
+            a = a.reshape(shape)
         except ValueError:
-            raise ValueError(f"action: expected shape {space.shape}, got {a.shape}") from None
+            raise ValueError(f"action: expected shape {shape[1:]} per env, got "
+                             f"{a.shape}") from None
     if not np.all(np.isfinite(a)):
-        raise ValueError(f"action: must be finite numbers in [-1, 1] (got {a.tolist()}); "
-                         "finite values outside the box are clipped")
-    return np.clip(a, space.low, space.high)
+        raise ValueError(action_error(a))
+    return np.clip(a, -1.0, 1.0)
 
 
 class Task:
@@ -79,6 +87,8 @@ class Task:
     ACHIEVED: ClassVar[tuple[ObsField, ...]] = ()
     UNIFORMS: ClassVar[int]
     render_fps: ClassVar[int] = 50
+    #: ``observe`` returns values already clipped to the layout's bounds
+    OBS_CLIPPED: ClassVar[bool] = False
 
     def __init__(self, cfg: EnvConfig, batch_size: int) -> None:
         self.cfg = cfg
@@ -93,9 +103,18 @@ class Task:
         """Start new episodes in elements ``env``; returns reset info arrays (over ``env``)."""
         raise NotImplementedError
 
-    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-        """Advance every element; returns (reward[B], terminated[B], info arrays [B, ...])."""
+    def step(self, actions: Any, batch_info: bool = True
+             ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray] | None]:
+        """Advance every element with raw actions ``[B, A]`` (validated here: see
+        :func:`check_actions`); returns (reward[B], terminated[B], info arrays [B, ...]).
+
+        ``batch_info=False`` lets a task skip the batched info when only :meth:`info_row` will
+        be read (a single env)."""
         raise NotImplementedError
+
+    def info_row(self, b: int, info: dict[str, np.ndarray]) -> dict[str, Any]:
+        """Element ``b``'s info as plain Python values (what a single env returns)."""
+        return _scalar_info(info, b)
 
     def observe(self) -> np.ndarray:
         """Flat observations ``[B, len(LAYOUT)]`` (unclipped)."""
@@ -141,7 +160,10 @@ class Task:
 
     def observations(self) -> Any:
         """Observations of every element in the configured mode (batched)."""
-        flat = np.clip(self.observe(), self.obs_low, self.obs_high).astype(np.float32)
+        flat = self.observe()
+        if not self.OBS_CLIPPED:
+            flat = np.clip(flat, self.obs_low, self.obs_high)
+        flat = flat.astype(np.float32)
         mode = self.cfg.obs_mode
         if mode == "vector":
             return flat
@@ -243,12 +265,11 @@ class SpinStrikeEnv(gym.Env):
     def step(self, action):
         if not self._started:
             raise gym.error.ResetNeeded("call reset() before step()")
-        a = check_actions(action, self.action_space)
-        reward, terminated, info = self.task.step(a[None].astype(np.float64))
+        reward, terminated, info = self.task.step(action, batch_info=False)
         obs = _take(self.task.observations(), 0)
         if self.render_mode == "human":
             self.render()
-        return obs, float(reward[0]), bool(terminated[0]), False, _scalar_info(info, 0)
+        return obs, float(reward[0]), bool(terminated[0]), False, self.task.info_row(0, info)
 
     def _goal_reward(self, achieved_goal, desired_goal, info):
         """Goal-conditioned reward (``obs_mode='dict'``), vectorised like SB3's HER expects.
@@ -337,8 +358,7 @@ class SpinStrikeVectorEnv(VectorEnv):
     def step(self, actions):
         if not self._started:
             raise gym.error.ResetNeeded("call reset() before step()")
-        a = check_actions(actions, self.action_space)
-        reward, terminated, info = self.task.step(a)
+        reward, terminated, info = self.task.step(actions)
         self._steps += 1
         truncated = np.zeros(self.num_envs, dtype=bool)
         if self.max_episode_steps is not None:

@@ -12,10 +12,19 @@ from typing import ClassVar
 
 import numpy as np
 
+from envs import fast
 from envs.config import PuckSpeedConfig, RodSpinConfig, build_scene
-from envs.core import ObsField, SpinStrikeEnv, SpinStrikeVectorEnv, Task, layout_table
+from envs.core import (
+    ObsField,
+    SpinStrikeEnv,
+    SpinStrikeVectorEnv,
+    Task,
+    check_actions,
+    layout_table,
+)
 from envs.rendering import BodyDraw, Frame
 from physics import World
+from physics.world import PARALLEL_BATCH
 
 __all__ = ["PuckSpeedEnv", "PuckSpeedVectorEnv", "RodSpinEnv", "RodSpinVectorEnv",
            "rod_spin_after_strike", "rod_spin_max"]
@@ -67,6 +76,19 @@ class _StrikeTask(Task):
         B = batch_size
         self.goal = np.zeros((B, self.GOAL_WIDTH))
         self.record_trace = False
+        # the compiled strike's buffers (envs.fast): outcome per element, constants, and the
+        # poses and contacts of element 0 for the animation
+        n_chunks = max(1, math.ceil(cfg.time_cap / CHUNK - 1e-9))
+        self._sbuf = np.zeros((B, fast.S_COLUMNS))
+        sc = np.zeros(fast.SC_SIZE)
+        sc[[fast.SC_CHUNK, fast.SC_CHUNKS, fast.SC_TARGET, fast.SC_STRIKER]] = (
+            CHUNK, n_chunks, self.it, self.js)
+        sc[fast.SC_FREE] = self._free
+        sc[fast.SC_FIXED] = w.solver.mode == "fixed"
+        self._scfg = sc
+        self._trace_buf = np.zeros((n_chunks + 1, w.n_bodies, 3))
+        self._ctrace_buf = np.zeros((fast.TRACE_CONTACTS, 5))
+        self._tcount = np.zeros(2, dtype=np.int64)
         self._trace: list[tuple[np.ndarray, np.ndarray]] = []
         self._last: dict[str, np.ndarray] = {}
         self._contacts_b0: list[tuple[float, float, float, float, float]] = []
@@ -123,8 +145,8 @@ class _StrikeTask(Task):
         pos[:, self.js] = centre + dist[:, None] * normal
         angles = np.zeros((len(env), w.n_bodies))
         angles[:, self.it] = angle
-        w.set_state(positions=pos, angles=angles, velocities=np.zeros_like(pos),
-                    omegas=np.zeros_like(angles), env=env)
+        # apart by construction: the striker is parked beyond the target's reach
+        w._place(env, pos, angles, np.zeros_like(pos), np.zeros_like(angles))
         self._sample_goal(env, u[:, 3:])
         self._zero_result_rows(env)
         if self.record_trace:
@@ -147,75 +169,63 @@ class _StrikeTask(Task):
         return lo + 0.5 * (a + 1.0) * (hi - lo)
 
     def _simulate(self) -> dict[str, np.ndarray]:
+        """Run every element's strike to its end (``envs.fast``: compiled, each element only
+        as long as it needs; pymunk: chunk by chunk from Python, booked by the same code)."""
         w = self.world
-        B = self.batch_size
-        done = np.zeros(B, dtype=bool)
-        n_contacts = np.zeros(B, dtype=np.int64)
-        impulse = np.zeros(B)
-        first = np.full(B, -1.0)
-        first_j = np.zeros(B)
-        first_p = np.zeros((B, 2))
-        fallback = np.zeros(B, dtype=bool)
-        sim_time = np.zeros(B)
-        cap = self.cfg.time_cap
-        n_chunks = max(1, math.ceil(cap / CHUNK - 1e-9))
-        reach = self._reach() + w.radius[:, self.js]
+        sc = self._scfg
+        sc[fast.SC_RECORD] = self.record_trace
+        sb = self._sbuf
+        self._tcount[:] = 0
+        if w._backend is None:
+            parallel = self.batch_size >= PARALLEL_BATCH
+            kernel = fast.strike_parallel if parallel else fast.strike_serial
+            kernel(w._fbuf, w._ibuf, sb, sc, self._trace_buf, self._ctrace_buf, self._tcount)
+            w._finish_step()
+        else:
+            self._simulate_stepwise()
+        w.time += sb[:, fast.S_SIM_TIME]
+        self.result_v[:] = sb[:, fast.S_TARGET_VX:fast.S_TARGET_VY + 1]
+        self.result_w[:] = sb[:, fast.S_TARGET_W]
+        self.result_vs[:] = sb[:, fast.S_STRIKER_VX:fast.S_STRIKER_VY + 1]
         if self.record_trace:
-            self._trace = [self._pose(0)]
-            self._contacts_b0 = []
-        for k in range(n_chunks):
-            t0 = k * CHUNK
-            c = w.step(CHUNK)
-            active = ~done
-            fallback |= w.last_step.fallback & active
-            if len(c):
-                live = active[c.batch]
-                cb = c.batch[live]
-                np.add.at(n_contacts, cb, 1)
-                np.add.at(impulse, cb, c.impulse[live])
-                rows = np.flatnonzero(live)
-                uniq, pos = np.unique(cb, return_index=True)
-                new = first[uniq] < 0
-                r = rows[pos[new]]
-                e = uniq[new]
-                first[e] = t0 + c.time[r]
-                first_j[e] = c.impulse[r]
-                first_p[e] = c.point[r]
-                if self.record_trace:
-                    m = c.batch == 0
-                    self._contacts_b0 += [(*c.point[i], *c.normal[i], c.impulse[i])
-                                          for i in np.flatnonzero(m)]
-            if self.record_trace and not done[0]:
-                self._trace.append(self._pose(0))
-            t = (k + 1) * CHUNK
-            now = self._finished(reach) | (k == n_chunks - 1)
-            newly = now & ~done
-            if newly.any():
-                self.result_v[newly] = w.state.velocities[newly, self.it]
-                self.result_w[newly] = w.state.omegas[newly, self.it]
-                self.result_vs[newly] = w.state.velocities[newly, self.js]
-                sim_time[newly] = t
-                done |= newly
-            if done.all():
-                break
-        return {"n_contacts": n_contacts, "impulse": impulse, "first_contact_time": first,
-                "first_impulse": first_j, "first_contact_point": first_p, "fallback": fallback,
-                "sim_time": sim_time, "second_contact": n_contacts >= 2}
+            n = int(self._tcount[0])
+            self._trace = [(t[:, :2].copy(), t[:, 2].copy()) for t in self._trace_buf[:n]]
+            self._contacts_b0 = [tuple(r) for r in self._ctrace_buf[:int(self._tcount[1])]]
+        contacts = sb[:, fast.S_CONTACTS].astype(np.int64)
+        return {"n_contacts": contacts, "impulse": sb[:, fast.S_IMPULSE].copy(),
+                "first_contact_time": sb[:, fast.S_FIRST_TIME].copy(),
+                "first_impulse": sb[:, fast.S_FIRST_J].copy(),
+                "first_contact_point": sb[:, fast.S_FIRST_PX:fast.S_FIRST_PY + 1].copy(),
+                "fallback": sb[:, fast.S_FALLBACK] != 0,
+                "sim_time": sb[:, fast.S_SIM_TIME].copy(), "second_contact": contacts >= 2}
 
-    def _finished(self, reach: np.ndarray) -> np.ndarray:
-        """[B] no further contact can happen."""
+    def _simulate_stepwise(self) -> None:
+        """The strike for a backend that steps outside numba (pymunk): world steps of one
+        chunk from here, each booked by the compiled ``envs.fast.strike_post_batch``."""
         w = self.world
-        v = w.state.velocities
-        if self._free:
-            d = w.state.positions[:, self.js] - w.state.positions[:, self.it]
-            dv = v[:, self.js] - v[:, self.it]
-            dist = np.sqrt((d**2).sum(1))
-            return (dist > reach + 1e-9) & ((d * dv).sum(1) > 0.0)
-        # walls or cloth friction: until everything has stopped (or the time cap)
-        return (np.abs(v).max(axis=(1, 2)) == 0.0) & (np.abs(w.state.omegas).max(axis=1) == 0.0)
+        sb = self._sbuf
+        fast.strike_start_batch(sb)
+        if self.record_trace:
+            self._trace_buf[0] = np.c_[w.state.positions[0], w.state.angles[0]]
+            self._tcount[0] = 1
+        for k in range(int(self._scfg[fast.SC_CHUNKS])):
+            c = w.step(CHUNK)
+            if self.record_trace and sb[0, fast.S_DONE] == 0.0:
+                mine = np.flatnonzero(c.batch == 0)
+                n = int(self._tcount[1])
+                rows = np.c_[c.point[mine], c.normal[mine], c.impulse[mine]]
+                rows = rows[:fast.TRACE_CONTACTS - n]
+                self._ctrace_buf[n:n + len(rows)] = rows
+                self._tcount[1] = n + len(rows)
+                self._trace_buf[self._tcount[0]] = np.c_[w.state.positions[0],
+                                                         w.state.angles[0]]
+                self._tcount[0] += 1
+            fast.strike_post_batch(k, w._fbuf, w._ibuf, sb, self._scfg)
+            if sb[:, fast.S_DONE].all():
+                break
 
-    def step(self, actions):
-        self._launch(actions)
+    def step(self, actions, batch_info: bool = True):
+        self._launch(check_actions(actions, (self.batch_size, len(self.ACTIONS))))
         sim = self._simulate()
         reward, terms = self._reward()
         info = {**sim, **terms, **self._result_info()}
@@ -322,7 +332,9 @@ class RodSpinTask(_StrikeTask):
         vel = np.zeros_like(pos)
         pos[:, self.js] = start
         vel[:, self.js] = speed[:, None] * d
-        w.set_state(positions=pos, velocities=vel)
+        # the striker starts beyond the target's reach (START_MARGIN), moving toward it
+        w._place(np.arange(self.batch_size), pos, w.state.angles.copy(), vel,
+                 np.zeros_like(w.state.omegas))
 
     def analytic(self) -> dict[str, np.ndarray]:
         """Closed-form optimum per element: the largest spin and the lever that gives it."""
@@ -420,7 +432,9 @@ class PuckSpeedTask(_StrikeTask):
         vel = np.zeros_like(pos)
         pos[:, self.js] = start
         vel[:, self.js] = speed[:, None] * d
-        w.set_state(positions=pos, velocities=vel)
+        # the striker starts beyond the target's reach (START_MARGIN), moving toward it
+        w._place(np.arange(self.batch_size), pos, w.state.angles.copy(), vel,
+                 np.zeros_like(w.state.omegas))
 
     def analytic(self) -> dict[str, np.ndarray]:
         """Closed form of a centred, frictionless strike: puck speed per unit striker speed."""

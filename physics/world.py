@@ -581,6 +581,22 @@ class World:
         if self._backend is not None:
             self._backend.sync_from_world()
 
+    def _place(self, env: np.ndarray, positions: np.ndarray, angles: np.ndarray,
+               velocities: np.ndarray, omegas: np.ndarray) -> None:
+        """Write full state rows for elements ``env`` (arrays ``[len(env), N, ...]``) without
+        :meth:`set_state`'s checks of bodies' kinds and overlaps: for callers that place bodies
+        apart by construction (the envs' resets and strikes). Non-finite values still raise."""
+        if not (np.isfinite(positions).all() and np.isfinite(velocities).all()
+                and np.isfinite(angles).all() and np.isfinite(omegas).all()):
+            raise SceneError("state: must be finite numbers (got NaN or inf)")
+        s = self._state
+        s[env, :, X:Y + 1] = positions
+        s[env, :, ANGLE] = angles
+        s[env, :, VX:VY + 1] = velocities
+        s[env, :, OMEGA] = omegas
+        if self._backend is not None:
+            self._backend.sync_from_world()
+
     def get_state(self) -> dict[str, np.ndarray]:
         """A copy of the full physical state (state arrays, forces, time), for ``restore``."""
         return {"state": self._state.copy(), "forces": self._forces.copy(),
