@@ -65,6 +65,7 @@ class _ControlTask(Task):
         k[fast.K_LOW + fast.OBS_SIZE:] = self.obs_high
         self.kcfg = k
         w._fcfg[CF_DT] = cfg.dt
+        self._actions = self.tbuf[:, fast.T_ACTION:fast.T_ACTION + 2]
         self._never = np.zeros(batch_size, dtype=bool)
         self._never.flags.writeable = False
 
@@ -112,16 +113,15 @@ class _ControlTask(Task):
         return {}
 
     def step(self, actions, batch_info: bool = True):
-        a = np.asarray(actions, dtype=np.float64)
         try:
-            self.tbuf[:, fast.T_ACTION:fast.T_ACTION + 2] = a.reshape(self.batch_size, 2)
-        except ValueError:
+            self._actions[...] = actions  # converts and broadcasts a (2,) action to (1, 2)
+        except (ValueError, TypeError):
             raise ValueError(f"action: expected shape ({self.batch_size}, 2) or (2,), got "
-                             f"{a.shape}") from None
+                             f"{np.shape(actions)}") from None
         self.world._fcfg[CF_DT] = self.cfg.dt
         if not fast.control_step(self.world, self.tbuf, self.kcfg,
                                  self.batch_size >= PARALLEL_BATCH):
-            raise ValueError(action_error(a))
+            raise ValueError(action_error(actions))
         t = self.tbuf
         reward = t[:, fast.T_REWARD].copy()
         if not batch_info:

@@ -23,17 +23,6 @@ import numpy as np
 from physics.layout import (
     ANGLE,
     CF_DT,
-    CF_SETTLE,
-    CF_TOL,
-    CF_ZENO_SPEED,
-    CI_CONTACT_FRICTION,
-    CI_ITERATIONS,
-    CI_MAX_EVENTS,
-    CI_MAX_ITERATIONS,
-    CI_ROTATION,
-    CI_SUBSTEPS,
-    CI_TABLE_FRICTION,
-    CI_ZENO_IMPACTS,
     H_B,
     H_M,
     HALF_LENGTH,
@@ -53,7 +42,7 @@ from physics.layout import (
     X,
     Y,
 )
-from physics.solvers import exact_element, fixed_element, unpack
+from physics.solvers import step_element, unpack
 
 __all__ = ["OBS_SIZE", "S_COLUMNS", "T_COLUMNS", "control_observe", "control_step",
            "limit_force", "strike_parallel", "strike_post_batch", "strike_serial"]
@@ -186,24 +175,11 @@ def _post(b, S, HW, PA, PB, cpair, crec, stats, n_stored, tbuf, kcfg):
 
 @jit
 def _control_one(b, fbuf, ibuf, tbuf, kcfg):
-    S, Pm, F, HW, MAT, crec, toi, fcfg, PA, PB, cpair, stats, kind, changed, icfg = unpack(
-        fbuf, ibuf)
-    dt = fcfg[CF_DT]
-    _pre(b, S, Pm, F, dt, tbuf, kcfg)
-    stats[b, :] = 0
-    rotation = icfg[CI_ROTATION] != 0
-    cf = icfg[CI_CONTACT_FRICTION] != 0
-    tf = icfg[CI_TABLE_FRICTION] != 0
-    if kcfg[K_FIXED] != 0.0:
-        fixed_element(S[b], Pm[b], F[b], HW[b], PA, PB, MAT[b], dt, icfg[CI_SUBSTEPS],
-                      icfg[CI_ITERATIONS], 0.0, 0.0, rotation, cf, tf, cpair[b], crec[b],
-                      stats[b], changed[b])
-    else:
-        exact_element(S[b], Pm[b], F[b], HW[b], PA, PB, MAT[b], dt, fcfg[CF_TOL],
-                      icfg[CI_MAX_EVENTS], icfg[CI_MAX_ITERATIONS], fcfg[CF_ZENO_SPEED],
-                      icfg[CI_ZENO_IMPACTS], fcfg[CF_SETTLE], rotation, cf, tf, cpair[b],
-                      crec[b], stats[b], toi[b], kind[b], changed[b])
-    _post(b, S, HW, PA, PB, cpair, crec, stats, ibuf[H_M], tbuf, kcfg)
+    v = unpack(fbuf, ibuf)
+    dt = v.fcfg[CF_DT]
+    _pre(b, v.S, v.Pm, v.F, dt, tbuf, kcfg)
+    step_element(v, b, dt, kcfg[K_FIXED] != 0.0)
+    _post(b, v.S, v.HW, v.PA, v.PB, v.cpair, v.crec, v.stats, ibuf[H_M], tbuf, kcfg)
 
 
 @jit
@@ -239,29 +215,26 @@ def control_pre(fbuf, ibuf, tbuf, kcfg):
     """The step's first stage alone (for a backend that steps outside numba: pymunk)."""
     if not _finite_actions(tbuf):
         return False
-    S, Pm, F, HW, MAT, crec, toi, fcfg, PA, PB, cpair, stats, kind, changed, icfg = unpack(
-        fbuf, ibuf)
+    v = unpack(fbuf, ibuf)
     for b in range(ibuf[H_B]):
-        _pre(b, S, Pm, F, fcfg[CF_DT], tbuf, kcfg)
+        _pre(b, v.S, v.Pm, v.F, v.fcfg[CF_DT], tbuf, kcfg)
     return True
 
 
 @jit
 def control_post(fbuf, ibuf, tbuf, kcfg):
     """The step's last stage alone, after the backend stepped the world."""
-    S, Pm, F, HW, MAT, crec, toi, fcfg, PA, PB, cpair, stats, kind, changed, icfg = unpack(
-        fbuf, ibuf)
+    v = unpack(fbuf, ibuf)
     for b in range(ibuf[H_B]):
-        _post(b, S, HW, PA, PB, cpair, crec, stats, ibuf[H_M], tbuf, kcfg)
+        _post(b, v.S, v.HW, v.PA, v.PB, v.cpair, v.crec, v.stats, ibuf[H_M], tbuf, kcfg)
 
 
 @jit
 def control_observe(fbuf, ibuf, tbuf, kcfg, env):
     """Write the observations of elements ``env`` (after a reset)."""
-    S, Pm, F, HW, MAT, crec, toi, fcfg, PA, PB, cpair, stats, kind, changed, icfg = unpack(
-        fbuf, ibuf)
+    v = unpack(fbuf, ibuf)
     for b in env:
-        _observe(S[b], HW[b], tbuf[b], kcfg)
+        _observe(v.S[b], v.HW[b], tbuf[b], kcfg)
 
 
 def control_step(world, tbuf: np.ndarray, kcfg: np.ndarray, parallel: bool) -> bool:
@@ -276,7 +249,6 @@ def control_step(world, tbuf: np.ndarray, kcfg: np.ndarray, parallel: bool) -> b
     kernel = control_step_parallel if parallel else control_step_serial
     if not kernel(world._fbuf, world._ibuf, tbuf, kcfg):
         return False
-    world.time += world._fcfg[CF_DT]
     world._finish_step()
     return True
 
@@ -380,31 +352,17 @@ def _trace_contacts(cpair, crec, stats, n_stored, ctrace, tcount):
 
 @jit
 def _strike_one(b, fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount):
-    S, Pm, F, HW, MAT, crec, toi, fcfg, PA, PB, cpair, stats, kind, changed, icfg = unpack(
-        fbuf, ibuf)
+    v = unpack(fbuf, ibuf)
     _strike_start(sbuf[b])
     record = scfg[SC_RECORD] != 0.0 and b == 0
     if record:
-        _trace_pose(S, trace, tcount)
-    chunk = scfg[SC_CHUNK]
-    rotation = icfg[CI_ROTATION] != 0
-    cf = icfg[CI_CONTACT_FRICTION] != 0
-    tf = icfg[CI_TABLE_FRICTION] != 0
+        _trace_pose(v.S, trace, tcount)
     for k in range(int(scfg[SC_CHUNKS])):
-        stats[b, :] = 0
-        if scfg[SC_FIXED] != 0.0:
-            fixed_element(S[b], Pm[b], F[b], HW[b], PA, PB, MAT[b], chunk, icfg[CI_SUBSTEPS],
-                          icfg[CI_ITERATIONS], 0.0, 0.0, rotation, cf, tf, cpair[b], crec[b],
-                          stats[b], changed[b])
-        else:
-            exact_element(S[b], Pm[b], F[b], HW[b], PA, PB, MAT[b], chunk, fcfg[CF_TOL],
-                          icfg[CI_MAX_EVENTS], icfg[CI_MAX_ITERATIONS], fcfg[CF_ZENO_SPEED],
-                          icfg[CI_ZENO_IMPACTS], fcfg[CF_SETTLE], rotation, cf, tf, cpair[b],
-                          crec[b], stats[b], toi[b], kind[b], changed[b])
+        step_element(v, b, scfg[SC_CHUNK], scfg[SC_FIXED] != 0.0)
         if record:
-            _trace_contacts(cpair, crec, stats, ibuf[H_M], ctrace, tcount)
-            _trace_pose(S, trace, tcount)
-        if _strike_post(b, k, S, Pm, cpair, crec, stats, ibuf[H_M], sbuf, scfg):
+            _trace_contacts(v.cpair, v.crec, v.stats, ibuf[H_M], ctrace, tcount)
+            _trace_pose(v.S, trace, tcount)
+        if _strike_post(b, k, v.S, v.Pm, v.cpair, v.crec, v.stats, ibuf[H_M], sbuf, scfg):
             break
 
 
@@ -425,11 +383,10 @@ def strike_parallel(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount):
 @jit
 def strike_post_batch(k, fbuf, ibuf, sbuf, scfg):
     """Book chunk k for every element still striking (a backend stepping outside numba)."""
-    S, Pm, F, HW, MAT, crec, toi, fcfg, PA, PB, cpair, stats, kind, changed, icfg = unpack(
-        fbuf, ibuf)
+    v = unpack(fbuf, ibuf)
     for b in range(ibuf[H_B]):
         if sbuf[b, S_DONE] == 0.0:
-            _strike_post(b, k, S, Pm, cpair, crec, stats, ibuf[H_M], sbuf, scfg)
+            _strike_post(b, k, v.S, v.Pm, v.cpair, v.crec, v.stats, ibuf[H_M], sbuf, scfg)
 
 
 @jit

@@ -183,7 +183,6 @@ class _StrikeTask(Task):
             w._finish_step()
         else:
             self._simulate_stepwise()
-        w.time += sb[:, fast.S_SIM_TIME]
         self.result_v[:] = sb[:, fast.S_TARGET_VX:fast.S_TARGET_VY + 1]
         self.result_w[:] = sb[:, fast.S_TARGET_W]
         self.result_vs[:] = sb[:, fast.S_STRIKER_VX:fast.S_STRIKER_VY + 1]

@@ -33,7 +33,7 @@ STAT_COLUMNS = 5
 #: header slots: batch size, bodies, pairs, stored contacts per element, stat columns
 H_B, H_N, H_P, H_M, H_C = 0, 1, 2, 3, 4
 #: float fields, in buffer order, and their shapes in terms of (B, N, P, M)
-FLOAT_FIELDS = ("state", "params", "forces", "hw", "materials", "crec", "toi", "fcfg")
+FLOAT_FIELDS = ("state", "params", "forces", "hw", "materials", "crec", "toi", "fcfg", "time")
 #: int fields
 INT_FIELDS = ("pair_a", "pair_b", "cpair", "stats", "kind", "changed", "icfg")
 #: header slot of the first float field's offset (the rest follow), and of the int fields'
@@ -59,4 +59,4 @@ def field_shapes(B: int, N: int, P: int, M: int) -> dict[str, tuple[int, ...]]:
             "hw": (B, 2), "materials": (B, P, 2), "crec": (B, M, REC_COLUMNS), "toi": (B, P),
             "fcfg": (FCFG_SIZE,), "pair_a": (P,), "pair_b": (P,), "cpair": (B, M),
             "stats": (B, STAT_COLUMNS), "kind": (B, P), "changed": (B, N),
-            "icfg": (ICFG_SIZE,)}
+            "icfg": (ICFG_SIZE,), "time": (B,)}

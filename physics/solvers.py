@@ -26,6 +26,7 @@ overlaps are pushed apart along the normal in proportion to the inverse masses.
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numba
 import numpy as np
@@ -89,6 +90,9 @@ from physics.motion import flight
 
 __all__ = [
     "MAX_SWEEPS",
+    "Views",
+    "step_element",
+    "unpack",
     "exact_batch_parallel",
     "exact_batch_serial",
     "fixed_batch_parallel",
@@ -436,15 +440,23 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
     stats[STAT_ITERATIONS] += iterations
 
 
+#: a world's arrays, as ``unpack`` rebuilds them from the packed buffers: state, parameters,
+#: forces, table half sizes, pair materials, contact records, time-of-impact scratch, float
+#: config, pair bodies, contact pairs, statistics, search kinds, changed flags, int config, clock
+Views = namedtuple("Views", ["S", "Pm", "F", "HW", "MAT", "crec", "toi", "fcfg", "PA", "PB",
+                             "cpair", "stats", "kind", "changed", "icfg", "clock"])
+
+
 @jit
 def unpack(fbuf, ibuf):
-    """The named arrays of a world's two packed buffers (see ``physics.layout``)."""
+    """The named arrays of a world's two packed buffers (see ``physics.layout``), as
+    :data:`Views`."""
     B = ibuf[H_B]
     N = ibuf[H_N]
     P = ibuf[H_P]
     M = ibuf[H_M]
     C = ibuf[H_C]
-    fo = ibuf[H_FLOAT:H_FLOAT + 8]
+    fo = ibuf[H_FLOAT:H_FLOAT + 9]
     io = ibuf[H_INT:H_INT + 7]
     S = fbuf[fo[0]:fo[0] + B * N * 6].reshape((B, N, 6))
     Pm = fbuf[fo[1]:fo[1] + B * N * 6].reshape((B, N, 6))
@@ -461,28 +473,42 @@ def unpack(fbuf, ibuf):
     kind = ibuf[io[4]:io[4] + B * P].reshape((B, P))
     changed = ibuf[io[5]:io[5] + B * N].reshape((B, N))
     icfg = ibuf[io[6]:io[6] + ICFG_SIZE]
-    return S, Pm, F, HW, MAT, crec, toi, fcfg, PA, PB, cpair, stats, kind, changed, icfg
+    clock = fbuf[fo[8]:fo[8] + B]
+    return Views(S, Pm, F, HW, MAT, crec, toi, fcfg, PA, PB, cpair, stats, kind, changed, icfg,
+                 clock)
+
+
+@jit
+def step_element(v, b, dt, fixed):
+    """Advance element b of a world's views by dt with its solver (``exact`` unless
+    ``fixed``), from statistics zeroed here; the clock advances too."""
+    v.stats[b, :] = 0
+    v.clock[b] += dt
+    rotation = v.icfg[CI_ROTATION] != 0
+    cf = v.icfg[CI_CONTACT_FRICTION] != 0
+    tf = v.icfg[CI_TABLE_FRICTION] != 0
+    if fixed:
+        fixed_element(v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,
+                      v.icfg[CI_SUBSTEPS], v.icfg[CI_ITERATIONS], 0.0, 0.0, rotation, cf, tf,
+                      v.cpair[b], v.crec[b], v.stats[b], v.changed[b])
+    else:
+        exact_element(v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,
+                      v.fcfg[CF_TOL], v.icfg[CI_MAX_EVENTS], v.icfg[CI_MAX_ITERATIONS],
+                      v.fcfg[CF_ZENO_SPEED], v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE],
+                      rotation, cf, tf, v.cpair[b], v.crec[b], v.stats[b], v.toi[b], v.kind[b],
+                      v.changed[b])
 
 
 @jit
 def _exact_one(b, fbuf, ibuf):
-    S, Pm, F, HW, MAT, crec, toi, fcfg, PA, PB, cpair, stats, kind, changed, icfg = unpack(
-        fbuf, ibuf)
-    exact_element(S[b], Pm[b], F[b], HW[b], PA, PB, MAT[b], fcfg[CF_DT], fcfg[CF_TOL],
-                  icfg[CI_MAX_EVENTS], icfg[CI_MAX_ITERATIONS], fcfg[CF_ZENO_SPEED],
-                  icfg[CI_ZENO_IMPACTS], fcfg[CF_SETTLE], icfg[CI_ROTATION] != 0,
-                  icfg[CI_CONTACT_FRICTION] != 0, icfg[CI_TABLE_FRICTION] != 0, cpair[b], crec[b],
-                  stats[b], toi[b], kind[b], changed[b])
+    v = unpack(fbuf, ibuf)
+    step_element(v, b, v.fcfg[CF_DT], False)
 
 
 @jit
 def _fixed_one(b, fbuf, ibuf):
-    S, Pm, F, HW, MAT, crec, toi, fcfg, PA, PB, cpair, stats, kind, changed, icfg = unpack(
-        fbuf, ibuf)
-    fixed_element(S[b], Pm[b], F[b], HW[b], PA, PB, MAT[b], fcfg[CF_DT], icfg[CI_SUBSTEPS],
-                  icfg[CI_ITERATIONS], 0.0, 0.0, icfg[CI_ROTATION] != 0,
-                  icfg[CI_CONTACT_FRICTION] != 0, icfg[CI_TABLE_FRICTION] != 0, cpair[b], crec[b],
-                  stats[b], changed[b])
+    v = unpack(fbuf, ibuf)
+    step_element(v, b, v.fcfg[CF_DT], True)
 
 
 @jit_parallel

@@ -229,7 +229,6 @@ class World:
         self._init_pairs(*pairs)
         self._update_params()
         self._configure_solver()
-        self.time = np.zeros(B)
         self._initial = self._initial_state()
         self._state[:] = self._initial
         self._make_views()
@@ -319,8 +318,8 @@ class World:
             self._backend.sync_params()
 
     _VIEWS = ("_state", "_params", "_forces", "_hw", "_materials", "_crec", "_toi", "_fcfg",
-              "pair_a", "pair_b", "_cpair", "_stats", "_kind", "_changed", "_icfg", "_ctime",
-              "_cgeo", "_cimp")
+              "_time", "pair_a", "pair_b", "_cpair", "_stats", "_kind", "_changed", "_icfg",
+              "_ctime", "_cgeo", "_cimp")
 
     def _alloc_buffers(self, n_pairs: int) -> None:
         """One float64 and one int64 buffer holding every array the kernels touch (see
@@ -581,6 +580,11 @@ class World:
         if self._backend is not None:
             self._backend.sync_from_world()
 
+    @property
+    def time(self) -> np.ndarray:
+        """[B] simulated time of each element since construction or its last reset, s."""
+        return self._time
+
     def _place(self, env: np.ndarray, positions: np.ndarray, angles: np.ndarray,
                velocities: np.ndarray, omegas: np.ndarray) -> None:
         """Write full state rows for elements ``env`` (arrays ``[len(env), N, ...]``) without
@@ -612,7 +616,7 @@ class World:
             raise SceneError("snapshot: state must be finite")
         self._state[idx] = state[idx]
         self._forces[idx] = snapshot["forces"][idx]
-        self.time[idx] = snapshot["time"][idx]
+        self._time[idx] = snapshot["time"][idx]
         if self._backend is not None:
             self._backend.sync_from_world()
 
@@ -631,7 +635,7 @@ class World:
         self._update_params()
         self._state[idx] = other._state[b]
         self._forces[idx] = other._forces[b]
-        self.time[idx] = other.time[b]
+        self._time[idx] = other.time[b]
         if self._backend is not None:
             self._backend.sync_from_world()
 
@@ -640,7 +644,7 @@ class World:
         idx = _batch_index(env, self.batch_size)
         self._state[idx] = self._initial
         self._forces[idx] = 0.0
-        self.time[idx] = 0.0
+        self._time[idx] = 0.0
         self._check_overlap(idx)
         if self._backend is not None:
             self._backend.sync_from_world()
@@ -705,6 +709,7 @@ class World:
         self._stats[:] = 0
         if self._backend is not None:
             self._backend.step(dt)
+            self._time += dt
         else:
             self._fcfg[CF_DT] = dt
             parallel = self.batch_size >= PARALLEL_BATCH
@@ -712,8 +717,7 @@ class World:
                 kernel = exact_batch_parallel if parallel else exact_batch_serial
             else:
                 kernel = fixed_batch_parallel if parallel else fixed_batch_serial
-            kernel(self._fbuf, self._ibuf)
-        self.time += dt
+            kernel(self._fbuf, self._ibuf)  # advances the clock too
         self._finish_step()
         return self._collect()
 
