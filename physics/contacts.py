@@ -21,7 +21,8 @@ import math
 
 import numba
 
-__all__ = ["capsule_capsule", "capsule_wall", "closest_segment_params", "core_segment"]
+__all__ = ["capsule_capsule", "capsule_wall", "closest_segment_params", "core_segment",
+           "wall_frame"]
 
 #: squared sine of the angle below which two segments count as parallel
 PARALLEL = 1e-12
@@ -156,6 +157,19 @@ def _point_segment(px, py, ax, ay, bx, by):
 
 
 @jit
+def wall_frame(wall, half_w, half_h):
+    """Inward unit normal and offset of cushion ``wall``: a point p lies ``ix px + iy py + off``
+    inside it (0 left, 1 right, 2 bottom, 3 top)."""
+    if wall == 0:
+        return 1.0, 0.0, half_w
+    if wall == 1:
+        return -1.0, 0.0, half_w
+    if wall == 2:
+        return 0.0, 1.0, half_h
+    return 0.0, -1.0, half_h
+
+
+@jit
 def capsule_wall(x, y, angle, h, r, wall, half_w, half_h):
     """Gap, unit normal (body to cushion) and closest core point of a capsule and a cushion.
 
@@ -165,14 +179,7 @@ def capsule_wall(x, y, angle, h, r, wall, half_w, half_h):
         (gap, nx, ny, ox, oy, 0, 0): the closest core point relative to the centre.
     """
     p0x, p0y, p1x, p1y = core_segment(x, y, angle, h)
-    if wall == 0:
-        ix, iy, off = 1.0, 0.0, half_w
-    elif wall == 1:
-        ix, iy, off = -1.0, 0.0, half_w
-    elif wall == 2:
-        ix, iy, off = 0.0, 1.0, half_h
-    else:
-        ix, iy, off = 0.0, -1.0, half_h
+    ix, iy, off = wall_frame(wall, half_w, half_h)
     # distance of each core end from the cushion, measured into the table
     d0 = ix * p0x + iy * p0y + off
     d1 = ix * p1x + iy * p1y + off

@@ -24,9 +24,11 @@ grazing approach costs events, never correctness.
 
 from __future__ import annotations
 
+import math
+
 import numba
 
-from physics.contacts import capsule_capsule, capsule_wall
+from physics.contacts import capsule_capsule, capsule_wall, wall_frame
 from physics.impulse import relative_velocity_of
 from physics.layout import (
     ANGLE,
@@ -48,6 +50,10 @@ from physics.motion import ca_step, flight
 __all__ = ["ROUNDOFF", "geometry", "pair_geometry", "time_of_impact"]
 
 jit = numba.njit(cache=True, nogil=True, error_model="numpy")
+#: small kernels that take arrays are inlined into their callers at numba level: a call
+#: that passes arrays costs an atomic reference-count increment and decrement per array,
+#: which inlining lets numba prune (vector control env: +25% throughput, +4 s cold compile)
+jit_inline = numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 
 _BRACKET_ITERATIONS = 200
 #: relative size of round-off in a normal velocity: |vn| below this times the speeds counts as 0
@@ -82,7 +88,7 @@ def geometry(xa, ya, anga, vxa, vya, wa, ha, ra, xb, yb, angb, vxb, vyb, wb, hb,
     return g, nx, ny, oax, oay, ka, obx, oby, kb, vn
 
 
-@jit
+@jit_inline
 def pair_geometry(S, Pm, a, b, wall, half_w, half_h):
     """:func:`geometry` of bodies ``a`` and ``b`` (``b`` unused for a cushion) at the current
     state ``S`` of an element with parameters ``Pm``."""
@@ -92,7 +98,7 @@ def pair_geometry(S, Pm, a, b, wall, half_w, half_h):
                     Pm[b, HALF_LENGTH], Pm[b, RADIUS], wall, half_w, half_h)
 
 
-@jit
+@jit_inline
 def _probe(S, Pm, F, a, b, wall, half_w, half_h, t, rotation, table_friction):
     """Flight of both bodies to time t, then their geometry; also the flown velocities and
     spins, for the advancement bound: (geometry..., vxa, vya, wa, vxb, vyb, wb).
@@ -114,7 +120,7 @@ def _probe(S, Pm, F, a, b, wall, half_w, half_h, t, rotation, table_friction):
     return g, nx, ny, vn, vxa, vya, wa, vxb, vyb, wb
 
 
-@jit
+@jit_inline
 def _step_bound(delta, nx, ny, S, Pm, F, a, b, wall, vxa, vya, wa, vxb, vyb, wb, rotation,
                 table_friction):
     ima = Pm[a, INV_MASS]
@@ -128,6 +134,39 @@ def _step_bound(delta, nx, ny, S, Pm, F, a, b, wall, vxa, vya, wa, vxb, vyb, wb,
     spin_b = Pm[b, HALF_LENGTH] * abs(wb) if rotation else 0.0
     return ca_step(delta, nx, ny, vxa, vya, F[a, 0] * ima, F[a, 1] * ima, slide_a, spin_a,
                    vxb, vyb, F[b, 0] * imb, F[b, 1] * imb, slide_b, spin_b)
+
+
+@jit_inline
+def _far_apart(S, Pm, F, a, b, wall, half_w, half_h, horizon, tol, rotation):
+    """A cheap test that the pair cannot close within ``horizon``, which implies that the
+    search's first iteration finds exactly that (so it may be skipped, bit for bit).
+
+    ``lower``, the centres' distance less the bodies' reaches, is at most the gap, and
+    ``P = |v_a| + h_a |w_a| (+ the same for b)``, ``Q = |a_a| (+ |a_b|)`` bound the closing
+    speed and acceleration along any normal from above; with a margin of 2 the first
+    conservative-advancement step is then longer than the horizon whatever the normal, and
+    ``motion.ca_step``'s rounding cannot bring it back under.
+    """
+    ra = Pm[a, HALF_LENGTH] + Pm[a, RADIUS]
+    if wall >= 0:
+        ix, iy, off = wall_frame(wall, half_w, half_h)
+        lower = ix * S[a, X] + iy * S[a, Y] + off - ra
+    else:
+        dx = S[b, X] - S[a, X]
+        dy = S[b, Y] - S[a, Y]
+        lower = math.sqrt(dx * dx + dy * dy) - ra - (Pm[b, HALF_LENGTH] + Pm[b, RADIUS])
+    if not lower > tol:
+        return False
+    p = math.sqrt(S[a, VX] ** 2 + S[a, VY] ** 2)
+    q = math.sqrt(F[a, 0] ** 2 + F[a, 1] ** 2) * Pm[a, INV_MASS]
+    if rotation:
+        p += Pm[a, HALF_LENGTH] * abs(S[a, OMEGA])
+    if wall < 0:
+        p += math.sqrt(S[b, VX] ** 2 + S[b, VY] ** 2)
+        q += math.sqrt(F[b, 0] ** 2 + F[b, 1] ** 2) * Pm[b, INV_MASS]
+        if rotation:
+            p += Pm[b, HALF_LENGTH] * abs(S[b, OMEGA])
+    return (p + 0.5 * q * horizon) * horizon < 0.5 * (lower - 0.5 * tol)
 
 
 @jit
@@ -150,6 +189,8 @@ def time_of_impact(S, Pm, F, a, b, wall, half_w, half_h, horizon, tol, max_itera
     # than that: their gap is a distance between segments, >= -(ra + rb), and a crossing would
     # not show as a negative gap. For them contact stays at ``g <= tol`` while approaching.
     thin = wall < 0 and Pm[a, RADIUS] + Pm[b, RADIUS] <= tol
+    if _far_apart(S, Pm, F, a, b, wall, half_w, half_h, horizon, tol, rotation):
+        return horizon, NONE, 1
     t = 0.0
     for it in range(max_iterations):
         g, nx, ny, vn, vxa, vya, wa, vxb, vyb, wb = _probe(S, Pm, F, a, b, wall, half_w, half_h,

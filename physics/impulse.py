@@ -39,6 +39,10 @@ from physics.layout import INV_INERTIA, INV_MASS, OMEGA, VX, VY
 __all__ = ["apply_impulse", "relative_velocity", "relative_velocity_of", "resolve"]
 
 jit = numba.njit(cache=True, nogil=True, error_model="numpy")
+#: small kernels that take arrays are inlined into their callers at numba level: a call
+#: that passes arrays costs an atomic reference-count increment and decrement per array,
+#: which inlining lets numba prune (vector control env: +25% throughput, +4 s cold compile)
+jit_inline = numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 
 
 @jit
@@ -67,14 +71,14 @@ def relative_velocity_of(vxa, vya, wa, vxb, vyb, wb, is_wall, nx, ny, oax, oay, 
     return dvx * nx + dvy * ny, -dvx * ny + dvy * nx, scale
 
 
-@jit
+@jit_inline
 def relative_velocity(S, a, b, is_wall, nx, ny, oax, oay, ka, obx, oby, kb):
     """:func:`relative_velocity_of` for bodies ``a`` and ``b`` of the state ``S``."""
     return relative_velocity_of(S[a, VX], S[a, VY], S[a, OMEGA], S[b, VX], S[b, VY], S[b, OMEGA],
                                 is_wall, nx, ny, oax, oay, ka, obx, oby, kb)
 
 
-@jit
+@jit_inline
 def apply_impulse(S, Pm, a, b, is_wall, j, dx, dy, cross_a, cross_b, rotation):
     """Apply impulse ``j d`` to body b and ``-j d`` to body a; ``cross_* = r_* x d``."""
     ima = Pm[a, INV_MASS]
@@ -90,7 +94,7 @@ def apply_impulse(S, Pm, a, b, is_wall, j, dx, dy, cross_a, cross_b, rotation):
             S[b, OMEGA] += cross_b * j * Pm[b, INV_INERTIA]
 
 
-@jit
+@jit_inline
 def _effective_inverse_mass(Pm, a, b, is_wall, cross_a, cross_b, rotation):
     """``1/m_a + 1/m_b + (r_a x d)^2 / I_a + (r_b x d)^2 / I_b``."""
     k = Pm[a, INV_MASS]

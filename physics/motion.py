@@ -28,6 +28,10 @@ from physics.layout import ANGLE, FRICTION_DECEL, INV_MASS, OMEGA, SPIN_DECEL, V
 __all__ = ["ca_step", "flight", "slide", "spin_down"]
 
 jit = numba.njit(cache=True, nogil=True, error_model="numpy")
+#: small kernels that take arrays are inlined into their callers at numba level: a call
+#: that passes arrays costs an atomic reference-count increment and decrement per array,
+#: which inlining lets numba prune (vector control env: +25% throughput, +4 s cold compile)
+jit_inline = numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 
 
 @jit
@@ -58,7 +62,7 @@ def spin_down(angle, omega, decel, t):
     return angle + sign * (w * t - 0.5 * decel * t * t), sign * (w - decel * t)
 
 
-@jit
+@jit_inline
 def flight(S, Pm, F, i, t, rotation, table_friction):
     """Pose and velocity of body ``i`` ``t`` seconds ahead.
 

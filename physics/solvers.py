@@ -105,10 +105,14 @@ MAX_SWEEPS = 64
 MAX_SETTLE_SUBSTEPS = 1_000_000
 
 jit = numba.njit(cache=True, nogil=True, error_model="numpy")
+#: small kernels that take arrays are inlined into their callers at numba level: a call
+#: that passes arrays costs an atomic reference-count increment and decrement per array,
+#: which inlining lets numba prune (vector control env: +25% throughput, +4 s cold compile)
+jit_inline = numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 jit_parallel = numba.njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 
 
-@jit
+@jit_inline
 def _record(p, t, px, py, nx, ny, j, jt, cpair, crec, stats):
     k = stats[STAT_CONTACTS]
     if k < cpair.shape[0]:
@@ -123,7 +127,7 @@ def _record(p, t, px, py, nx, ny, j, jt, cpair, crec, stats):
     stats[STAT_CONTACTS] = k + 1
 
 
-@jit
+@jit_inline
 def _advance(S, Pm, F, t, rotation, table_friction):
     """Closed-form flight of every body by t seconds."""
     for i in range(S.shape[0]):
@@ -138,7 +142,7 @@ def _advance(S, Pm, F, t, rotation, table_friction):
         S[i, OMEGA] = w
 
 
-@jit
+@jit_inline
 def _search(p, S, Pm, F, hw, PA, PB, horizon, tol, max_iterations, rotation, table_friction):
     n = S.shape[0]
     a = PA[p]
@@ -342,7 +346,7 @@ def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, 
     stats[STAT_SUBSTEPS] += substeps
 
 
-@jit
+@jit_inline
 def _speed_bound(S, Pm, F, i, T):
     """Fastest a point of body i's core can move within T: centre, spin, applied force."""
     return (math.sqrt(S[i, VX] ** 2 + S[i, VY] ** 2) + abs(S[i, OMEGA]) * Pm[i, HALF_LENGTH]
