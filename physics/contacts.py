@@ -99,8 +99,11 @@ def capsule_capsule(xa, ya, anga, ha, ra, xb, yb, angb, hb, rb):
     """Gap, unit normal (a to b) and closest core points of two capsules.
 
     Returns:
-        (gap, nx, ny, oax, oay, obx, oby): the closest core points relative to each centre; the
-        contact point is ``centre_a + o_a + (ra + gap/2) n``.
+        (gap, nx, ny, oax, oay, obx, oby, separation): the closest core points relative to each
+        centre, and the distance between the two chosen surface points (the gap itself, except
+        for a flat contact, whose points are the middle of the overlap while the gap is the
+        nearer end's); the contact point is ``centre_a + o_a + (ra + separation/2) n``, the same
+        point seen from both bodies.
     """
     p0x, p0y, p1x, p1y = core_segment(xa, ya, anga, ha)
     q0x, q0y, q1x, q1y = core_segment(xb, yb, angb, hb)
@@ -126,6 +129,7 @@ def capsule_capsule(xa, ya, anga, ha, ra, xb, yb, angb, hb, rb):
         else:
             nx = 1.0
             ny = 0.0
+    separation = d - ra - rb
     if ha > 0.0 and hb > 0.0:
         # nearly parallel segments: the contact point is the middle of their overlap (a flat
         # impact), but the gap is the smallest distance, at an end of the overlap, so that it
@@ -141,7 +145,7 @@ def capsule_capsule(xa, ya, anga, ha, ra, xb, yb, angb, hb, rb):
                     _point_segment(p1x, p1y, q0x, q0y, q1x, q1y),
                     _point_segment(q0x, q0y, p0x, p0y, p1x, p1y),
                     _point_segment(q1x, q1y, p0x, p0y, p1x, p1y))
-    return d - ra - rb, nx, ny, cax - xa, cay - ya, cbx - xb, cby - yb
+    return d - ra - rb, nx, ny, cax - xa, cay - ya, cbx - xb, cby - yb, separation
 
 
 @jit
@@ -176,7 +180,9 @@ def capsule_wall(x, y, angle, h, r, wall, half_w, half_h):
     Cushions: 0 left (x = -half_w), 1 right (x = +half_w), 2 bottom (y = -half_h), 3 top.
 
     Returns:
-        (gap, nx, ny, ox, oy, 0, 0): the closest core point relative to the centre.
+        (gap, nx, ny, ox, oy, 0, 0, separation): the closest core point relative to the centre,
+        and its distance from the cushion less the radius (the gap, except flat on the cushion,
+        where the point is the middle and the gap the nearer end's).
     """
     p0x, p0y, p1x, p1y = core_segment(x, y, angle, h)
     ix, iy, off = wall_frame(wall, half_w, half_h)
@@ -191,8 +197,11 @@ def capsule_wall(x, y, angle, h, r, wall, half_w, half_h):
         cx = 0.5 * (p0x + p1x)
         cy = 0.5 * (p0y + p1y)
         d = min(d0, d1)
+        separation = 0.5 * (d0 + d1) - r
     elif d0 <= d1:
         cx, cy, d = p0x, p0y, d0
+        separation = d - r
     else:
         cx, cy, d = p1x, p1y, d1
-    return d - r, -ix, -iy, cx - x, cy - y, 0.0, 0.0
+        separation = d - r
+    return d - r, -ix, -iy, cx - x, cy - y, 0.0, 0.0, separation

@@ -47,7 +47,7 @@ from physics.layout import (
 )
 from physics.motion import ca_step, flight
 
-__all__ = ["ROUNDOFF", "geometry", "pair_geometry", "time_of_impact"]
+__all__ = ["ROUNDOFF", "geometry", "pair_bodies", "pair_geometry", "time_of_impact"]
 
 jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 #: small kernels that take arrays are inlined into their callers at numba level: a call
@@ -73,19 +73,33 @@ def geometry(xa, ya, anga, vxa, vya, wa, ha, ra, xb, yb, angb, vxb, vyb, wb, hb,
         when it is below round-off (``ROUNDOFF`` times the point speeds): a pair is approaching
         only when ``vn < 0``.
     """
+    # lever arms reach the contact point midway between the two chosen surface points, the same
+    # point for both bodies (for a flat contact it is not the gap's nearer end)
     if wall < 0:
-        g, nx, ny, oax, oay, obx, oby = capsule_capsule(xa, ya, anga, ha, ra,
-                                                        xb, yb, angb, hb, rb)
-        kb = rb + 0.5 * g
+        g, nx, ny, oax, oay, obx, oby, sep = capsule_capsule(xa, ya, anga, ha, ra,
+                                                             xb, yb, angb, hb, rb)
+        kb = rb + 0.5 * sep
     else:
-        g, nx, ny, oax, oay, obx, oby = capsule_wall(xa, ya, anga, ha, ra, wall, half_w, half_h)
+        g, nx, ny, oax, oay, obx, oby, sep = capsule_wall(xa, ya, anga, ha, ra, wall, half_w,
+                                                          half_h)
         kb = 0.0
-    ka = ra + 0.5 * g
+    ka = ra + 0.5 * sep
     vn, vt, scale = relative_velocity_of(vxa, vya, wa, vxb, vyb, wb, wall >= 0, nx, ny, oax, oay,
                                          ka, obx, oby, kb)
     if abs(vn) <= ROUNDOFF * scale:
         vn = 0.0  # at rest along n to round-off (e.g. just after a plastic impact)
     return g, nx, ny, oax, oay, ka, obx, oby, kb, vn
+
+
+@jit_inline
+def pair_bodies(p, PA, PB, n):
+    """Bodies of contact pair p in an element of n bodies: ``(a, b, wall)`` with ``wall`` the
+    cushion index (``b`` is then ``a``, a stand-in the kernels ignore) or -1 for two bodies."""
+    a = PA[p]
+    b = PB[p]
+    if b >= n:
+        return a, a, b - n
+    return a, b, -1
 
 
 @jit_inline
