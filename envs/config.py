@@ -118,12 +118,7 @@ class _StrikeConfig(EnvConfig):
     striker_mass: float | None = Field(None, gt=0.0)
     target_mass: float | None = Field(None, gt=0.0)
 
-    @field_validator("speed_range")
-    @classmethod
-    def _speeds(cls, v):
-        if not 0 < v[0] <= v[1]:
-            raise ValueError(f"needs 0 < min <= max (m/s), got {list(v)}")
-        return v
+    _speed_range = field_validator("speed_range")(lambda v: _positive_range(v, "m/s"))
 
 
 class RodSpinConfig(_StrikeConfig):
@@ -146,12 +141,7 @@ class RodSpinConfig(_StrikeConfig):
     rod_thickness: float | None = Field(None, ge=0.0)
     rod_inertia: Literal["capsule", "thin_rod"] | float = "capsule"
 
-    @field_validator("target_spin")
-    @classmethod
-    def _spins(cls, v):
-        if not 0 < v[0] <= v[1]:
-            raise ValueError(f"needs 0 < min <= max (rad/s), got {list(v)}")
-        return v
+    _target_spin = field_validator("target_spin")(lambda v: _positive_range(v, "rad/s"))
 
 
 class PuckSpeedConfig(_StrikeConfig):
@@ -167,12 +157,7 @@ class PuckSpeedConfig(_StrikeConfig):
     target_speed: Range = (0.75, 3.0)
     reward_width: float = Field(0.1, gt=0.0)
 
-    @field_validator("target_speed")
-    @classmethod
-    def _targets(cls, v):
-        if not 0 < v[0] <= v[1]:
-            raise ValueError(f"needs 0 < min <= max (m/s), got {list(v)}")
-        return v
+    _target_speed = field_validator("target_speed")(lambda v: _positive_range(v, "m/s"))
 
 
 class ControlConfig(EnvConfig):
@@ -193,6 +178,13 @@ class ControlConfig(EnvConfig):
     max_speed: float = Field(3.0, gt=0.0)
     mallet_mass: float | None = Field(None, gt=0.0)
     target_mass: float | None = Field(None, gt=0.0)
+
+
+def _positive_range(v: Range, unit: str) -> Range:
+    """A (min, max) range with 0 < min <= max."""
+    if not 0 < v[0] <= v[1]:
+        raise ValueError(f"needs 0 < min <= max ({unit}), got {list(v)}")
+    return v
 
 
 def _format(err: ValidationError) -> str:

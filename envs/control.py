@@ -69,22 +69,16 @@ class _ControlTask(Task):
         self._never = np.zeros(batch_size, dtype=bool)
         self._never.flags.writeable = False
 
-    def _apply_random(self, env, u) -> None:
-        for k, key in enumerate(self.CONFIG.RANDOMIZABLE):
-            if key not in self.cfg.randomize:
-                continue
-            lo, hi = self.cfg.randomize[key]
-            x = u[:, k]
-            value = np.exp(np.log(lo) + x * (np.log(hi) - np.log(lo))) if key.endswith("mass") \
-                else lo + x * (hi - lo)
-            if key == "mallet_mass":
-                self.world.set_body("mallet", mass=value, env=env)
-            elif key == "target_mass":
-                self.world.set_body(self.TARGET, mass=value, env=env)
-            elif key == "restitution":
-                self.world.set_material(self.TARGET, "mallet", restitution=value, env=env)
-            elif key == "table_friction":
-                self.world.set_table(friction=value, env=env)
+    def _set_random(self, key, value, env) -> None:
+        w = self.world
+        if key == "mallet_mass":
+            w.set_body("mallet", mass=value, env=env)
+        elif key == "target_mass":
+            w.set_body(self.TARGET, mass=value, env=env)
+        elif key == "restitution":
+            w.set_material(self.TARGET, "mallet", restitution=value, env=env)
+        elif key == "table_friction":
+            w.set_table(friction=value, env=env)
 
     def reset(self, env, uniforms) -> dict[str, np.ndarray]:
         n_rand = len(self.CONFIG.RANDOMIZABLE)
@@ -183,20 +177,26 @@ _COMMON_LAYOUT = (
 )
 
 
+def _target_layout(name: str) -> tuple[ObsField, ...]:
+    """The target's seven observation fields (pose, velocity, spin), in ``fast._observe``'s
+    order."""
+    return (
+        ObsField(f"{name}_x", -1.0, 1.0, f"{name} x / table half width"),
+        ObsField(f"{name}_y", -1.0, 1.0, f"{name} y / table half height"),
+        ObsField(f"{name}_cos", -1.0, 1.0, f"cos({name} angle)"),
+        ObsField(f"{name}_sin", -1.0, 1.0, f"sin({name} angle)"),
+        ObsField(f"{name}_vx", -10.0, 10.0, f"{name} vx / {SPEED_SCALE} m/s"),
+        ObsField(f"{name}_vy", -10.0, 10.0, f"{name} vy / {SPEED_SCALE} m/s"),
+        ObsField(f"{name}_spin", -10.0, 10.0, f"{name} spin / {SPIN_SCALE} rad/s (CCW > 0)"),
+    )
+
+
 class RodSpinControlTask(_ControlTask):
     TARGET = "rod"
     SCENE = "rod_control"
     SCALE = SPIN_SCALE
     MEASURE = fast.MEASURE_SPIN
-    LAYOUT = _COMMON_LAYOUT + (
-        ObsField("rod_x", -1.0, 1.0, "rod x / table half width"),
-        ObsField("rod_y", -1.0, 1.0, "rod y / table half height"),
-        ObsField("rod_cos", -1.0, 1.0, "cos(rod angle)"),
-        ObsField("rod_sin", -1.0, 1.0, "sin(rod angle)"),
-        ObsField("rod_vx", -10.0, 10.0, f"rod vx / {SPEED_SCALE} m/s"),
-        ObsField("rod_vy", -10.0, 10.0, f"rod vy / {SPEED_SCALE} m/s"),
-        ObsField("rod_spin", -10.0, 10.0, f"rod spin / {SPIN_SCALE} rad/s (CCW > 0)"),
-    )
+    LAYOUT = _COMMON_LAYOUT + _target_layout("rod")
 
 
 
@@ -205,15 +205,7 @@ class PuckSpeedControlTask(_ControlTask):
     SCENE = "puck_control"
     SCALE = SPEED_SCALE
     MEASURE = fast.MEASURE_SPEED
-    LAYOUT = _COMMON_LAYOUT + (
-        ObsField("puck_x", -1.0, 1.0, "puck x / table half width"),
-        ObsField("puck_y", -1.0, 1.0, "puck y / table half height"),
-        ObsField("puck_cos", -1.0, 1.0, "cos(puck angle) (turns only with contact friction)"),
-        ObsField("puck_sin", -1.0, 1.0, "sin(puck angle)"),
-        ObsField("puck_vx", -10.0, 10.0, f"puck vx / {SPEED_SCALE} m/s"),
-        ObsField("puck_vy", -10.0, 10.0, f"puck vy / {SPEED_SCALE} m/s"),
-        ObsField("puck_spin", -10.0, 10.0, f"puck spin / {SPIN_SCALE} rad/s"),
-    )
+    LAYOUT = _COMMON_LAYOUT + _target_layout("puck")
 
 
 

@@ -136,6 +136,26 @@ class Task:
     def view_half(self) -> tuple[float, float]:
         raise NotImplementedError
 
+    def _set_random(self, key: str, value: np.ndarray, env: np.ndarray) -> None:
+        """Apply a drawn value of the randomised parameter ``key`` (one of the config's
+        ``RANDOMIZABLE``) to elements ``env``."""
+        raise NotImplementedError
+
+    def _apply_random(self, env: np.ndarray, u: np.ndarray) -> None:
+        """Draw the configured ``randomize`` ranges for elements ``env`` from uniforms ``u``
+        (one column per ``RANDOMIZABLE`` parameter, used or not, so the draws do not depend on
+        which are configured): masses log-uniformly, the rest uniformly."""
+        for k, key in enumerate(self.CONFIG.RANDOMIZABLE):
+            if key not in self.cfg.randomize:
+                continue
+            lo, hi = self.cfg.randomize[key]
+            x = u[:, k]
+            if key.endswith("mass"):
+                value = np.exp(np.log(lo) + x * (np.log(hi) - np.log(lo)))
+            else:
+                value = lo + x * (hi - lo)
+            self._set_random(key, value, env)
+
     # --- shared ---------------------------------------------------------------------------
     def observation_space(self) -> spaces.Space:
         mode = self.cfg.obs_mode

@@ -106,24 +106,18 @@ class _StrikeTask(Task):
         self.result_vs = np.zeros((B, 2))
 
     # -- randomisation ------------------------------------------------------------------------
-    def _apply_random(self, env: np.ndarray, u: np.ndarray) -> None:
-        for k, key in enumerate(self.CONFIG.RANDOMIZABLE):
-            if key not in self.cfg.randomize:
-                continue
-            lo, hi = self.cfg.randomize[key]
-            x = u[:, k]
-            value = np.exp(np.log(lo) + x * (np.log(hi) - np.log(lo))) if key.endswith("mass") \
-                else lo + x * (hi - lo)
-            if key == "striker_mass":
-                self.world.set_body("striker", mass=value, env=env)
-            elif key == "target_mass":
-                self.world.set_body(self.TARGET, mass=value, env=env)
-            elif key == "rod_length":
-                self.world.set_body("rod", length=value, env=env)
-            elif key == "restitution":
-                self.world.set_material(self.TARGET, "striker", restitution=value, env=env)
-            elif key == "friction":
-                self.world.set_material(self.TARGET, "striker", friction=value, env=env)
+    def _set_random(self, key, value, env) -> None:
+        w = self.world
+        if key == "striker_mass":
+            w.set_body("striker", mass=value, env=env)
+        elif key == "target_mass":
+            w.set_body(self.TARGET, mass=value, env=env)
+        elif key == "rod_length":
+            w.set_body("rod", length=value, env=env)
+        elif key == "restitution":
+            w.set_material(self.TARGET, "striker", restitution=value, env=env)
+        elif key == "friction":
+            w.set_material(self.TARGET, "striker", friction=value, env=env)
 
     def _reach(self) -> np.ndarray:
         """[B] largest distance of the target's surface from its centre, m."""
@@ -163,6 +157,17 @@ class _StrikeTask(Task):
     def _launch(self, actions: np.ndarray) -> None:
         """Put the striker on its line, moving (subclasses: geometry of the action)."""
         raise NotImplementedError
+
+    def _put_striker(self, start: np.ndarray, velocity: np.ndarray) -> None:
+        """Place every element's striker at ``start`` [B, 2] moving at ``velocity`` [B, 2];
+        the start lies beyond the target's reach (START_MARGIN), so nothing overlaps."""
+        w = self.world
+        pos = w.state.positions.copy()
+        vel = np.zeros_like(pos)
+        pos[:, self.js] = start
+        vel[:, self.js] = velocity
+        w._place(np.arange(self.batch_size), pos, w.state.angles.copy(), vel,
+                 np.zeros_like(w.state.omegas))
 
     def _speed(self, a: np.ndarray) -> np.ndarray:
         lo, hi = self.cfg.speed_range
@@ -327,13 +332,7 @@ class RodSpinTask(_StrikeTask):
         d = np.sin(alpha)[:, None] * u - np.cos(alpha)[:, None] * n
         c = (offset * np.cos(alpha))[:, None] * u + (offset * np.sin(alpha))[:, None] * n
         start = w.state.positions[:, self.it] + c - (reach + rs + START_MARGIN)[:, None] * d
-        pos = w.state.positions.copy()
-        vel = np.zeros_like(pos)
-        pos[:, self.js] = start
-        vel[:, self.js] = speed[:, None] * d
-        # the striker starts beyond the target's reach (START_MARGIN), moving toward it
-        w._place(np.arange(self.batch_size), pos, w.state.angles.copy(), vel,
-                 np.zeros_like(w.state.omegas))
+        self._put_striker(start, speed[:, None] * d)
 
     def analytic(self) -> dict[str, np.ndarray]:
         """Closed-form optimum per element: the largest spin and the lever that gives it."""
@@ -427,13 +426,7 @@ class PuckSpeedTask(_StrikeTask):
         side = np.stack([-np.sin(heading), np.cos(heading)], 1)
         start = (w.state.positions[:, self.it] + offset[:, None] * side
                  - (reach + START_MARGIN)[:, None] * d)
-        pos = w.state.positions.copy()
-        vel = np.zeros_like(pos)
-        pos[:, self.js] = start
-        vel[:, self.js] = speed[:, None] * d
-        # the striker starts beyond the target's reach (START_MARGIN), moving toward it
-        w._place(np.arange(self.batch_size), pos, w.state.angles.copy(), vel,
-                 np.zeros_like(w.state.omegas))
+        self._put_striker(start, speed[:, None] * d)
 
     def analytic(self) -> dict[str, np.ndarray]:
         """Closed form of a centred, frictionless strike: puck speed per unit striker speed."""

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from physics.events import pair_geometry
+from physics.events import pair_bodies, pair_geometry
 from physics.layout import INV_INERTIA, INV_MASS, RESTITUTION, X, Y
 
 __all__ = ["JAM_COLUMNS", "MAX_JAM_PAIRS", "jam_impulses"]
@@ -39,10 +39,7 @@ def _collect(S, Pm, hw, PA, PB, slop, idx, geo):
     n = S.shape[0]
     m = 0
     for p in range(PA.shape[0]):
-        a = PA[p]
-        b = PB[p]
-        wall = b - n if b >= n else -1
-        bb = a if wall >= 0 else b
+        a, bb, wall = pair_bodies(p, PA, PB, n)
         g, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, bb, wall, hw[0],
                                                                   hw[1])
         if g <= slop:

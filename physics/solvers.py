@@ -31,7 +31,7 @@ from collections import namedtuple
 import numba
 import numpy as np
 
-from physics.events import pair_geometry, time_of_impact
+from physics.events import pair_bodies, pair_geometry, time_of_impact
 from physics.impulse import apply_impulse, resolve
 from physics.jam import JAM_COLUMNS, MAX_JAM_PAIRS, jam_impulses
 from physics.layout import (
@@ -162,16 +162,12 @@ def _contact_pass(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact
     hit = False
     resting = 0
     for p in range(PA.shape[0]):
-        a = PA[p]
-        b = PB[p]
-        wall = b - n if b >= n else -1
-        bb = a if wall >= 0 else b
-        g, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, bb, wall, hw[0],
-                                                                  hw[1])
+        a, b, wall = pair_bodies(p, PA, PB, n)
+        g, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, wall, hw[0], hw[1])
         if g <= slop and vn < 0.0:
             px = S[a, X] + oax + ka * nx
             py = S[a, Y] + oay + ka * ny
-            j, jt, vn0 = resolve(S, Pm, a, bb, wall >= 0, nx, ny, oax, oay, ka, obx, oby, kb,
+            j, jt, vn0 = resolve(S, Pm, a, b, wall >= 0, nx, ny, oax, oay, ka, obx, oby, kb,
                                  MAT[p, RESTITUTION], MAT[p, FRICTION], rotation,
                                  contact_friction)
             _record(p, t, px, py, nx, ny, j, jt, cpair, crec, stats)
@@ -196,16 +192,13 @@ def _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, crec, stats)
         if lam[i] <= 0.0:
             continue
         p = idx[i]
-        a = PA[p]
-        b = PB[p]
-        is_wall = b >= n
-        bb = a if is_wall else b
-        apply_impulse(S, Pm, a, bb, is_wall, lam[i], geo[i, 0], geo[i, 1], geo[i, 2], geo[i, 3],
-                      rotation)
+        a, b, wall = pair_bodies(p, PA, PB, n)
+        apply_impulse(S, Pm, a, b, wall >= 0, lam[i], geo[i, 0], geo[i, 1], geo[i, 2],
+                      geo[i, 3], rotation)
         _record(p, t, geo[i, 4], geo[i, 5], geo[i, 0], geo[i, 1], lam[i], 0.0, cpair, crec,
                 stats)
         changed[a] = 1
-        if not is_wall:
+        if wall < 0:
             changed[b] = 1
 
 
@@ -266,11 +259,8 @@ def _separate(S, Pm, hw, PA, PB, weighted, rotate):
     n = S.shape[0]
     deepest = 0.0
     for p in range(PA.shape[0]):
-        a = PA[p]
-        b = PB[p]
-        wall = b - n if b >= n else -1
-        bb = a if wall >= 0 else b
-        g, nx, ny, oax, oay, _, obx, oby, _, _ = pair_geometry(S, Pm, a, bb, wall, hw[0], hw[1])
+        a, b, wall = pair_bodies(p, PA, PB, n)
+        g, nx, ny, oax, oay, _, obx, oby, _, _ = pair_geometry(S, Pm, a, b, wall, hw[0], hw[1])
         if g < 0.0:
             ca = oax * ny - oay * nx
             cb = obx * ny - oby * nx
@@ -413,11 +403,8 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
         if kind[best] == CHECKPOINT:
             # a search that stalls while the pair is in contact is a sliding/rolling contact:
             # it counts toward settling like a resting bounce
-            a = PA[best]
-            b = PB[best]
-            wall = b - S.shape[0] if b >= S.shape[0] else -1
-            bb = a if wall >= 0 else b
-            g = pair_geometry(S, Pm, a, bb, wall, hw[0], hw[1])[0]
+            a, b, wall = pair_bodies(best, PA, PB, S.shape[0])
+            g = pair_geometry(S, Pm, a, b, wall, hw[0], hw[1])[0]
             if g <= tol:
                 resting += 1
         else:

@@ -20,7 +20,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from physics.events import pair_geometry
+from physics.events import pair_bodies, pair_geometry
 from physics.layout import (
     ANGLE,
     CF_DT,
@@ -782,9 +782,6 @@ def _pair_gaps(S, Pm, HW, PA, PB, out):
     n = S.shape[1]
     for b in range(S.shape[0]):
         for p in range(PA.shape[0]):
-            a = PA[p]
-            c = PB[p]
-            wall = c - n if c >= n else -1
-            cc = a if wall >= 0 else c
-            out[b, p] = pair_geometry(S[b], Pm[b], a, cc, wall, HW[b, 0], HW[b, 1])[0]
+            a, c, wall = pair_bodies(p, PA, PB, n)
+            out[b, p] = pair_geometry(S[b], Pm[b], a, c, wall, HW[b, 0], HW[b, 1])[0]
 
