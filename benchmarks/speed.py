@@ -184,6 +184,36 @@ def _ppo_env_share(steps: int) -> float:
     return spent[0] / (time.perf_counter() - t)
 
 
+_STARTUP = """
+import time
+t = time.perf_counter()
+import gymnasium as gym, numpy as np, envs
+env = gym.make("SpinStrike/RodSpinControl-v0")
+env.reset(seed=0)
+env.step(np.zeros(2, np.float32))
+vec = gym.make_vec("SpinStrike/RodSpin-v0", num_envs=2)
+vec.reset(seed=0)
+vec.step(np.zeros((2, 3), np.float32))
+print(time.perf_counter() - t)
+"""
+
+
+def _startup_times() -> tuple[float, float]:
+    """(cold, warm) seconds from ``import`` to the first steps of a control and a one-strike
+    env: cold with an empty numba cache (every kernel compiles), warm with it filled."""
+    import subprocess
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        times = []
+        for _ in range(2):
+            out = subprocess.run([sys.executable, "-c", _STARTUP], env=env, check=True,
+                                 capture_output=True, text=True)
+            times.append(float(out.stdout.strip().splitlines()[-1]))
+    return times[0], times[1]
+
+
 def _many_pucks_scene(n_pucks: int) -> dict:
     side = math.ceil(math.sqrt(n_pucks))
     rng = np.random.default_rng(1)
@@ -284,6 +314,11 @@ def main(argv: list[str] | None = None) -> int:
     row("RodSpin-v0 native vector env, 1024 envs, random strikes", strike_vec, c5, "strikes/s")
     puck_vec, c6 = _vector_rate("SpinStrike/PuckSpeed-v0", 1024, 10, reps)
     row("PuckSpeed-v0 native vector env, 1024 envs, random strikes", puck_vec, c6, "strikes/s")
+    cold, warm = _startup_times()
+    rows.append(("start-up to the first steps, numba cache empty (every kernel compiles)", cold,
+                 "-", "s", ""))
+    rows.append(("start-up to the first steps, numba cache filled", warm, "-", "s", ""))
+    print(f"start-up: cold {cold:.1f} s, warm {warm:.1f} s")
     share = _ppo_env_share(8192 if quick else 32768)
     rows.append(("share of SB3 PPO wall time spent in the env (16 envs, native adapter)", share,
                  "-", "fraction", ""))
@@ -315,7 +350,8 @@ def main(argv: list[str] | None = None) -> int:
              "| what | rate | unit | contacts per env-step |", "|---|---|---|---|"]
     for what, rate, contacts, unit, _ in rows:
         c = f"{contacts:.3f}" if isinstance(contacts, float) else contacts
-        value = f"{rate:.3f}" if unit == "fraction" else f"{rate:,.0f}"
+        value = f"{rate:.3f}" if unit == "fraction" else (
+            f"{rate:.1f}" if unit == "s" else f"{rate:,.0f}")
         lines.append(f"| {what} | {value} | {unit} | {c} |")
     lines += ["", "Ratios in this run:", "",
               "* native vector env (random) / SyncVectorEnv on pymunk: "
