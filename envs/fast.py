@@ -42,7 +42,7 @@ from physics.layout import (
     X,
     Y,
 )
-from physics.solvers import step_element, unpack
+from physics.solvers import BLOCK, step_element, unpack
 
 __all__ = ["OBS_SIZE", "S_COLUMNS", "T_COLUMNS", "control_observe", "control_step",
            "limit_force", "strike_parallel", "strike_post_batch", "strike_serial"]
@@ -174,12 +174,18 @@ def _post(b, S, HW, PA, PB, cpair, crec, stats, n_stored, tbuf, kcfg):
 
 
 @jit
-def _control_one(b, fbuf, ibuf, tbuf, kcfg):
-    v = unpack(fbuf, ibuf)
+def _control_one(b, v, n_stored, tbuf, kcfg):
     dt = v.fcfg[CF_DT]
     _pre(b, v.S, v.Pm, v.F, dt, tbuf, kcfg)
     step_element(v, b, dt, kcfg[K_FIXED] != 0.0)
-    _post(b, v.S, v.HW, v.PA, v.PB, v.cpair, v.crec, v.stats, ibuf[H_M], tbuf, kcfg)
+    _post(b, v.S, v.HW, v.PA, v.PB, v.cpair, v.crec, v.stats, n_stored, tbuf, kcfg)
+
+
+@jit
+def _control_range(fbuf, ibuf, tbuf, kcfg, start, stop):
+    v = unpack(fbuf, ibuf)
+    for b in range(start, stop):
+        _control_one(b, v, ibuf[H_M], tbuf, kcfg)
 
 
 @jit
@@ -195,18 +201,18 @@ def control_step_serial(fbuf, ibuf, tbuf, kcfg):
     """One control step of every element; False (and nothing done) if an action is not finite."""
     if not _finite_actions(tbuf):
         return False
-    for b in range(ibuf[H_B]):
-        _control_one(b, fbuf, ibuf, tbuf, kcfg)
+    _control_range(fbuf, ibuf, tbuf, kcfg, 0, ibuf[H_B])
     return True
 
 
 @jit_parallel
 def control_step_parallel(fbuf, ibuf, tbuf, kcfg):
-    """:func:`control_step_serial` in parallel threads (large batches)."""
+    """:func:`control_step_serial` in parallel threads (blocks of ``BLOCK`` elements)."""
     if not _finite_actions(tbuf):
         return False
-    for b in numba.prange(ibuf[H_B]):
-        _control_one(b, fbuf, ibuf, tbuf, kcfg)
+    n = ibuf[H_B]
+    for k in numba.prange((n + BLOCK - 1) // BLOCK):
+        _control_range(fbuf, ibuf, tbuf, kcfg, k * BLOCK, min(n, (k + 1) * BLOCK))
     return True
 
 
@@ -351,8 +357,7 @@ def _trace_contacts(cpair, crec, stats, n_stored, ctrace, tcount):
 
 
 @jit
-def _strike_one(b, fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount):
-    v = unpack(fbuf, ibuf)
+def _strike_one(b, v, n_stored, sbuf, scfg, trace, ctrace, tcount):
     _strike_start(sbuf[b])
     record = scfg[SC_RECORD] != 0.0 and b == 0
     if record:
@@ -360,24 +365,32 @@ def _strike_one(b, fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount):
     for k in range(int(scfg[SC_CHUNKS])):
         step_element(v, b, scfg[SC_CHUNK], scfg[SC_FIXED] != 0.0)
         if record:
-            _trace_contacts(v.cpair, v.crec, v.stats, ibuf[H_M], ctrace, tcount)
+            _trace_contacts(v.cpair, v.crec, v.stats, n_stored, ctrace, tcount)
             _trace_pose(v.S, trace, tcount)
-        if _strike_post(b, k, v.S, v.Pm, v.cpair, v.crec, v.stats, ibuf[H_M], sbuf, scfg):
+        if _strike_post(b, k, v.S, v.Pm, v.cpair, v.crec, v.stats, n_stored, sbuf, scfg):
             break
+
+
+@jit
+def _strike_range(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount, start, stop):
+    v = unpack(fbuf, ibuf)
+    for b in range(start, stop):
+        _strike_one(b, v, ibuf[H_M], sbuf, scfg, trace, ctrace, tcount)
 
 
 @jit
 def strike_serial(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount):
     """Simulate every element's strike to its end (see the section comment)."""
-    for b in range(ibuf[H_B]):
-        _strike_one(b, fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount)
+    _strike_range(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount, 0, ibuf[H_B])
 
 
 @jit_parallel
 def strike_parallel(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount):
-    """:func:`strike_serial` in parallel threads (large batches)."""
-    for b in numba.prange(ibuf[H_B]):
-        _strike_one(b, fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount)
+    """:func:`strike_serial` in parallel threads (blocks of ``BLOCK`` elements)."""
+    n = ibuf[H_B]
+    for k in numba.prange((n + BLOCK - 1) // BLOCK):
+        _strike_range(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount, k * BLOCK,
+                      min(n, (k + 1) * BLOCK))
 
 
 @jit

@@ -47,7 +47,7 @@ from physics.layout import (
 )
 from physics.motion import ca_step, flight
 
-__all__ = ["ROUNDOFF", "geometry", "pair_bodies", "pair_geometry", "time_of_impact"]
+__all__ = ["ROUNDOFF", "far_apart", "geometry", "pair_bodies", "pair_geometry", "time_of_impact"]
 
 jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 #: small kernels that take arrays are inlined into their callers at numba level: a call
@@ -151,7 +151,7 @@ def _step_bound(delta, nx, ny, S, Pm, F, a, b, wall, vxa, vya, wa, vxb, vyb, wb,
 
 
 @jit_inline
-def _far_apart(S, Pm, F, a, b, wall, half_w, half_h, horizon, tol, rotation):
+def far_apart(S, Pm, F, a, b, wall, half_w, half_h, horizon, tol, rotation):
     """A cheap test that the pair cannot close within ``horizon``, which implies that the
     search's first iteration finds exactly that (so it may be skipped, bit for bit).
 
@@ -189,6 +189,8 @@ def time_of_impact(S, Pm, F, a, b, wall, half_w, half_h, horizon, tol, max_itera
     """First time in ``[0, horizon]`` at which the pair touches while approaching: its gap
     reaches zero, the time located to a gap in ``[0, tol]`` (or ``g <= 0`` already).
 
+    Callers first try :func:`far_apart`, which settles most pairs without this call.
+
     Args:
         S, Pm, F: the element's state, parameters and applied forces.
         a, b: the bodies (``b`` unused for a cushion); wall: -1 for two bodies, else the
@@ -203,8 +205,6 @@ def time_of_impact(S, Pm, F, a, b, wall, half_w, half_h, horizon, tol, max_itera
     # than that: their gap is a distance between segments, >= -(ra + rb), and a crossing would
     # not show as a negative gap. For them contact stays at ``g <= tol`` while approaching.
     thin = wall < 0 and Pm[a, RADIUS] + Pm[b, RADIUS] <= tol
-    if _far_apart(S, Pm, F, a, b, wall, half_w, half_h, horizon, tol, rotation):
-        return horizon, NONE, 1
     t = 0.0
     for it in range(max_iterations):
         g, nx, ny, vn, vxa, vya, wa, vxb, vyb, wb = _probe(S, Pm, F, a, b, wall, half_w, half_h,
