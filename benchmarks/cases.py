@@ -198,15 +198,22 @@ def _wall_frame(wall: int, half):
     return [((-1, 0), hw), ((1, 0), hw), ((0, -1), hh), ((0, 1), hh)][wall]
 
 
+def _wall_ends(A, motion, wall, half, t, M):
+    """The outward normal of a cushion and the distances of body A's core ends from it:
+    ``(nx, ny, (end0, d0), (end1, d1))``."""
+    (nx, ny), off = _wall_frame(wall, half)
+    cx, cy, ca = motion.pose(t, M)
+    ex, ey = A.h * M.cos(ca), A.h * M.sin(ca)
+    d0 = off - (nx * (cx + ex) + ny * (cy + ey))
+    d1 = off - (nx * (cx - ex) + ny * (cy - ey))
+    return nx, ny, ((cx + ex, cy + ey), d0), ((cx - ex, cy - ey), d1)
+
+
 def _pair_gap(bodies, motions, pair, half, t, M):
     a, b = pair
     A = bodies[a]
     if b >= len(bodies):
-        (nx, ny), off = _wall_frame(b - len(bodies), half)
-        cx, cy, ca = motions[a].pose(t, M)
-        ex, ey = A.h * M.cos(ca), A.h * M.sin(ca)
-        d0 = off - (nx * (cx + ex) + ny * (cy + ey))
-        d1 = off - (nx * (cx - ex) + ny * (cy - ey))
+        _, _, (_, d0), (_, d1) = _wall_ends(A, motions[a], b - len(bodies), half, t, M)
         return M.minimum(d0, d1) - A.rho
     B = bodies[b]
     if B.shape == "disk":
@@ -223,12 +230,8 @@ def _geometry(bodies, motions, pair, half, t):
     a, b = pair
     A = bodies[a]
     if b >= len(bodies):
-        (nx, ny), off = _wall_frame(b - len(bodies), half)
-        cx, cy, ca = motions[a].pose(t, M)
-        ex, ey = A.h * M.cos(ca), A.h * M.sin(ca)
-        d0 = off - (nx * (cx + ex) + ny * (cy + ey))
-        d1 = off - (nx * (cx - ex) + ny * (cy - ey))
-        sx, sy = (cx + ex, cy + ey) if d0 <= d1 else (cx - ex, cy - ey)
+        nx, ny, (end0, d0), (end1, d1) = _wall_ends(A, motions[a], b - len(bodies), half, t, M)
+        sx, sy = end0 if d0 <= d1 else end1
         nx, ny = mpmath.mpf(nx), mpmath.mpf(ny)
         return sx + A.rho * nx, sy + A.rho * ny, nx, ny
     B = bodies[b]

@@ -14,6 +14,7 @@ outside the box are clipped to it (as Gymnasium's ``ClipAction`` would), silentl
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -71,8 +72,8 @@ def check_actions(actions: Any, shape: tuple[int, int]) -> np.ndarray:
     return np.clip(a, -1.0, 1.0)
 
 
-class Task:
-    """A batched env: subclasses implement the physics-facing parts.
+class Task(ABC):
+    """A batched env: subclasses implement the physics-facing parts (the abstract methods).
 
     Class attributes:
         CONFIG: the config model.  LAYOUT: flat observation fields.  ACTIONS: action names.
@@ -99,10 +100,11 @@ class Task:
         self._renderer: Renderer | None = None
 
     # --- to implement ---------------------------------------------------------------------
+    @abstractmethod
     def reset(self, env: np.ndarray, uniforms: np.ndarray) -> dict[str, np.ndarray]:
         """Start new episodes in elements ``env``; returns reset info arrays (over ``env``)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def step(self, actions: Any, batch_info: bool = True
              ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray] | None]:
         """Advance every element with raw actions ``[B, A]`` (validated here: see
@@ -110,36 +112,38 @@ class Task:
 
         ``batch_info=False`` lets a task skip the batched info when only :meth:`info_row` will
         be read (a single env)."""
-        raise NotImplementedError
 
     def info_row(self, b: int, info: dict[str, np.ndarray]) -> dict[str, Any]:
         """Element ``b``'s info as plain Python values (what a single env returns)."""
         return _scalar_info(info, b)
 
+    @abstractmethod
     def observe(self) -> np.ndarray:
-        """Flat observations ``[B, len(LAYOUT)]`` (unclipped)."""
-        raise NotImplementedError
+        """Flat observations ``[B, len(LAYOUT)]`` (clipped to the bounds only if
+        ``OBS_CLIPPED``)."""
 
     def achieved(self) -> np.ndarray:
-        """Achieved goals ``[B, len(ACHIEVED)]`` (goal-conditioned mode)."""
-        raise NotImplementedError
+        """Achieved goals ``[B, len(ACHIEVED)]`` (goal-conditioned tasks override this)."""
+        raise TypeError(f"{type(self).__name__} is not goal-conditioned")
 
     @staticmethod
     def goal_reward(achieved: np.ndarray, desired: np.ndarray, cfg: EnvConfig) -> np.ndarray:
-        """Reward for achieved vs desired goals (vectorised over leading axes)."""
-        raise NotImplementedError
+        """Reward for achieved vs desired goals, vectorised over leading axes (goal-conditioned
+        tasks override this)."""
+        raise TypeError("this task is not goal-conditioned")
 
+    @abstractmethod
     def frame(self, b: int, decorate: bool = True) -> Frame:
         """What element ``b`` looks like now (``decorate``: with the last step's history)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def view_half(self) -> tuple[float, float]:
-        raise NotImplementedError
+        """Half extents (m) of the area a frame shows, centred on the origin."""
 
+    @abstractmethod
     def _set_random(self, key: str, value: np.ndarray, env: np.ndarray) -> None:
         """Apply a drawn value of the randomised parameter ``key`` (one of the config's
         ``RANDOMIZABLE``) to elements ``env``."""
-        raise NotImplementedError
 
     def _apply_random(self, env: np.ndarray, u: np.ndarray) -> None:
         """Draw the configured ``randomize`` ranges for elements ``env`` from uniforms ``u``
