@@ -19,12 +19,6 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 __all__ = ["SB3VecEnv", "make_sb3_vec_env"]
 
 
-def _index(obs: Any, i: int) -> Any:
-    if isinstance(obs, dict):
-        return {k: v[i] for k, v in obs.items()}
-    return obs[i]
-
-
 class SB3VecEnv(VecEnv):
     """An SB3 ``VecEnv`` backed by a :class:`envs.core.SpinStrikeVectorEnv`."""
 

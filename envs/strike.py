@@ -248,9 +248,6 @@ class _StrikeTask(Task):
         self.result_vs[:] = snap["result_vs"]
 
     # -- rendering ----------------------------------------------------------------------------
-    def _pose(self, b: int) -> tuple[np.ndarray, np.ndarray]:
-        return self.world.state.positions[b].copy(), self.world.state.angles[b].copy()
-
     def _draw_bodies(self, b: int, pos=None, ang=None, omegas=None) -> list[BodyDraw]:
         w = self.world
         pos = w.state.positions[b] if pos is None else pos
