@@ -65,7 +65,8 @@ class _StrikeTask(Task):
 
     def __init__(self, cfg, batch_size: int) -> None:
         super().__init__(cfg, batch_size)
-        self.world = World(build_scene(self.SCENE, cfg, self._body_overrides(cfg)), batch_size)
+        scene = build_scene(self.SCENE, cfg, self._body_overrides(cfg))
+        self.world = World(self._park_striker(scene), batch_size)
         w = self.world
         if "walls" in w.effects or "table_friction" in w.effects:
             self._free = False
@@ -95,6 +96,24 @@ class _StrikeTask(Task):
         self._zero_result()
 
     GOAL_WIDTH: ClassVar[int] = 1
+
+    def _park_striker(self, scene):
+        """The scene's striker position is only a parking place (every reset and strike places
+        the striker): move it clear of the target's reach, which a large ``rod_length`` or
+        ``rod_thickness`` can make overlap the scene's own placement."""
+        bodies = list(scene.bodies)
+        names = [b.name for b in bodies]
+        target = bodies[names.index(self.TARGET)]
+        k = names.index("striker")
+        striker = bodies[k]
+        clear = target.half_length + target.core_radius + striker.core_radius + START_MARGIN
+        dx = striker.position[0] - target.position[0]
+        dy = striker.position[1] - target.position[1]
+        if math.hypot(dx, dy) >= clear:
+            return scene
+        bodies[k] = striker.model_copy(
+            update={"position": (target.position[0], target.position[1] + clear)})
+        return scene.model_copy(update={"bodies": tuple(bodies)})
 
     def _body_overrides(self, cfg) -> dict:
         return {"striker": {"mass": cfg.striker_mass}, self.TARGET: {"mass": cfg.target_mass}}

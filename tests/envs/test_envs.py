@@ -362,3 +362,13 @@ def test_human_render_mode_opens_a_window_headless():
         env.step(env.action_space.sample())
     assert env.render() is None  # human mode draws to the window
     env.close()
+
+
+def test_large_rods_do_not_collide_with_the_parked_striker():
+    """The packaged scene parks the striker 1 m away; a rod thicker or longer than that must
+    still build and strike (found by the constructor fuzz)."""
+    for kwargs in ({"rod_thickness": 3.0}, {"rod_length": 5.0, "rod_thickness": 0.5}):
+        env = gym.make("SpinStrike/RodSpin-v0", **kwargs)
+        env.reset(seed=0)
+        _, reward, terminated, _, info = env.step(np.array([0.3, 0.0, 0.5], np.float32))
+        assert terminated and np.isfinite(reward) and info["n_contacts"] >= 1
