@@ -8,6 +8,7 @@ reward is computed from the target's spin or velocity after the last contact.
 from __future__ import annotations
 
 import math
+from abc import abstractmethod
 from typing import ClassVar
 
 import numpy as np
@@ -173,9 +174,9 @@ class _StrikeTask(Task):
         self.result_vs[env] = 0.0
 
     # -- the strike ---------------------------------------------------------------------------
+    @abstractmethod
     def _launch(self, actions: np.ndarray) -> None:
         """Put the striker on its line, moving (subclasses: geometry of the action)."""
-        raise NotImplementedError
 
     def _put_striker(self, start: np.ndarray, velocity: np.ndarray) -> None:
         """Place every element's striker at ``start`` [B, 2] moving at ``velocity`` [B, 2];
