@@ -16,10 +16,12 @@ reward and info out) and its constants in ``kcfg``; see the column constants bel
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numba
 import numpy as np
 
+from physics._cache import refresh_kernel_cache
 from physics.layout import (
     ANGLE,
     CF_DT,
@@ -43,6 +45,10 @@ from physics.layout import (
     Y,
 )
 from physics.solvers import BLOCK, step_element, unpack
+
+# these kernels inline the physics kernels: recompile them when either changes (numba loads its
+# cache at a kernel's first call, so clearing it here, at import, is in time)
+refresh_kernel_cache(Path(__file__).resolve().parent, ("fast.py",))
 
 __all__ = ["OBS_SIZE", "S_COLUMNS", "T_COLUMNS", "control_observe", "control_step",
            "limit_force", "strike_parallel", "strike_post_batch", "strike_serial"]
