@@ -706,8 +706,8 @@ class World:
         dt = float(dt)
         if not (math.isfinite(dt) and dt >= 0.0):
             raise SceneError(f"dt: must be a finite number >= 0 s (got {dt})")
-        self._stats[:] = 0
         if self._backend is not None:
+            self._stats[:] = 0  # the compiled kernels zero each element's row themselves
             self._backend.step(dt)
             self._time += dt
         else:
