@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-import envs
-from agents.config import ALGOS, load_agent_config
+from spinstrike import envs
+from spinstrike.agents.config import ALGOS, load_agent_config
 
 __all__ = ["main"]
 
@@ -53,8 +53,8 @@ def _machine() -> str:
 
 
 def _run(algo, env_id, seed, root: Path, scale: float, env_kwargs=None, tag="") -> dict:
-    from agents.evaluate import load_model_policy, run_episodes
-    from agents.train import train
+    from spinstrike.agents.evaluate import load_model_policy, run_episodes
+    from spinstrike.agents.train import train
 
     name = f"{algo}-{env_id.split('/')[-1]}{tag}-s{seed}"
     run = root / name
@@ -117,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--doc", default="docs/baselines.md")
     p.add_argument("--no-transfer", action="store_true")
     args = p.parse_args(argv)
-    from agents.evaluate import evaluate
+    from spinstrike.agents.evaluate import evaluate
 
     scale = 0.1 if args.quick else 1.0
     seeds = args.seeds[:1] if args.quick else args.seeds

@@ -30,7 +30,7 @@ def _kwargs(text: str | None) -> dict:
         return {}
     import yaml
 
-    from agents.config import AgentConfigError, yaml_problem
+    from spinstrike.agents.config import AgentConfigError, yaml_problem
 
     try:
         value = yaml.safe_load(text)
@@ -44,27 +44,27 @@ def _kwargs(text: str | None) -> dict:
 
 
 def _check_env_id(env_id: str) -> None:
-    import envs
-    from agents.config import AgentConfigError
+    from spinstrike import envs
+    from spinstrike.agents.config import AgentConfigError
 
     if env_id not in envs.ENV_IDS:
         raise AgentConfigError(f"--env: unknown id {env_id!r}; allowed: {list(envs.ENV_IDS)}")
 
 
 def _check_episodes(option: str, value: int) -> None:
-    from agents.config import AgentConfigError
+    from spinstrike.agents.config import AgentConfigError
 
     if value < 1:
         raise AgentConfigError(f"{option}: must be >= 1 (got {value})")
 
 
 def _policy(args):
-    import envs
-    from agents.config import AgentConfigError
-    from agents.oracle import RandomPolicy, oracle_for
+    from spinstrike import envs
+    from spinstrike.agents.config import AgentConfigError
+    from spinstrike.agents.oracle import RandomPolicy, oracle_for
 
     if args.run_dir:
-        from agents.evaluate import load_model_policy
+        from spinstrike.agents.evaluate import load_model_policy
 
         run = Path(args.run_dir)
         if not (run / "model.zip").is_file() or not (run / "config.yml").is_file():
@@ -86,7 +86,7 @@ def _policy(args):
 
 
 def cmd_train(args) -> int:
-    from agents.train import train
+    from spinstrike.agents.train import train
 
     _check_env_id(args.env)
     if not args.no_eval:
@@ -107,7 +107,7 @@ def cmd_train(args) -> int:
 
 
 def cmd_evaluate(args) -> int:
-    from agents.evaluate import evaluate, summarise
+    from spinstrike.agents.evaluate import evaluate, summarise
 
     _check_episodes("--episodes", args.episodes)
     policy, env_id, env_kwargs, name = _policy(args)
@@ -121,7 +121,7 @@ def cmd_evaluate(args) -> int:
 
 
 def cmd_record(args) -> int:
-    from agents.record import record
+    from spinstrike.agents.record import record
 
     _check_episodes("--episodes", args.episodes)
     policy, env_id, env_kwargs, name = _policy(args)
@@ -134,7 +134,7 @@ def cmd_record(args) -> int:
 
 
 def cmd_envs(args) -> int:
-    import envs
+    from spinstrike import envs
 
     print(envs.describe())
     return 0
@@ -143,18 +143,18 @@ def cmd_envs(args) -> int:
 def cmd_bench(args) -> int:
     import importlib
 
-    module = importlib.import_module(f"benchmarks.{args.which}")
+    module = importlib.import_module(f"spinstrike.benchmarks.{args.which}")
     return int(module.main(args.rest) or 0)
 
 
 def cmd_baselines(args) -> int:
-    from agents.baselines import main as baselines_main
+    from spinstrike.agents.baselines import main as baselines_main
 
     return int(baselines_main(args.rest) or 0)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from agents.config import ALGOS
+    from spinstrike.agents.config import ALGOS
 
     p = argparse.ArgumentParser(prog="spinstrike", description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="command", required=True)
@@ -218,9 +218,9 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
     parser = build_parser()
     args = parser.parse_args(argv)
-    from agents.config import AgentConfigError
-    from envs.config import ConfigError
-    from physics import SceneError
+    from spinstrike.agents.config import AgentConfigError
+    from spinstrike.envs.config import ConfigError
+    from spinstrike.physics import SceneError
 
     try:
         return args.func(args)

@@ -5,7 +5,7 @@ has no entry of its own, as rl-zoo3 does); each value holds the algorithm's cons
 plus rl-zoo3's reserved keys ``n_timesteps``, ``policy``, ``n_envs``, ``normalize`` and
 ``env_kwargs``. ``policy_kwargs`` is a YAML mapping (never a string to ``eval``); learning rates
 may be ``lin_<value>`` (a linear schedule, rl-zoo3's notation). rl-zoo3 itself reads the same
-files: ``python -m rl_zoo3.train --algo ppo --env SpinStrike/RodSpin-v0 --gym-packages envs
+files: ``python -m rl_zoo3.train --algo ppo --env SpinStrike/RodSpin-v0 --gym-packages spinstrike
 -conf configs/agents/ppo.yml``.
 
 Unknown keys, unknown ids and bad values raise :class:`AgentConfigError` naming the key and what
@@ -80,7 +80,7 @@ class RunConfig:
 
 def packaged_config_path(algo: str) -> Path:
     """Path of the packaged ``configs/agents/<algo>.yml``."""
-    return Path(str(resources.files("configs.agents").joinpath(f"{algo}.yml")))
+    return Path(str(resources.files("spinstrike.configs.agents").joinpath(f"{algo}.yml")))
 
 
 def _schedule(value: Any, key: str):
@@ -117,7 +117,7 @@ def _policy_kwargs(value: Any, where: str) -> dict:
 
 def _read_entry(path: Path, env_id: str) -> tuple[str, dict]:
     """The raw entry of ``env_id`` (or ``default``) in a hyperparameter file."""
-    import envs
+    from spinstrike import envs
 
     if path.is_dir():
         raise AgentConfigError(f"config: {str(path)!r} is a directory, not a YAML file")
@@ -183,7 +183,7 @@ def load_agent_config(algo: str, env_id: str, path: str | Path | None = None,
         overrides: keys replacing the file's (e.g. ``{"n_timesteps": 1000}``).
     """
     cls = algo_class(algo)
-    import envs
+    from spinstrike import envs
 
     if env_id not in envs.ENV_IDS:
         raise AgentConfigError(f"env: unknown id {env_id!r}; allowed: {list(envs.ENV_IDS)}")

@@ -15,8 +15,8 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-import envs  # noqa: F401  (registers the ids)
-from agents.oracle import RandomPolicy, oracle_for
+from spinstrike import envs  # noqa: F401  (registers the ids)
+from spinstrike.agents.oracle import RandomPolicy, oracle_for
 
 __all__ = ["Evaluation", "evaluate", "load_model_policy", "read_run_config", "summarise"]
 
@@ -43,7 +43,7 @@ def run_episodes(policy: Policy, env_id: str, episodes: int, seed: int = 1000,
                  env_kwargs: dict | None = None, name: str = "policy") -> Evaluation:
     """Roll ``policy`` out for ``episodes`` episodes on seeds ``seed + k``."""
     if episodes < 1:
-        from agents.config import AgentConfigError
+        from spinstrike.agents.config import AgentConfigError
 
         raise AgentConfigError(f"episodes: must be >= 1 (got {episodes!r})")
     env = gym.make(env_id, **(env_kwargs or {}))
@@ -71,7 +71,7 @@ def read_run_config(run_dir: str | Path) -> dict:
     """
     import yaml
 
-    from agents.config import ALGOS, AgentConfigError, yaml_problem
+    from spinstrike.agents.config import ALGOS, AgentConfigError, yaml_problem
 
     path = Path(run_dir) / "config.yml"
     try:
@@ -99,7 +99,7 @@ def read_run_config(run_dir: str | Path) -> dict:
 
 def load_model_policy(run_dir: str | Path) -> tuple[Policy, dict]:
     """The deterministic policy of a saved run (``model.zip``, optional ``vecnormalize.pkl``)."""
-    from agents.config import AgentConfigError, algo_class
+    from spinstrike.agents.config import AgentConfigError, algo_class
 
     run_dir = Path(run_dir)
     meta = read_run_config(run_dir)

@@ -21,8 +21,8 @@ import math
 
 import numpy as np
 
-from envs.control import RodSpinControlTask
-from envs.strike import PuckSpeedTask, RodSpinTask
+from spinstrike.envs.control import RodSpinControlTask
+from spinstrike.envs.strike import PuckSpeedTask, RodSpinTask
 
 __all__ = ["ChaseAndHit", "PuckSpeedOracle", "RandomPolicy", "RodSpinOracle", "oracle_for"]
 

@@ -12,8 +12,8 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-import envs  # noqa: F401
-from envs.strike import CHUNK
+from spinstrike import envs  # noqa: F401
+from spinstrike.envs.strike import CHUNK
 
 __all__ = ["record"]
 

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from agents.config import AgentConfigError, RunConfig, algo_class, load_agent_config
+from spinstrike.agents.config import AgentConfigError, RunConfig, algo_class, load_agent_config
 
 __all__ = ["TrainResult", "plot_learning_curve", "train"]
 
@@ -53,7 +53,7 @@ def _versions() -> dict[str, str]:
 
 
 def _make_env(cfg: RunConfig, seed: int, n_envs: int):
-    from envs.sb3 import make_sb3_vec_env
+    from spinstrike.envs.sb3 import make_sb3_vec_env
 
     env = make_sb3_vec_env(cfg.env_id, n_envs=n_envs, seed=seed, env_kwargs=cfg.env_kwargs)
     if cfg.normalize:
@@ -148,7 +148,7 @@ def _resume_model(cls, algo: str, cfg: RunConfig, work: Path, env, device: str):
 def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, episodes: int):
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
 
-    from envs.sb3 import make_sb3_vec_env
+    from spinstrike.envs.sb3 import make_sb3_vec_env
 
     eval_env = make_sb3_vec_env(cfg.env_id, n_envs=1, seed=seed + 10_000,
                                 env_kwargs=cfg.env_kwargs)
@@ -266,19 +266,19 @@ def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int
                                         "wall_time_s": round(wall, 2)})
     (run_dir / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
     if evaluate or video:
-        from agents.evaluate import load_model_policy
+        from spinstrike.agents.evaluate import load_model_policy
 
         policy, _ = load_model_policy(run_dir)
     if evaluate:
-        from agents.evaluate import evaluate as run_eval
-        from agents.evaluate import summarise
+        from spinstrike.agents.evaluate import evaluate as run_eval
+        from spinstrike.agents.evaluate import summarise
 
         results = run_eval(env_id, policy, episodes=eval_episodes, env_kwargs=cfg.env_kwargs)
         summarise(results, run_dir, f"## {algo.upper()} on {env_id} (seed {seed}, "
                                     f"{model.num_timesteps} steps, {wall:.0f} s)")
         result["evaluations"] = {r.policy: (r.mean, r.std) for r in results}
     if video:
-        from agents.record import record
+        from spinstrike.agents.record import record
 
         result["video"] = record(policy, env_id, run_dir / "rollout.mp4", episodes=3,
                                  env_kwargs=cfg.env_kwargs)["path"]

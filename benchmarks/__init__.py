@@ -1,1 +1,1 @@
-"""SpinStrike benchmarks: accuracy against time (``python -m benchmarks.accuracy``)."""
+"""SpinStrike benchmarks: accuracy against time (``python -m spinstrike.benchmarks.accuracy``)."""

@@ -32,7 +32,7 @@ from typing import Any
 import mpmath
 import numpy as np
 
-from physics.analytic import rod_strike, rod_wall
+from spinstrike.physics.analytic import rod_strike, rod_wall
 
 __all__ = ["CASES", "Case", "Variant", "all_cases", "reference_contact"]
 

@@ -1,7 +1,7 @@
 """SpinStrike Gymnasium environments. Importing this package registers them.
 
     import gymnasium as gym
-    import envs  # noqa: F401  (or use the id "envs:SpinStrike/RodSpin-v0" without importing)
+    import spinstrike  # registers the ids (or use "spinstrike:SpinStrike/RodSpin-v0" unimported)
 
     env = gym.make("SpinStrike/RodSpin-v0")
     vec = gym.make_vec("SpinStrike/RodSpinControl-v0", num_envs=1024)   # one batched world
@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import gymnasium as gym
 
-from envs.config import ConfigError
+from spinstrike.envs.config import ConfigError
 
 __all__ = ["ENV_IDS", "ConfigError", "describe"]
 
@@ -34,14 +34,14 @@ ENV_IDS: dict[str, str] = {
         "push a mallet around a walled table; reward for the speed its hits give a puck",
 }
 
+#: entry points (single env, native vector env, in ``spinstrike.envs``) and episode step limits
 _ENTRY = {
-    "SpinStrike/RodSpin-v0": ("envs.strike:RodSpinEnv", "envs.strike:RodSpinVectorEnv", None),
-    "SpinStrike/PuckSpeed-v0": ("envs.strike:PuckSpeedEnv", "envs.strike:PuckSpeedVectorEnv",
-                                None),
-    "SpinStrike/RodSpinControl-v0": ("envs.control:RodSpinControlEnv",
-                                     "envs.control:RodSpinControlVectorEnv", 250),
-    "SpinStrike/PuckSpeedControl-v0": ("envs.control:PuckSpeedControlEnv",
-                                       "envs.control:PuckSpeedControlVectorEnv", 250),
+    "SpinStrike/RodSpin-v0": ("strike:RodSpinEnv", "strike:RodSpinVectorEnv", None),
+    "SpinStrike/PuckSpeed-v0": ("strike:PuckSpeedEnv", "strike:PuckSpeedVectorEnv", None),
+    "SpinStrike/RodSpinControl-v0": ("control:RodSpinControlEnv",
+                                     "control:RodSpinControlVectorEnv", 250),
+    "SpinStrike/PuckSpeedControl-v0": ("control:PuckSpeedControlEnv",
+                                       "control:PuckSpeedControlVectorEnv", 250),
 }
 
 
@@ -49,7 +49,8 @@ def _register() -> None:
     for env_id, (entry, vector_entry, steps) in _ENTRY.items():
         if env_id in gym.registry:
             continue
-        gym.register(id=env_id, entry_point=entry, vector_entry_point=vector_entry,
+        gym.register(id=env_id, entry_point=f"spinstrike.envs.{entry}",
+                     vector_entry_point=f"spinstrike.envs.{vector_entry}",
                      max_episode_steps=steps, disable_env_checker=False)
 
 

@@ -15,8 +15,8 @@ from typing import ClassVar, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from physics import EFFECTS, SceneError, load_scene
-from physics.scene import Scene
+from spinstrike.physics import EFFECTS, SceneError, load_scene
+from spinstrike.physics.scene import Scene
 
 __all__ = [
     "ConfigError",
@@ -213,7 +213,7 @@ def parse_config(model: type[EnvConfig], config: dict | None, kwargs: dict) -> E
 
 def load_packaged_scene(name: str) -> dict:
     """The raw dict of a packaged scene ``configs/scenes/<name>.yaml``."""
-    text = resources.files("configs.scenes").joinpath(f"{name}.yaml").read_text()
+    text = resources.files("spinstrike.configs.scenes").joinpath(f"{name}.yaml").read_text()
     return yaml.safe_load(text)
 
 

@@ -13,14 +13,21 @@ from typing import ClassVar
 
 import numpy as np
 
-from envs import fast
-from envs.config import ControlConfig, build_scene
-from envs.core import ObsField, SpinStrikeEnv, SpinStrikeVectorEnv, Task, action_error, layout_table
-from envs.fast import limit_force
-from envs.rendering import BodyDraw, Frame
-from physics import World
-from physics.layout import CF_DT
-from physics.world import PARALLEL_BATCH
+from spinstrike.envs import fast
+from spinstrike.envs.config import ControlConfig, build_scene
+from spinstrike.envs.core import (
+    ObsField,
+    SpinStrikeEnv,
+    SpinStrikeVectorEnv,
+    Task,
+    action_error,
+    layout_table,
+)
+from spinstrike.envs.fast import limit_force
+from spinstrike.envs.rendering import BodyDraw, Frame
+from spinstrike.physics import World
+from spinstrike.physics.layout import CF_DT
+from spinstrike.physics.world import PARALLEL_BATCH
 
 __all__ = ["PuckSpeedControlEnv", "PuckSpeedControlVectorEnv", "RodSpinControlEnv",
            "RodSpinControlVectorEnv", "limit_force"]

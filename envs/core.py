@@ -24,9 +24,9 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from envs.config import EnvConfig, parse_config
-from envs.rendering import Frame, Renderer
-from envs.rng import UniformStream
+from spinstrike.envs.config import EnvConfig, parse_config
+from spinstrike.envs.rendering import Frame, Renderer
+from spinstrike.envs.rng import UniformStream
 
 __all__ = ["ObsField", "SpinStrikeEnv", "SpinStrikeVectorEnv", "Task", "action_error",
            "check_actions",

@@ -21,8 +21,8 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from physics._cache import refresh_kernel_cache
-from physics.layout import (
+from spinstrike.physics._cache import refresh_kernel_cache
+from spinstrike.physics.layout import (
     ANGLE,
     CF_DT,
     H_B,
@@ -44,7 +44,7 @@ from physics.layout import (
     X,
     Y,
 )
-from physics.solvers import BLOCK, step_element, unpack
+from spinstrike.physics.solvers import BLOCK, step_element, unpack
 
 # these kernels inline the physics kernels: recompile them when either changes (numba loads its
 # cache at a kernel's first call, so clearing it here, at import, is in time)

@@ -103,7 +103,7 @@ class SB3VecEnv(VecEnv):
 def make_sb3_vec_env(env_id: str, n_envs: int, seed: int | None = None,
                      env_kwargs: dict | None = None) -> SB3VecEnv:
     """Native batched vector env of ``env_id`` (``gym.make_vec``) wrapped for SB3."""
-    import envs  # noqa: F401  (registers the ids)
+    from spinstrike import envs  # noqa: F401  (registers the ids)
 
     venv = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point",
                         **(env_kwargs or {}))

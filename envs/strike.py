@@ -13,9 +13,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from envs import fast
-from envs.config import PuckSpeedConfig, RodSpinConfig, build_scene
-from envs.core import (
+from spinstrike.envs import fast
+from spinstrike.envs.config import PuckSpeedConfig, RodSpinConfig, build_scene
+from spinstrike.envs.core import (
     ObsField,
     SpinStrikeEnv,
     SpinStrikeVectorEnv,
@@ -23,9 +23,9 @@ from envs.core import (
     check_actions,
     layout_table,
 )
-from envs.rendering import BodyDraw, Frame
-from physics import World
-from physics.world import PARALLEL_BATCH
+from spinstrike.envs.rendering import BodyDraw, Frame
+from spinstrike.physics import World
+from spinstrike.physics.world import PARALLEL_BATCH
 
 __all__ = ["PuckSpeedEnv", "PuckSpeedVectorEnv", "RodSpinEnv", "RodSpinVectorEnv",
            "rod_spin_after_strike", "rod_spin_max"]

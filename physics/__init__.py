@@ -9,12 +9,12 @@ Public API::
     world.set_state(...), world.set_body(...), world.set_force(...), world.index("rod")
 """
 
-from physics._cache import refresh_kernel_cache
+from spinstrike.physics._cache import refresh_kernel_cache
 
 refresh_kernel_cache()  # before the numba kernels load (see physics/_cache.py)
 
-from physics.effects import EFFECTS, Effect  # noqa: E402
-from physics.scene import (  # noqa: E402
+from spinstrike.physics.effects import EFFECTS, Effect  # noqa: E402
+from spinstrike.physics.scene import (  # noqa: E402
     WALL_NAMES,
     Body,
     ExactSolver,
@@ -24,7 +24,7 @@ from physics.scene import (  # noqa: E402
     SceneError,
     load_scene,
 )
-from physics.world import Contacts, State, StepStats, World  # noqa: E402
+from spinstrike.physics.world import Contacts, State, StepStats, World  # noqa: E402
 
 #: solver modes a scene may name
 SOLVERS = ("exact", "fixed", "pymunk")

@@ -28,9 +28,9 @@ import math
 
 import numba
 
-from physics.contacts import capsule_capsule, capsule_wall, wall_frame
-from physics.impulse import relative_velocity_of
-from physics.layout import (
+from spinstrike.physics.contacts import capsule_capsule, capsule_wall, wall_frame
+from spinstrike.physics.impulse import relative_velocity_of
+from spinstrike.physics.layout import (
     ANGLE,
     CHECKPOINT,
     CONTACT,
@@ -45,7 +45,7 @@ from physics.layout import (
     X,
     Y,
 )
-from physics.motion import ca_step, flight
+from spinstrike.physics.motion import ca_step, flight
 
 __all__ = ["ROUNDOFF", "far_apart", "geometry", "pair_bodies", "pair_geometry", "time_of_impact"]
 

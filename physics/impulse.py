@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import numba
 
-from physics.layout import INV_INERTIA, INV_MASS, OMEGA, VX, VY
+from spinstrike.physics.layout import INV_INERTIA, INV_MASS, OMEGA, VX, VY
 
 __all__ = ["apply_impulse", "relative_velocity", "relative_velocity_of", "resolve"]
 

@@ -20,8 +20,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from physics.events import pair_bodies, pair_geometry
-from physics.layout import INV_INERTIA, INV_MASS, RESTITUTION, X, Y
+from spinstrike.physics.events import pair_bodies, pair_geometry
+from spinstrike.physics.layout import INV_INERTIA, INV_MASS, RESTITUTION, X, Y
 
 __all__ = ["JAM_COLUMNS", "MAX_JAM_PAIRS", "jam_impulses"]
 

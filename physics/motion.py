@@ -23,7 +23,17 @@ import math
 
 import numba
 
-from physics.layout import ANGLE, FRICTION_DECEL, INV_MASS, OMEGA, SPIN_DECEL, VX, VY, X, Y
+from spinstrike.physics.layout import (
+    ANGLE,
+    FRICTION_DECEL,
+    INV_MASS,
+    OMEGA,
+    SPIN_DECEL,
+    VX,
+    VY,
+    X,
+    Y,
+)
 
 __all__ = ["ca_step", "flight", "slide", "spin_down"]
 

@@ -82,7 +82,7 @@ from typing import Any
 import numpy as np
 import pymunk
 
-from physics.layout import (
+from spinstrike.physics.layout import (
     ANGLE,
     FRICTION,
     FRICTION_DECEL,
@@ -97,7 +97,7 @@ from physics.layout import (
     X,
     Y,
 )
-from physics.scene import SceneError
+from spinstrike.physics.scene import SceneError
 
 __all__ = ["COLLISION_SLOP", "SUPPORTED_EFFECTS", "WALL_DEPTH", "PymunkBackend"]
 

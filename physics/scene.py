@@ -27,8 +27,8 @@ from typing import Annotated, Any, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from physics.effects import EFFECTS
-from physics.shapes import capsule_inertia, disk_inertia
+from spinstrike.physics.effects import EFFECTS
+from spinstrike.physics.shapes import capsule_inertia, disk_inertia
 
 __all__ = [
     "Body",

@@ -31,10 +31,10 @@ from collections import namedtuple
 import numba
 import numpy as np
 
-from physics.events import far_apart, pair_bodies, pair_geometry, time_of_impact
-from physics.impulse import apply_impulse, resolve
-from physics.jam import JAM_COLUMNS, MAX_JAM_PAIRS, jam_impulses
-from physics.layout import (
+from spinstrike.physics.events import far_apart, pair_bodies, pair_geometry, time_of_impact
+from spinstrike.physics.impulse import apply_impulse, resolve
+from spinstrike.physics.jam import JAM_COLUMNS, MAX_JAM_PAIRS, jam_impulses
+from spinstrike.physics.layout import (
     ANGLE,
     CF_DT,
     CF_SETTLE,
@@ -86,7 +86,7 @@ from physics.layout import (
     X,
     Y,
 )
-from physics.motion import flight
+from spinstrike.physics.motion import flight
 
 __all__ = [
     "MAX_SWEEPS",

@@ -20,8 +20,8 @@ from typing import Any
 import numba
 import numpy as np
 
-from physics.events import pair_bodies, pair_geometry
-from physics.layout import (
+from spinstrike.physics.events import pair_bodies, pair_geometry
+from spinstrike.physics.layout import (
     ANGLE,
     CF_DT,
     CF_SETTLE,
@@ -72,7 +72,7 @@ from physics.layout import (
     Y,
     field_shapes,
 )
-from physics.scene import (
+from spinstrike.physics.scene import (
     WALL_NAMES,
     ExactSolver,
     FixedSolver,
@@ -83,8 +83,8 @@ from physics.scene import (
     load_scene,
     validate_solver,
 )
-from physics.shapes import radius_of_gyration
-from physics.solvers import (
+from spinstrike.physics.shapes import radius_of_gyration
+from spinstrike.physics.solvers import (
     exact_batch_parallel,
     exact_batch_serial,
     fixed_batch_parallel,
@@ -235,7 +235,7 @@ class World:
         self._check_overlap(slice(None))
         self._backend = None
         if isinstance(self.solver, PymunkSolver):
-            from physics.pymunk_backend import PymunkBackend
+            from spinstrike.physics.pymunk_backend import PymunkBackend
 
             self._backend = PymunkBackend(self)
         self._last_stats = np.zeros_like(self._stats)
@@ -400,7 +400,7 @@ class World:
         self._make_buffer_views()
         self._make_views()
         if isinstance(self.solver, PymunkSolver):
-            from physics.pymunk_backend import PymunkBackend
+            from spinstrike.physics.pymunk_backend import PymunkBackend
 
             self._backend = PymunkBackend(self)
 

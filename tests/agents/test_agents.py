@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 import yaml
 
-import envs
-from agents.cli import main
-from agents.config import ALGOS, AgentConfigError, load_agent_config
-from agents.evaluate import evaluate, load_model_policy
-from agents.train import train
+from spinstrike import envs
+from spinstrike.agents.cli import main
+from spinstrike.agents.config import ALGOS, AgentConfigError, load_agent_config
+from spinstrike.agents.evaluate import evaluate, load_model_policy
+from spinstrike.agents.train import train
 
 
 @pytest.mark.parametrize("algo", ALGOS)
@@ -130,13 +130,13 @@ def test_packaged_configs_cover_every_env_and_algorithm():
 
 
 def test_rl_zoo3_trains_from_our_config(tmp_path):
-    from pathlib import Path
 
-    import agents
+    from spinstrike.agents.config import packaged_config_path
 
-    conf = Path(agents.__file__).resolve().parent.parent / "configs" / "agents" / "ppo.yml"
+    conf = packaged_config_path("ppo")
     cmd = [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env",
-           "SpinStrike/RodSpin-v0", "--gym-packages", "envs", "-conf", str(conf), "-n", "1024",
+           "SpinStrike/RodSpin-v0", "--gym-packages", "spinstrike", "-conf", str(conf),
+           "-n", "1024",
            "-f", str(tmp_path), "--eval-freq", "-1", "--seed", "0"]
     subprocess.run(cmd, check=True, capture_output=True, text=True, cwd=tmp_path, timeout=600)
     assert list(tmp_path.rglob("SpinStrike-RodSpin-v0.zip"))

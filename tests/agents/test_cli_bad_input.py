@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from agents.cli import main
-from agents.config import AgentConfigError, load_agent_config
+from spinstrike.agents.cli import main
+from spinstrike.agents.config import AgentConfigError, load_agent_config
 
 ENV = "SpinStrike/RodSpin-v0"
 

@@ -2,7 +2,7 @@
 
 import pytest
 
-from agents.train import train
+from spinstrike.agents.train import train
 
 pytestmark = pytest.mark.slow
 

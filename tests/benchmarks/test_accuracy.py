@@ -9,10 +9,10 @@ from itertools import pairwise
 import numpy as np
 import pytest
 
-import physics
-from benchmarks import accuracy
-from benchmarks.accuracy import Setting, errors
-from benchmarks.cases import CASES, _Motion, _MpMath, _pair_gap, all_cases, get_case
+from spinstrike import physics
+from spinstrike.benchmarks import accuracy
+from spinstrike.benchmarks.accuracy import Setting, errors
+from spinstrike.benchmarks.cases import CASES, _Motion, _MpMath, _pair_gap, all_cases, get_case
 
 ALL = [(c.name, v) for c in all_cases() for v in c.variants]
 IDS = [f"{name}:{v.name}" for name, v in ALL]
@@ -43,7 +43,7 @@ def test_disk_disk_contact_time_matches_its_closed_form():
 
 @pytest.mark.parametrize("name, v", ALL, ids=IDS)
 def test_reference_touches_at_its_contact_time_and_keeps_energy(name, v):
-    from benchmarks.cases import Body
+    from spinstrike.benchmarks.cases import Body
 
     bodies = []
     for b in v.scene["bodies"]:
@@ -255,7 +255,8 @@ def test_main_quick_writes_markdown_and_plot(tmp_path):
                           "--no-effects", "--min-time", "0", "--batch", "1"]) == 0
     text = (tmp_path / "accuracy.md").read_text()
     assert "## Acceptance" in text and "exact" in text and "pymunk" in text
-    assert "python -m benchmarks.accuracy" in text and "cores" in text and "pymunk 7" in text
+    assert "python -m spinstrike.benchmarks.accuracy" in text
+    assert "cores" in text and "pymunk 7" in text
     assert (tmp_path / "accuracy.png").stat().st_size > 10_000
 
 

@@ -13,9 +13,9 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
-import envs
-import envs.strike
-from envs import ConfigError
+import spinstrike.envs.strike  # noqa: F401  (envs.strike below)
+from spinstrike import envs
+from spinstrike.envs import ConfigError
 
 ENV_IDS = list(envs.ENV_IDS)
 STRIKE_IDS = ["SpinStrike/RodSpin-v0", "SpinStrike/PuckSpeed-v0"]

@@ -8,8 +8,8 @@ from stable_baselines3 import PPO, SAC
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import SubprocVecEnv
 
-import envs  # noqa: F401
-from envs.sb3 import make_sb3_vec_env
+from spinstrike import envs  # noqa: F401
+from spinstrike.envs.sb3 import make_sb3_vec_env
 
 
 @pytest.mark.parametrize("env_id", ["SpinStrike/RodSpin-v0", "SpinStrike/PuckSpeedControl-v0"])
@@ -51,8 +51,9 @@ def test_adapter_seeding_is_deterministic():
 
 
 def test_sac_trains_through_subprocvecenv():
-    # worker processes import the package through the "envs:" prefix of the id
-    vec = make_vec_env("envs:SpinStrike/RodSpin-v0", n_envs=2, seed=0, vec_env_cls=SubprocVecEnv)
+    # worker processes import the package through the "spinstrike:" prefix of the id
+    vec = make_vec_env("spinstrike:SpinStrike/RodSpin-v0", n_envs=2, seed=0,
+                       vec_env_cls=SubprocVecEnv)
     model = SAC("MlpPolicy", vec, learning_starts=8, batch_size=8, train_freq=4, seed=0,
                 device="cpu")
     model.learn(24)

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-import physics
-from envs.config import load_packaged_scene
+from spinstrike import physics
+from spinstrike.envs.config import load_packaged_scene
 
 PATH = Path(__file__).parent / "data" / "golden.npz"
 STEPS = 120

@@ -4,8 +4,8 @@ stepped alone, bit for bit (serial and parallel kernels alike)."""
 import numpy as np
 import pytest
 
-import physics
-from physics.world import PARALLEL_BATCH
+from spinstrike import physics
+from spinstrike.physics.world import PARALLEL_BATCH
 
 SCENE = {
     "table": {"size": [1.2, 0.8], "friction": 0.05},

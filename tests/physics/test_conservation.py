@@ -12,7 +12,7 @@ import numpy as np
 from hypothesis import example, given
 from hypothesis import strategies as st
 
-import physics
+from spinstrike import physics
 
 body = st.fixed_dictionaries({
     "shape": st.sampled_from(["disk", "rod"]),

@@ -16,7 +16,7 @@ import textwrap
 import numpy as np
 import pytest
 
-import physics
+from spinstrike import physics
 
 SCENE = {
     "table": {"size": [1.6, 1.0]},
@@ -71,7 +71,8 @@ def test_effects_change_results_when_on():
 
 TRACE = textwrap.dedent("""
     import json, sys
-    import physics, physics.contacts, physics.impulse, physics.motion
+    import spinstrike.physics.contacts, spinstrike.physics.impulse, spinstrike.physics.motion
+    from spinstrike import physics
     watched = {"contact_friction": physics.impulse._friction.__code__,
                "table_friction": physics.motion.slide.__code__,
                "table_friction_spin": physics.motion.spin_down.__code__,

@@ -9,8 +9,8 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from physics.impulse import apply_impulse, relative_velocity, resolve
-from physics.layout import INV_INERTIA, INV_MASS, OMEGA, PARAM_COLUMNS, VX, VY
+from spinstrike.physics.impulse import apply_impulse, relative_velocity, resolve
+from spinstrike.physics.layout import INV_INERTIA, INV_MASS, OMEGA, PARAM_COLUMNS, VX, VY
 
 finite = st.floats(-10.0, 10.0, allow_nan=False)
 log_mass = st.floats(-4.5, 4.5)  # masses 10^-4.5..10^4.5: ratios up to 1e9

@@ -7,10 +7,10 @@ import pickle
 import numpy as np
 import pytest
 
-import physics
-import physics.pymunk_backend as backend
-from physics import SceneError
-from physics.analytic import rod_strike
+import spinstrike.physics.pymunk_backend as backend
+from spinstrike import physics
+from spinstrike.physics import SceneError
+from spinstrike.physics.analytic import rod_strike
 from tests.physics.scenes import seed_strike
 
 PYMUNK = {"mode": "pymunk", "substeps": 100, "iterations": 10}

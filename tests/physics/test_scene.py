@@ -5,8 +5,8 @@ import math
 
 import pytest
 
-import physics
-from physics import SceneError, load_scene
+from spinstrike import physics
+from spinstrike.physics import SceneError, load_scene
 
 BASE = {
     "table": {"size": [1.2, 0.8]},

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-import physics
-from physics.analytic import rod_strike, rod_strike_light_rod, rod_wall
+from spinstrike import physics
+from spinstrike.physics.analytic import rod_strike, rod_strike_light_rod, rod_wall
 from tests.physics.scenes import seed_strike
 
 THETAS = [0.0, 30.0, 60.0, 85.0]

@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-import physics
+from spinstrike import physics
 
 R, THICK, RAD = 0.2, 0.004, 0.02
 M_ROD, M_DISK, OMEGA0, V_ROD = 0.3, 0.1, 7.0, (0.4, -0.1)

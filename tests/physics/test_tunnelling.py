@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-import physics
+from spinstrike import physics
 
 
 def _scene(speed):

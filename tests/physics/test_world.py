@@ -6,8 +6,8 @@ import pickle
 import numpy as np
 import pytest
 
-import physics
-from physics import SceneError
+from spinstrike import physics
+from spinstrike.physics import SceneError
 
 TABLE = {
     "table": {"size": [1.2, 0.8], "friction": 0.2},

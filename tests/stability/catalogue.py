@@ -20,9 +20,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-import physics
-from physics import SceneError
-from physics.analytic import rod_strike_light_rod, rod_wall
+from spinstrike import physics
+from spinstrike.physics import SceneError
+from spinstrike.physics.analytic import rod_strike_light_rod, rod_wall
 
 __all__ = ["CASES", "SOLVERS", "Case", "Claim", "Measurement", "by_name"]
 

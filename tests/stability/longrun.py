@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 
-import physics
+from spinstrike import physics
 
 __all__ = ["SCENE", "run"]
 

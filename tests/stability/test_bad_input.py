@@ -9,10 +9,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import envs
-import physics
-from envs import ConfigError
-from physics import SceneError
+from spinstrike import envs, physics
+from spinstrike.envs import ConfigError
+from spinstrike.physics import SceneError
 
 DISK = {"name": "p", "shape": "disk", "radius": 0.05, "mass": 0.1}
 

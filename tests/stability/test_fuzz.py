@@ -21,10 +21,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import envs
-import physics
-from envs import ConfigError
-from physics import SceneError
+from spinstrike import envs, physics
+from spinstrike.envs import ConfigError
+from spinstrike.physics import SceneError
 
 SMALL = settings(max_examples=40, deadline=None, suppress_health_check=list(HealthCheck))
 ENV_SMALL = settings(max_examples=12, deadline=None, suppress_health_check=list(HealthCheck))
