@@ -392,7 +392,7 @@ def raw_pymunk_step(steps: int = 5000) -> float:
     v = get_case("disk_disk").variants[0]
     world = physics.World(v.scene, solver={"mode": "pymunk", "substeps": 10})
     world.step(v.duration)  # past the impact
-    space = world._backend._elements[0].space
+    space = world.backend.space(0)
     h = v.t_contact / 100
     best = math.inf
     for _ in range(5):

@@ -16,7 +16,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from spinstrike.physics import EFFECTS, SceneError, load_scene
-from spinstrike.physics.scene import Scene
+from spinstrike.physics.scene import Integer, Number, Scene
 
 __all__ = [
     "ConfigError",
@@ -33,7 +33,8 @@ class ConfigError(ValueError):
     """An invalid env argument. The message names the argument and what is allowed."""
 
 
-Range = tuple[float, float]
+#: a (low, high) pair of numbers (strings and booleans are refused)
+Range = tuple[Number, Number]
 
 
 class EnvConfig(BaseModel):
@@ -58,12 +59,12 @@ class EnvConfig(BaseModel):
     scene: str | dict | None = None
     solver: dict | str | None = None
     effects: tuple[str, ...] | None = None
-    restitution: float | None = Field(None, ge=0.0, le=1.0)
-    friction: float | None = Field(None, ge=0.0)
-    table_friction: float | None = Field(None, ge=0.0)
+    restitution: Number | None = Field(None, ge=0.0, le=1.0)
+    friction: Number | None = Field(None, ge=0.0)
+    table_friction: Number | None = Field(None, ge=0.0)
     randomize: dict[str, Range] = Field(default_factory=dict)
     obs_mode: Literal["vector", "dict", "pixels"] = "vector"
-    render_size: tuple[int, int] = (480, 320)
+    render_size: tuple[Integer, Integer] = (480, 320)
 
     #: parameters ``randomize`` may name (set by subclasses)
     RANDOMIZABLE: ClassVar[tuple[str, ...]] = ()
@@ -113,10 +114,10 @@ class _StrikeConfig(EnvConfig):
     """
 
     speed_range: Range = (0.5, 4.0)
-    approach_max: float = Field(75.0, gt=0.0, lt=90.0)
-    time_cap: float = Field(2.0, gt=0.0, le=60.0)
-    striker_mass: float | None = Field(None, gt=0.0)
-    target_mass: float | None = Field(None, gt=0.0)
+    approach_max: Number = Field(75.0, gt=0.0, lt=90.0)
+    time_cap: Number = Field(2.0, gt=0.0, le=60.0)
+    striker_mass: Number | None = Field(None, gt=0.0)
+    target_mass: Number | None = Field(None, gt=0.0)
 
     _speed_range = field_validator("speed_range")(lambda v: _positive_range(v, "m/s"))
 
@@ -136,10 +137,10 @@ class RodSpinConfig(_StrikeConfig):
                                                "rod_length")
     goal: Literal["target", "max"] = "target"
     target_spin: Range = (2.0, 20.0)
-    reward_width: float = Field(0.1, gt=0.0)
-    rod_length: float | None = Field(None, gt=0.0)
-    rod_thickness: float | None = Field(None, ge=0.0)
-    rod_inertia: Literal["capsule", "thin_rod"] | float = "capsule"
+    reward_width: Number = Field(0.1, gt=0.0)
+    rod_length: Number | None = Field(None, gt=0.0)
+    rod_thickness: Number | None = Field(None, ge=0.0)
+    rod_inertia: Literal["capsule", "thin_rod"] | Number = "capsule"
 
     _target_spin = field_validator("target_spin")(lambda v: _positive_range(v, "rad/s"))
 
@@ -155,7 +156,7 @@ class PuckSpeedConfig(_StrikeConfig):
     RANDOMIZABLE: ClassVar[tuple[str, ...]] = ("striker_mass", "target_mass", "restitution",
                                                "friction")
     target_speed: Range = (0.75, 3.0)
-    reward_width: float = Field(0.1, gt=0.0)
+    reward_width: Number = Field(0.1, gt=0.0)
 
     _target_speed = field_validator("target_speed")(lambda v: _positive_range(v, "m/s"))
 
@@ -173,11 +174,11 @@ class ControlConfig(EnvConfig):
 
     RANDOMIZABLE: ClassVar[tuple[str, ...]] = ("mallet_mass", "target_mass", "restitution",
                                                "table_friction")
-    dt: float = Field(0.02, gt=0.0, le=1.0)
-    max_force: float = Field(8.0, gt=0.0)
-    max_speed: float = Field(3.0, gt=0.0)
-    mallet_mass: float | None = Field(None, gt=0.0)
-    target_mass: float | None = Field(None, gt=0.0)
+    dt: Number = Field(0.02, gt=0.0, le=1.0)
+    max_force: Number = Field(8.0, gt=0.0)
+    max_speed: Number = Field(3.0, gt=0.0)
+    mallet_mass: Number | None = Field(None, gt=0.0)
+    target_mass: Number | None = Field(None, gt=0.0)
 
 
 def _positive_range(v: Range, unit: str) -> Range:

@@ -16,25 +16,21 @@ import numpy as np
 from spinstrike.envs import fast
 from spinstrike.envs.config import ControlConfig, build_scene
 from spinstrike.envs.core import (
-    ObsField,
     SpinStrikeEnv,
     SpinStrikeVectorEnv,
     Task,
     action_error,
-    layout_table,
+    check_actions,
 )
-from spinstrike.envs.fast import limit_force
+from spinstrike.envs.fast import CONTROL_STEP, limit_force
+from spinstrike.envs.layout import SPEED_SCALE, SPIN_SCALE, control_layout, layout_table
 from spinstrike.envs.rendering import BodyDraw, Frame
 from spinstrike.physics import World
-from spinstrike.physics.layout import CF_DT
-from spinstrike.physics.world import PARALLEL_BATCH
+from spinstrike.physics.layout import FORCE
 
 __all__ = ["PuckSpeedControlEnv", "PuckSpeedControlVectorEnv", "RodSpinControlEnv",
            "RodSpinControlVectorEnv", "limit_force"]
 
-#: spin (rad/s) and speed (m/s) that count as 1 in observations and rewards
-SPIN_SCALE = 20.0
-SPEED_SCALE = 3.0
 #: distance (m) kept between the bodies and from the cushions when placing them at reset
 CLEARANCE = 0.02
 
@@ -49,8 +45,8 @@ class _ControlTask(Task):
     OBS_CLIPPED = True
     UNIFORMS = len(ControlConfig.RANDOMIZABLE) + 5
 
-    def __init__(self, cfg, batch_size: int) -> None:
-        super().__init__(cfg, batch_size)
+    def __init__(self, cfg, batch_size: int, single: bool = False) -> None:
+        super().__init__(cfg, batch_size, single)
         self.render_fps = int(round(1.0 / cfg.dt))
         overrides = {"mallet": {"mass": cfg.mallet_mass}, self.TARGET: {"mass": cfg.target_mass}}
         self.world = World(build_scene(self.SCENE, cfg, overrides), batch_size)
@@ -67,61 +63,58 @@ class _ControlTask(Task):
             cfg.max_force, cfg.max_speed, self.SCALE, self.MEASURE)
         k[[fast.K_MALLET, fast.K_TARGET, fast.K_SPEED_SCALE, fast.K_SPIN_SCALE]] = (
             self.im, self.it, SPEED_SCALE, SPIN_SCALE)
-        k[fast.K_FIXED] = w.solver.mode == "fixed"
         k[fast.K_LOW:fast.K_LOW + fast.OBS_SIZE] = self.obs_low
-        k[fast.K_LOW + fast.OBS_SIZE:] = self.obs_high
+        k[fast.K_HIGH:fast.K_HIGH + fast.OBS_SIZE] = self.obs_high
         self.kcfg = k
-        w._fcfg[CF_DT] = cfg.dt
-        self._actions = self.tbuf[:, fast.T_ACTION:fast.T_ACTION + 2]
+        self._actions = self.tbuf[:, fast.T_ACTION:fast.T_ACTION + len(self.ACTIONS)]
         self._never = np.zeros(batch_size, dtype=bool)
         self._never.flags.writeable = False
 
-    def _set_random(self, key, value, env) -> None:
-        w = self.world
+    def _set_random(self, edit, key, value) -> None:
         if key == "mallet_mass":
-            w.set_body("mallet", mass=value, env=env)
+            edit.set_body("mallet", mass=value)
         elif key == "target_mass":
-            w.set_body(self.TARGET, mass=value, env=env)
+            edit.set_body(self.TARGET, mass=value)
         elif key == "restitution":
-            w.set_material(self.TARGET, "mallet", restitution=value, env=env)
+            edit.set_material(self.TARGET, "mallet", restitution=value)
         elif key == "table_friction":
-            w.set_table(friction=value, env=env)
+            edit.set_table(friction=value)
 
     def reset(self, env, uniforms) -> dict[str, np.ndarray]:
         n_rand = len(self.CONFIG.RANDOMIZABLE)
-        self._apply_random(env, uniforms[:, :n_rand])
         u = uniforms[:, n_rand:]
         w = self.world
-        hw = w.table_half_size[env]
-        reach_t = w.half_length[env, self.it] + w.radius[env, self.it] + CLEARANCE
-        rm = w.radius[env, self.im] + CLEARANCE
-        # target in the right half, mallet in the left half: they never overlap at reset
-        angle = 2 * math.pi * u[:, 0] - math.pi
-        tx = reach_t + u[:, 1] * np.maximum(hw[:, 0] - 2 * reach_t, 0.0)
-        ty = (2 * u[:, 2] - 1) * np.maximum(hw[:, 1] - reach_t, 0.0)
-        mx = -rm - u[:, 3] * np.maximum(hw[:, 0] - 2 * rm, 0.0)
-        my = (2 * u[:, 4] - 1) * np.maximum(hw[:, 1] - rm, 0.0)
         n = len(env)
-        pos = np.zeros((n, w.n_bodies, 2))
-        pos[:, self.it] = np.stack([tx, ty], 1)
-        pos[:, self.im] = np.stack([mx, my], 1)
-        angles = np.zeros((n, w.n_bodies))
-        angles[:, self.it] = angle
-        # apart by construction: target in the right half, mallet in the left
-        w._place(env, pos, angles, np.zeros_like(pos), np.zeros_like(angles))
-        w.set_force("mallet", np.zeros((n, 2)), env=env)
-        w.time[env] = 0.0
+        with w.edit(env) as e:
+            self._apply_random(e, uniforms[:, :n_rand])
+            hw = e.table_half_size
+            reach_t = e.half_length[:, self.it] + e.radius[:, self.it] + CLEARANCE
+            rm = e.radius[:, self.im] + CLEARANCE
+            # target in the right half, mallet in the left half: they never overlap at reset
+            angle = 2 * math.pi * u[:, 0] - math.pi
+            tx = reach_t + u[:, 1] * np.maximum(hw[:, 0] - 2 * reach_t, 0.0)
+            ty = (2 * u[:, 2] - 1) * np.maximum(hw[:, 1] - reach_t, 0.0)
+            mx = -rm - u[:, 3] * np.maximum(hw[:, 0] - 2 * rm, 0.0)
+            my = (2 * u[:, 4] - 1) * np.maximum(hw[:, 1] - rm, 0.0)
+            pos = np.zeros((n, w.n_bodies, 2))
+            pos[:, self.it] = np.stack([tx, ty], 1)
+            pos[:, self.im] = np.stack([mx, my], 1)
+            angles = np.zeros((n, w.n_bodies))
+            angles[:, self.it] = angle
+            e.set_state(positions=pos, angles=angles, velocities=0.0, omegas=0.0)
+            e.set_force("mallet", 0.0)
+            e.set_time(0.0)
+        buf = w.buffers
+        fast.control_observe(buf.fbuf, buf.ibuf, self.tbuf, self.kcfg,
+                             np.asarray(env, dtype=np.int64))
         return {}
 
     def step(self, actions, batch_info: bool = True):
-        try:
-            self._actions[...] = actions  # converts and broadcasts a (2,) action to (1, 2)
-        except (ValueError, TypeError):
-            raise ValueError(f"action: expected shape ({self.batch_size}, 2) or (2,), got "
-                             f"{np.shape(actions)}") from None
-        self.world._fcfg[CF_DT] = self.cfg.dt
-        if not fast.control_step(self.world, self.tbuf, self.kcfg,
-                                 self.batch_size >= PARALLEL_BATCH):
+        a = np.asarray(actions)
+        if a.shape != self.action_shape or a.dtype.kind not in "iuf":
+            check_actions(a, self.action_shape)  # raises the error that names the problem
+        self._actions[...] = a  # checked for NaN and clipped by the compiled step
+        if not self.world.run(CONTROL_STEP, self.tbuf, self.kcfg, dt=self.cfg.dt):
             raise ValueError(action_error(actions))
         t = self.tbuf
         reward = t[:, fast.T_REWARD].copy()
@@ -129,7 +122,7 @@ class _ControlTask(Task):
             return reward, self._never, None
         info = {"hits": t[:, fast.T_HITS].astype(np.int64),
                 "hit_impulse": t[:, fast.T_IMPULSE].copy(),
-                "force": t[:, fast.T_FORCE:fast.T_FORCE + 2].copy(),
+                "force": t[:, fast.T_FORCE:fast.T_FORCE + len(FORCE)].copy(),
                 "spin": t[:, fast.T_SPIN].copy(), "speed": t[:, fast.T_SPEED].copy(),
                 "mallet_speed": t[:, fast.T_MALLET_SPEED].copy(),
                 "reward_hit": t[:, fast.T_REWARD].copy(),
@@ -140,7 +133,7 @@ class _ControlTask(Task):
         """The step's info of element ``b`` as plain Python values (single env)."""
         r = self.tbuf[b].tolist()
         return {"hits": int(r[fast.T_HITS]), "hit_impulse": r[fast.T_IMPULSE],
-                "force": self.tbuf[b, fast.T_FORCE:fast.T_FORCE + 2].copy(),
+                "force": self.tbuf[b, fast.T_FORCE:fast.T_FORCE + len(FORCE)].copy(),
                 "spin": r[fast.T_SPIN], "speed": r[fast.T_SPEED],
                 "mallet_speed": r[fast.T_MALLET_SPEED], "reward_hit": r[fast.T_REWARD],
                 "fallback": r[fast.T_FALLBACK] != 0}
@@ -161,7 +154,7 @@ class _ControlTask(Task):
                            w.radius[b, i], w.half_length[b, i], w.state.omegas[b, i])
                   for i in range(w.n_bodies)]
         contacts = []
-        c = self.world._collect() if decorate else None
+        c = self.world.last_contacts if decorate else None
         if c is not None and len(c):
             for i in np.flatnonzero(c.batch == b):
                 contacts.append((*c.point[i], *c.normal[i], c.impulse[i]))
@@ -176,34 +169,12 @@ class _ControlTask(Task):
         return float(hw[0]) + 0.03, float(hw[1]) + 0.03
 
 
-_COMMON_LAYOUT = (
-    ObsField("mallet_x", -1.0, 1.0, "mallet x / table half width"),
-    ObsField("mallet_y", -1.0, 1.0, "mallet y / table half height"),
-    ObsField("mallet_vx", -5.0, 5.0, "mallet vx / max_speed"),
-    ObsField("mallet_vy", -5.0, 5.0, "mallet vy / max_speed"),
-)
-
-
-def _target_layout(name: str) -> tuple[ObsField, ...]:
-    """The target's seven observation fields (pose, velocity, spin), in ``fast._observe``'s
-    order."""
-    return (
-        ObsField(f"{name}_x", -1.0, 1.0, f"{name} x / table half width"),
-        ObsField(f"{name}_y", -1.0, 1.0, f"{name} y / table half height"),
-        ObsField(f"{name}_cos", -1.0, 1.0, f"cos({name} angle)"),
-        ObsField(f"{name}_sin", -1.0, 1.0, f"sin({name} angle)"),
-        ObsField(f"{name}_vx", -10.0, 10.0, f"{name} vx / {SPEED_SCALE} m/s"),
-        ObsField(f"{name}_vy", -10.0, 10.0, f"{name} vy / {SPEED_SCALE} m/s"),
-        ObsField(f"{name}_spin", -10.0, 10.0, f"{name} spin / {SPIN_SCALE} rad/s (CCW > 0)"),
-    )
-
-
 class RodSpinControlTask(_ControlTask):
     TARGET = "rod"
     SCENE = "rod_control"
     SCALE = SPIN_SCALE
     MEASURE = fast.MEASURE_SPIN
-    LAYOUT = _COMMON_LAYOUT + _target_layout("rod")
+    LAYOUT = control_layout("rod")
 
 
 
@@ -212,7 +183,7 @@ class PuckSpeedControlTask(_ControlTask):
     SCENE = "puck_control"
     SCALE = SPEED_SCALE
     MEASURE = fast.MEASURE_SPEED
-    LAYOUT = _COMMON_LAYOUT + _target_layout("puck")
+    LAYOUT = control_layout("puck")
 
 
 
@@ -248,7 +219,7 @@ _CONTROL_DOC = """{summary}
     registration; the native vector env truncates by itself).
 
     ## Arguments
-    See :class:`envs.config.ControlConfig`: ``dt``, ``max_force``, ``max_speed``,
+    See :class:`spinstrike.envs.config.ControlConfig`: ``dt``, ``max_force``, ``max_speed``,
     ``mallet_mass``, ``target_mass``, restitution, friction, effects, solver, randomisation
     ranges, obs_mode, and ``render_mode``; or one ``config`` dict.
 

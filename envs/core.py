@@ -15,7 +15,6 @@ outside the box are clipped to it (as Gymnasium's ``ClipAction`` would), silentl
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -25,30 +24,12 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from spinstrike.envs.config import EnvConfig, parse_config
+from spinstrike.envs.layout import ObsField
 from spinstrike.envs.rendering import Frame, Renderer
 from spinstrike.envs.rng import UniformStream
+from spinstrike.physics import WorldEdit
 
-__all__ = ["ObsField", "SpinStrikeEnv", "SpinStrikeVectorEnv", "Task", "action_error",
-           "check_actions",
-           "layout_table"]
-
-
-@dataclass(frozen=True)
-class ObsField:
-    """One entry of a flat observation: its name, bounds and meaning (with units)."""
-
-    name: str
-    low: float
-    high: float
-    doc: str
-
-
-def layout_table(layout: tuple[ObsField, ...]) -> str:
-    """The observation layout as a docstring table (so the docs cannot drift from the code)."""
-    rows = ["    | index | name | low | high | meaning |", "    |---|---|---|---|---|"]
-    for i, f in enumerate(layout):
-        rows.append(f"    | {i} | {f.name} | {f.low:g} | {f.high:g} | {f.doc} |")
-    return "\n".join(rows)
+__all__ = ["SpinStrikeEnv", "SpinStrikeVectorEnv", "Task", "action_error", "check_actions"]
 
 
 def action_error(actions: Any) -> str:
@@ -57,16 +38,16 @@ def action_error(actions: Any) -> str:
             "finite values outside the box are clipped")
 
 
-def check_actions(actions: Any, shape: tuple[int, int]) -> np.ndarray:
-    """Validate a batch of actions ``[B, A]``: NaN/inf raise, out-of-range values are clipped
-    to [-1, 1] (as Gymnasium's ``ClipAction`` would)."""
-    a = np.asarray(actions, dtype=np.float64)
+def check_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """Validate actions of exactly ``shape`` (``(A,)`` for a single env, ``(B, A)`` for a batch):
+    numbers only (no strings, booleans or objects), no NaN/inf; finite values outside [-1, 1]
+    are clipped (as Gymnasium's ``ClipAction`` would). Returns float64 actions."""
+    a = np.asarray(actions)
+    if a.dtype.kind not in "iuf":
+        raise ValueError(f"action: must be numbers (got dtype {a.dtype}: {actions!r})")
     if a.shape != shape:
-        try:
-            a = a.reshape(shape)
-        except ValueError:
-            raise ValueError(f"action: expected shape {shape[1:]} per env, got "
-                             f"{a.shape}") from None
+        raise ValueError(f"action: expected shape {shape}, got {a.shape}")
+    a = a.astype(np.float64)
     if not np.all(np.isfinite(a)):
         raise ValueError(action_error(a))
     return np.clip(a, -1.0, 1.0)
@@ -91,9 +72,12 @@ class Task(ABC):
     #: ``observe`` returns values already clipped to the layout's bounds
     OBS_CLIPPED: ClassVar[bool] = False
 
-    def __init__(self, cfg: EnvConfig, batch_size: int) -> None:
+    def __init__(self, cfg: EnvConfig, batch_size: int, single: bool = False) -> None:
         self.cfg = cfg
         self.batch_size = batch_size
+        #: the exact shape ``step`` accepts: ``(A,)`` behind a single env, else ``(B, A)``
+        self.action_shape = ((len(self.ACTIONS),) if single
+                             else (batch_size, len(self.ACTIONS)))
         self.obs_low = np.array([f.low for f in self.LAYOUT], dtype=np.float32)
         self.obs_high = np.array([f.high for f in self.LAYOUT], dtype=np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (len(self.ACTIONS),), dtype=np.float32)
@@ -107,8 +91,8 @@ class Task(ABC):
     @abstractmethod
     def step(self, actions: Any, batch_info: bool = True
              ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray] | None]:
-        """Advance every element with raw actions ``[B, A]`` (validated here: see
-        :func:`check_actions`); returns (reward[B], terminated[B], info arrays [B, ...]).
+        """Advance every element with raw actions of exactly ``action_shape`` (validated here:
+        see :func:`check_actions`); returns (reward[B], terminated[B], info arrays [B, ...]).
 
         ``batch_info=False`` lets a task skip the batched info when only :meth:`info_row` will
         be read (a single env)."""
@@ -121,6 +105,15 @@ class Task(ABC):
     def observe(self) -> np.ndarray:
         """Flat observations ``[B, len(LAYOUT)]`` (clipped to the bounds only if
         ``OBS_CLIPPED``)."""
+
+    def by_layout(self, **columns: np.ndarray) -> np.ndarray:
+        """Flat observations ``[B, len(LAYOUT)]`` from arrays named by the layout's fields, put
+        in the layout's order (so the order is declared once, in ``LAYOUT``)."""
+        names = [f.name for f in self.LAYOUT]
+        if set(columns) != set(names):
+            raise KeyError(f"{type(self).__name__}.observe: columns {sorted(columns)} do not "
+                           f"match the layout {names}")
+        return np.stack([columns[n] for n in names], axis=1)
 
     def achieved(self) -> np.ndarray:
         """Achieved goals ``[B, len(ACHIEVED)]`` (goal-conditioned tasks override this)."""
@@ -141,14 +134,14 @@ class Task(ABC):
         """Half extents (m) of the area a frame shows, centred on the origin."""
 
     @abstractmethod
-    def _set_random(self, key: str, value: np.ndarray, env: np.ndarray) -> None:
+    def _set_random(self, edit: WorldEdit, key: str, value: np.ndarray) -> None:
         """Apply a drawn value of the randomised parameter ``key`` (one of the config's
-        ``RANDOMIZABLE``) to elements ``env``."""
+        ``RANDOMIZABLE``) to the elements of ``edit``."""
 
-    def _apply_random(self, env: np.ndarray, u: np.ndarray) -> None:
-        """Draw the configured ``randomize`` ranges for elements ``env`` from uniforms ``u``
-        (one column per ``RANDOMIZABLE`` parameter, used or not, so the draws do not depend on
-        which are configured): masses log-uniformly, the rest uniformly."""
+    def _apply_random(self, edit: WorldEdit, u: np.ndarray) -> None:
+        """Draw the configured ``randomize`` ranges for the elements of ``edit`` from uniforms
+        ``u`` (one column per ``RANDOMIZABLE`` parameter, used or not, so the draws do not depend
+        on which are configured): masses log-uniformly, the rest uniformly."""
         for k, key in enumerate(self.CONFIG.RANDOMIZABLE):
             if key not in self.cfg.randomize:
                 continue
@@ -158,7 +151,7 @@ class Task(ABC):
                 value = np.exp(np.log(lo) + x * (np.log(hi) - np.log(lo)))
             else:
                 value = lo + x * (hi - lo)
-            self._set_random(key, value, env)
+            self._set_random(edit, key, value)
 
     # --- shared ---------------------------------------------------------------------------
     def observation_space(self) -> spaces.Space:
@@ -245,7 +238,7 @@ class SpinStrikeEnv(gym.Env):
         self.render_mode = render_mode
         self._config = dict(config or {}) | kwargs
         self.cfg = parse_config(self.TASK.CONFIG, config, kwargs)
-        self.task = self.TASK(self.cfg, 1)
+        self.task = self.TASK(self.cfg, 1, single=True)
         self.action_space = self.task.action_space
         self.observation_space = self.task.observation_space()
         self._stream = UniformStream(1, self.TASK.UNIFORMS)

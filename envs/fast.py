@@ -1,16 +1,16 @@
-"""The envs' hot loops as compiled calls over the whole batch: the control envs' step, and the
-one-strike envs' strike (see the section further down).
+"""The envs' hot loops as compiled batch kernels: the control envs' step, and the one-strike envs'
+strike (see the section further down).
 
 Per element: validate and clip the action, turn it into the mallet's force under the speed limit
-(``limit_force``), measure the target, run the same solver kernel ``world.step`` runs
-(``physics.solvers.exact_element`` / ``fixed_element``), count the mallet's hits on the target
-from the contact records, reward, and write the observation. Nothing here changes the physics:
-it is the world's own element kernel, called from the env's kernel instead of from
-``world.step``, so a single env and a vector env still agree bit for bit. What it removes is the
-Python and numpy work around the kernel, which at B = 1 cost more than the physics.
+(``limit_force``), measure the target, run the world's own element step
+(``physics.kernels.step_element``, the kernel ``world.step`` runs), count the mallet's hits on the
+target from the contact records, reward, and write the observation. Nothing here changes the
+physics: a single env and a vector env agree bit for bit with ``world.step``. What it removes is
+the Python and numpy work around the kernel, which at B = 1 cost more than the physics.
 
-The task's arrays live in one float64 buffer ``tbuf [B, T_COLUMNS]`` (actions in, observations,
-reward and info out) and its constants in ``kcfg``; see the column constants below.
+Each kernel is a ``physics.kernels.BatchKernel`` (:data:`CONTROL_STEP`, :data:`STRIKE`) that the
+tasks hand to ``world.run``, which picks the serial, parallel or (pymunk backend) Python version.
+The tasks' own packed rows are declared below as ``physics.layout.Table`` s, like the world's.
 """
 
 from __future__ import annotations
@@ -21,13 +21,28 @@ from pathlib import Path
 import numba
 import numpy as np
 
+from spinstrike.envs.layout import CONTROL_LAYOUT
 from spinstrike.physics._cache import refresh_kernel_cache
+from spinstrike.physics.jit import jit, jit_inline, jit_parallel
+from spinstrike.physics.kernels import BLOCK as BLOCK
+from spinstrike.physics.kernels import (
+    BatchKernel,
+    element_overlap,
+    n_blocks,
+    step_element,
+    unpack,
+)
 from spinstrike.physics.layout import (
     ANGLE,
     CF_DT,
+    CF_OVERLAP_TOL,
+    FX,
+    FY,
     H_B,
     H_M,
+    HALF_H,
     HALF_LENGTH,
+    HALF_W,
     INV_MASS,
     OMEGA,
     RADIUS,
@@ -41,45 +56,52 @@ from spinstrike.physics.layout import (
     STAT_FALLBACK,
     VX,
     VY,
+    Table,
     X,
     Y,
 )
-from spinstrike.physics.solvers import BLOCK, step_element, unpack
 
 # these kernels inline the physics kernels: recompile them when either changes (numba loads its
 # cache at a kernel's first call, so clearing it here, at import, is in time)
 refresh_kernel_cache(Path(__file__).resolve().parent, ("fast.py",))
 
-__all__ = ["OBS_SIZE", "S_COLUMNS", "T_COLUMNS", "control_observe", "control_step",
-           "limit_force", "strike_parallel", "strike_post_batch", "strike_serial"]
+__all__ = ["CONTROL_OBS", "CONTROL_STEP", "OBS_SIZE", "STRIKE", "control_observe",
+           "limit_force"]
 
-# the world's clock and statistics are kept by ``control_step`` exactly as ``world.step`` keeps
-# them; the fused kernel runs the element kernel ``world.step`` would have run
+# ---------------------------------------------------------------------------------------------
+# Control envs: the task's rows
+# ---------------------------------------------------------------------------------------------
 
-jit = numba.njit(cache=True, nogil=True, error_model="numpy")
-jit_parallel = numba.njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+#: the observation's columns, from the one declaration of the layout (``envs.layout``)
+CONTROL_OBS = Table("control observation", *(f.name for f in CONTROL_LAYOUT), prefix="O_")
+(O_MALLET_X, O_MALLET_Y, O_MALLET_VX, O_MALLET_VY, O_TARGET_X, O_TARGET_Y, O_TARGET_COS,
+ O_TARGET_SIN, O_TARGET_VX, O_TARGET_VY, O_TARGET_SPIN) = CONTROL_OBS
+OBS_SIZE = len(CONTROL_OBS)
 
-OBS_SIZE = 11
-# tbuf columns
-T_ACTION = 0          # 2: the action in [-1, 1]^2 (clipped in place)
-T_OBS = 2             # OBS_SIZE: the observation, clipped to its bounds
-T_REWARD = T_OBS + OBS_SIZE
-T_HITS = T_REWARD + 1
-T_IMPULSE = T_HITS + 1
-T_FORCE = T_IMPULSE + 1   # 2
-T_SPIN = T_FORCE + 2
-T_SPEED = T_SPIN + 1
-T_MALLET_SPEED = T_SPEED + 1
-T_FALLBACK = T_MALLET_SPEED + 1
-T_BEFORE = T_FALLBACK + 1   # the measured spin or speed before the physics step
-T_COLUMNS = T_BEFORE + 1
-# kcfg slots
-K_MAX_FORCE, K_MAX_SPEED, K_SCALE, K_MEASURE, K_MALLET, K_TARGET, K_FIXED = 0, 1, 2, 3, 4, 5, 6
-K_SPEED_SCALE, K_SPIN_SCALE = 7, 8
-K_LOW = 9                 # OBS_SIZE lower bounds, then OBS_SIZE upper bounds
-K_SIZE = K_LOW + 2 * OBS_SIZE
-#: what the reward measures (K_MEASURE)
-MEASURE_SPIN, MEASURE_SPEED = 0.0, 1.0
+#: a control element's row ``tbuf [B, .]``: the action in [-1, 1]^2 (clipped in place), the
+#: observation (clipped to its bounds), reward, hits on the target, their impulse (N s), the
+#: mallet's force (N), the target's spin (rad/s) and speed (m/s), the mallet's speed, whether the
+#: solver settled, and the measured spin or speed before the physics step
+CONTROL_ROW = Table("control row", ("action", 2), ("obs", OBS_SIZE), "reward", "hits",
+                    "impulse", ("force", 2), "spin", "speed", "mallet_speed", "fallback",
+                    "before", prefix="T_")
+(T_ACTION, T_OBS, T_REWARD, T_HITS, T_IMPULSE, T_FORCE, T_SPIN, T_SPEED, T_MALLET_SPEED,
+ T_FALLBACK, T_BEFORE) = CONTROL_ROW
+T_COLUMNS = len(CONTROL_ROW)
+
+#: the control task's constants ``kcfg``: force bound (N), speed limit (m/s), reward scale, what
+#: the reward measures, the mallet's and target's body indices, the observation's scales and
+#: bounds (low, then high)
+CONTROL_CFG = Table("control config", "max_force", "max_speed", "scale", "measure", "mallet",
+                    "target", "speed_scale", "spin_scale", ("low", OBS_SIZE),
+                    ("high", OBS_SIZE), prefix="K_")
+(K_MAX_FORCE, K_MAX_SPEED, K_SCALE, K_MEASURE, K_MALLET, K_TARGET, K_SPEED_SCALE, K_SPIN_SCALE,
+ K_LOW, K_HIGH) = CONTROL_CFG
+K_SIZE = len(CONTROL_CFG)
+
+#: what the reward measures (``kcfg[K_MEASURE]``)
+MEASURE = Table("control measure", "spin", "speed", prefix="MEASURE_")
+MEASURE_SPIN, MEASURE_SPEED = MEASURE
 
 
 @jit
@@ -119,21 +141,30 @@ def _measure(S, it, kcfg):
     return math.sqrt(S[it, VX] ** 2 + S[it, VY] ** 2)
 
 
+@jit_inline
+def _put(row, kcfg, k, v):
+    """Observation entry k, clipped to its bounds."""
+    lo = kcfg[K_LOW + k]
+    hi = kcfg[K_HIGH + k]
+    row[T_OBS + k] = lo if v < lo else (hi if v > hi else v)
+
+
 @jit
 def _observe(S, hw, row, kcfg):
+    """The observation of one element (state ``S [N, 6]``) into its row, by field name."""
     im = int(kcfg[K_MALLET])
     it = int(kcfg[K_TARGET])
-    vals = (S[im, X] / hw[0], S[im, Y] / hw[1],
-            S[im, VX] / kcfg[K_MAX_SPEED], S[im, VY] / kcfg[K_MAX_SPEED],
-            S[it, X] / hw[0], S[it, Y] / hw[1],
-            math.cos(S[it, ANGLE]), math.sin(S[it, ANGLE]),
-            S[it, VX] / kcfg[K_SPEED_SCALE], S[it, VY] / kcfg[K_SPEED_SCALE],
-            S[it, OMEGA] / kcfg[K_SPIN_SCALE])
-    for k in range(OBS_SIZE):
-        v = vals[k]
-        lo = kcfg[K_LOW + k]
-        hi = kcfg[K_LOW + OBS_SIZE + k]
-        row[T_OBS + k] = lo if v < lo else (hi if v > hi else v)
+    _put(row, kcfg, O_MALLET_X, S[im, X] / hw[HALF_W])
+    _put(row, kcfg, O_MALLET_Y, S[im, Y] / hw[HALF_H])
+    _put(row, kcfg, O_MALLET_VX, S[im, VX] / kcfg[K_MAX_SPEED])
+    _put(row, kcfg, O_MALLET_VY, S[im, VY] / kcfg[K_MAX_SPEED])
+    _put(row, kcfg, O_TARGET_X, S[it, X] / hw[HALF_W])
+    _put(row, kcfg, O_TARGET_Y, S[it, Y] / hw[HALF_H])
+    _put(row, kcfg, O_TARGET_COS, math.cos(S[it, ANGLE]))
+    _put(row, kcfg, O_TARGET_SIN, math.sin(S[it, ANGLE]))
+    _put(row, kcfg, O_TARGET_VX, S[it, VX] / kcfg[K_SPEED_SCALE])
+    _put(row, kcfg, O_TARGET_VY, S[it, VY] / kcfg[K_SPEED_SCALE])
+    _put(row, kcfg, O_TARGET_SPIN, S[it, OMEGA] / kcfg[K_SPIN_SCALE])
 
 
 @jit
@@ -141,16 +172,16 @@ def _pre(b, S, Pm, F, dt, tbuf, kcfg):
     """Clip the action, set the mallet's force, measure the target before the step."""
     row = tbuf[b]
     im = int(kcfg[K_MALLET])
-    ax = min(1.0, max(-1.0, row[T_ACTION]))
-    ay = min(1.0, max(-1.0, row[T_ACTION + 1]))
-    row[T_ACTION] = ax
-    row[T_ACTION + 1] = ay
+    ax = min(1.0, max(-1.0, row[T_ACTION + FX]))
+    ay = min(1.0, max(-1.0, row[T_ACTION + FY]))
+    row[T_ACTION + FX] = ax
+    row[T_ACTION + FY] = ay
     fx, fy = limit_force(ax, ay, S[b, im, VX], S[b, im, VY], 1.0 / Pm[b, im, INV_MASS], dt,
                          kcfg[K_MAX_FORCE], kcfg[K_MAX_SPEED])
-    F[b, im, 0] = fx
-    F[b, im, 1] = fy
-    row[T_FORCE] = fx
-    row[T_FORCE + 1] = fy
+    F[b, im, FX] = fx
+    F[b, im, FY] = fy
+    row[T_FORCE + FX] = fx
+    row[T_FORCE + FY] = fy
     row[T_BEFORE] = _measure(S[b], int(kcfg[K_TARGET]), kcfg)
 
 
@@ -183,7 +214,7 @@ def _post(b, S, HW, PA, PB, cpair, crec, stats, n_stored, tbuf, kcfg):
 def _control_one(b, v, n_stored, tbuf, kcfg):
     dt = v.fcfg[CF_DT]
     _pre(b, v.S, v.Pm, v.F, dt, tbuf, kcfg)
-    step_element(v, b, dt, kcfg[K_FIXED] != 0.0)
+    step_element(v, b, dt)
     _post(b, v.S, v.HW, v.PA, v.PB, v.cpair, v.crec, v.stats, n_stored, tbuf, kcfg)
 
 
@@ -197,7 +228,7 @@ def _control_range(fbuf, ibuf, tbuf, kcfg, start, stop):
 @jit
 def _finite_actions(tbuf):
     for b in range(tbuf.shape[0]):
-        if not (math.isfinite(tbuf[b, T_ACTION]) and math.isfinite(tbuf[b, T_ACTION + 1])):
+        if not (math.isfinite(tbuf[b, T_ACTION + FX]) and math.isfinite(tbuf[b, T_ACTION + FY])):
             return False
     return True
 
@@ -217,7 +248,7 @@ def control_step_parallel(fbuf, ibuf, tbuf, kcfg):
     if not _finite_actions(tbuf):
         return False
     n = ibuf[H_B]
-    for k in numba.prange((n + BLOCK - 1) // BLOCK):
+    for k in numba.prange(n_blocks(n)):
         _control_range(fbuf, ibuf, tbuf, kcfg, k * BLOCK, min(n, (k + 1) * BLOCK))
     return True
 
@@ -243,26 +274,26 @@ def control_post(fbuf, ibuf, tbuf, kcfg):
 
 @jit
 def control_observe(fbuf, ibuf, tbuf, kcfg, env):
-    """Write the observations of elements ``env`` (after a reset)."""
+    """Write the observations of elements ``env`` from their state (after a reset)."""
     v = unpack(fbuf, ibuf)
     for b in env:
         _observe(v.S[b], v.HW[b], tbuf[b], kcfg)
 
 
-def control_step(world, tbuf: np.ndarray, kcfg: np.ndarray, parallel: bool) -> bool:
-    """One control step of every element of ``world`` (its ``dt`` set in the world's config);
-    returns False, having done nothing, if an action is not finite."""
-    if world._backend is not None:
-        if not control_pre(world._fbuf, world._ibuf, tbuf, kcfg):
-            return False
-        world.step(world._fcfg[CF_DT])
-        control_post(world._fbuf, world._ibuf, tbuf, kcfg)
-        return True
-    kernel = control_step_parallel if parallel else control_step_serial
-    if not kernel(world._fbuf, world._ibuf, tbuf, kcfg):
+def _control_stepwise(world, tbuf, kcfg) -> bool:
+    """The control step for a world on the pymunk backend: compiled stages around its step."""
+    buf = world.buffers
+    if not control_pre(buf.fbuf, buf.ibuf, tbuf, kcfg):
         return False
-    world._finish_step()
+    world.step(world.dt)
+    control_post(buf.fbuf, buf.ibuf, tbuf, kcfg)
     return True
+
+
+#: one control step of every element: ``world.run(CONTROL_STEP, tbuf, kcfg, dt=dt)`` returns
+#: False, having done nothing, if an action is not finite
+CONTROL_STEP = BatchKernel("control step", control_step_serial, control_step_parallel,
+                           _control_stepwise)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -271,23 +302,69 @@ def control_step(world, tbuf: np.ndarray, kcfg: np.ndarray, parallel: bool) -> b
 # longer steps every element until the slowest one is done.
 # ---------------------------------------------------------------------------------------------
 
-# sbuf columns
-S_CONTACTS, S_IMPULSE, S_FIRST_TIME, S_FIRST_J, S_FIRST_PX, S_FIRST_PY = 0, 1, 2, 3, 4, 5
-S_FALLBACK, S_SIM_TIME, S_TARGET_VX, S_TARGET_VY, S_TARGET_W = 6, 7, 8, 9, 10
-S_STRIKER_VX, S_STRIKER_VY, S_DONE = 11, 12, 13
-S_COLUMNS = 14
-# scfg slots
-SC_CHUNK, SC_CHUNKS, SC_TARGET, SC_STRIKER, SC_FREE, SC_FIXED, SC_RECORD = 0, 1, 2, 3, 4, 5, 6
-SC_SIZE = 7
+#: a strike ``sbuf [B, .]``: in, the striker's launch (start, m, and velocity, m/s); out, the
+#: contacts and their total impulse (N s), the first contact's time (s, -1: none), impulse and
+#: point (m), whether the solver settled, the simulated time (s), the target's velocity (m/s)
+#: and spin (rad/s) and the striker's velocity after the last contact, whether the strike is
+#: over, and the contact pair a refused launch would overlap (-1: none; -2: not finite)
+STRIKE_ROW = Table("strike row", "launch_x", "launch_y", "launch_vx", "launch_vy", "contacts",
+                   "impulse", "first_time", "first_j", "first_px", "first_py", "fallback",
+                   "sim_time", "target_vx", "target_vy", "target_w", "striker_vx", "striker_vy",
+                   "done", "overlap_pair", "overlap_gap", prefix="S_")
+(S_LAUNCH_X, S_LAUNCH_Y, S_LAUNCH_VX, S_LAUNCH_VY, S_CONTACTS, S_IMPULSE, S_FIRST_TIME,
+ S_FIRST_J, S_FIRST_PX, S_FIRST_PY, S_FALLBACK, S_SIM_TIME, S_TARGET_VX, S_TARGET_VY,
+ S_TARGET_W, S_STRIKER_VX, S_STRIKER_VY, S_DONE, S_OVERLAP_PAIR, S_OVERLAP_GAP) = STRIKE_ROW
+S_COLUMNS = len(STRIKE_ROW)
+
+#: the strike's constants ``scfg``: chunk length (s), most chunks, target and striker body
+#: indices, free plane (1) or table (0), record element 0's trace (1)
+STRIKE_CFG = Table("strike config", "chunk", "chunks", "target", "striker", "free", "record",
+                   prefix="SC_")
+SC_CHUNK, SC_CHUNKS, SC_TARGET, SC_STRIKER, SC_FREE, SC_RECORD = STRIKE_CFG
+SC_SIZE = len(STRIKE_CFG)
+
+#: element 0's trace for the animation: a pose per body per chunk, each contact, and counts
+TRACE_POSE = Table("trace pose", "x", "y", "angle", prefix="TP_")
+TP_X, TP_Y, TP_ANGLE = TRACE_POSE
+TRACE_CONTACT = Table("trace contact", "px", "py", "nx", "ny", "j", prefix="TC_")
+TC_PX, TC_PY, TC_NX, TC_NY, TC_J = TRACE_CONTACT
+TRACE_COUNT = Table("trace count", "poses", "contacts", prefix="TN_")
+TN_POSES, TN_CONTACTS = TRACE_COUNT
 #: contact rows recorded for element 0's animation
 TRACE_CONTACTS = 256
 
 
 @jit
 def _strike_start(row):
-    for c in range(S_COLUMNS):
+    for c in range(S_CONTACTS, S_COLUMNS):
         row[c] = 0.0
     row[S_FIRST_TIME] = -1.0
+    row[S_OVERLAP_PAIR] = -1.0
+
+
+@jit
+def _launch(S, Pm, hw, PA, PB, row, js, tol):
+    """Put the striker at its launch point with its launch velocity, every other body at rest
+    where it is; the placement must be finite and overlap nothing (else the row says why, and
+    False)."""
+    x, y, vx, vy = row[S_LAUNCH_X], row[S_LAUNCH_Y], row[S_LAUNCH_VX], row[S_LAUNCH_VY]
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(vx) and math.isfinite(vy)):
+        row[S_OVERLAP_PAIR] = -2.0
+        return False
+    for i in range(S.shape[0]):
+        S[i, VX] = 0.0
+        S[i, VY] = 0.0
+        S[i, OMEGA] = 0.0
+    S[js, X] = x
+    S[js, Y] = y
+    S[js, VX] = vx
+    S[js, VY] = vy
+    p, g = element_overlap(S, Pm, hw, PA, PB, tol)
+    if p >= 0:
+        row[S_OVERLAP_PAIR] = p
+        row[S_OVERLAP_GAP] = g
+        return False
+    return True
 
 
 @jit
@@ -340,36 +417,40 @@ def _strike_post(b, k, S, Pm, cpair, crec, stats, n_stored, sbuf, scfg):
 
 @jit
 def _trace_pose(S, trace, tcount):
-    n = tcount[0]
+    n = tcount[TN_POSES]
     if n < trace.shape[0]:
         for i in range(S.shape[1]):
-            trace[n, i, 0] = S[0, i, X]
-            trace[n, i, 1] = S[0, i, Y]
-            trace[n, i, 2] = S[0, i, ANGLE]
-        tcount[0] = n + 1
+            trace[n, i, TP_X] = S[0, i, X]
+            trace[n, i, TP_Y] = S[0, i, Y]
+            trace[n, i, TP_ANGLE] = S[0, i, ANGLE]
+        tcount[TN_POSES] = n + 1
 
 
 @jit
 def _trace_contacts(cpair, crec, stats, n_stored, ctrace, tcount):
     for q in range(min(stats[0, STAT_CONTACTS], n_stored)):
-        n = tcount[1]
+        n = tcount[TN_CONTACTS]
         if n < ctrace.shape[0]:
-            ctrace[n, 0] = crec[0, q, REC_PX]
-            ctrace[n, 1] = crec[0, q, REC_PY]
-            ctrace[n, 2] = crec[0, q, REC_NX]
-            ctrace[n, 3] = crec[0, q, REC_NY]
-            ctrace[n, 4] = crec[0, q, REC_J]
-            tcount[1] = n + 1
+            ctrace[n, TC_PX] = crec[0, q, REC_PX]
+            ctrace[n, TC_PY] = crec[0, q, REC_PY]
+            ctrace[n, TC_NX] = crec[0, q, REC_NX]
+            ctrace[n, TC_NY] = crec[0, q, REC_NY]
+            ctrace[n, TC_J] = crec[0, q, REC_J]
+            tcount[TN_CONTACTS] = n + 1
 
 
 @jit
 def _strike_one(b, v, n_stored, sbuf, scfg, trace, ctrace, tcount):
-    _strike_start(sbuf[b])
+    row = sbuf[b]
+    _strike_start(row)
+    if not _launch(v.S[b], v.Pm[b], v.HW[b], v.PA, v.PB, row, int(scfg[SC_STRIKER]),
+                   v.fcfg[CF_OVERLAP_TOL]):
+        return
     record = scfg[SC_RECORD] != 0.0 and b == 0
     if record:
         _trace_pose(v.S, trace, tcount)
     for k in range(int(scfg[SC_CHUNKS])):
-        step_element(v, b, scfg[SC_CHUNK], scfg[SC_FIXED] != 0.0)
+        step_element(v, b, scfg[SC_CHUNK])
         if record:
             _trace_contacts(v.cpair, v.crec, v.stats, n_stored, ctrace, tcount)
             _trace_pose(v.S, trace, tcount)
@@ -394,7 +475,7 @@ def strike_serial(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount):
 def strike_parallel(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount):
     """:func:`strike_serial` in parallel threads (blocks of ``BLOCK`` elements)."""
     n = ibuf[H_B]
-    for k in numba.prange((n + BLOCK - 1) // BLOCK):
+    for k in numba.prange(n_blocks(n)):
         _strike_range(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount, k * BLOCK,
                       min(n, (k + 1) * BLOCK))
 
@@ -412,3 +493,49 @@ def strike_post_batch(k, fbuf, ibuf, sbuf, scfg):
 def strike_start_batch(sbuf):
     for b in range(sbuf.shape[0]):
         _strike_start(sbuf[b])
+
+
+def _strike_stepwise(world, sbuf, scfg, trace, ctrace, tcount) -> None:
+    """The strike for a world on the pymunk backend: the launch by a validated edit, then world
+    steps of one chunk from Python, each booked by the same compiled code."""
+    buf = world.buffers
+    strike_start_batch(sbuf)
+    state = world.state
+    js = int(scfg[SC_STRIKER])
+    positions = state.positions.copy()
+    velocities = np.zeros_like(positions)
+    positions[:, js] = sbuf[:, S_LAUNCH_X:S_LAUNCH_Y + 1]
+    velocities[:, js] = sbuf[:, S_LAUNCH_VX:S_LAUNCH_VY + 1]
+    with world.edit() as e:
+        e.set_state(positions=positions, velocities=velocities, omegas=0.0)
+    record = scfg[SC_RECORD] != 0.0
+    if record:
+        trace[0, :, TP_X] = state.positions[0, :, 0]
+        trace[0, :, TP_Y] = state.positions[0, :, 1]
+        trace[0, :, TP_ANGLE] = state.angles[0]
+        tcount[TN_POSES] = 1
+    for k in range(int(scfg[SC_CHUNKS])):
+        c = world.step(scfg[SC_CHUNK])
+        if record and sbuf[0, S_DONE] == 0.0:
+            mine = c.batch == 0
+            n = int(tcount[TN_CONTACTS])
+            rows = min(int(mine.sum()), len(ctrace) - n)
+            ctrace[n:n + rows, TC_PX] = c.point[mine, 0][:rows]
+            ctrace[n:n + rows, TC_PY] = c.point[mine, 1][:rows]
+            ctrace[n:n + rows, TC_NX] = c.normal[mine, 0][:rows]
+            ctrace[n:n + rows, TC_NY] = c.normal[mine, 1][:rows]
+            ctrace[n:n + rows, TC_J] = c.impulse[mine][:rows]
+            tcount[TN_CONTACTS] = n + rows
+            p = int(tcount[TN_POSES])
+            trace[p, :, TP_X] = state.positions[0, :, 0]
+            trace[p, :, TP_Y] = state.positions[0, :, 1]
+            trace[p, :, TP_ANGLE] = state.angles[0]
+            tcount[TN_POSES] = p + 1
+        strike_post_batch(k, buf.fbuf, buf.ibuf, sbuf, scfg)
+        if (sbuf[:, S_DONE] != 0.0).all():
+            break
+
+
+#: every element's whole strike, from its launch (``sbuf``'s launch columns):
+#: ``world.run(STRIKE, sbuf, scfg, trace, ctrace, tcount)``
+STRIKE = BatchKernel("strike", strike_serial, strike_parallel, _strike_stepwise)

@@ -15,17 +15,10 @@ import numpy as np
 
 from spinstrike.envs import fast
 from spinstrike.envs.config import PuckSpeedConfig, RodSpinConfig, build_scene
-from spinstrike.envs.core import (
-    ObsField,
-    SpinStrikeEnv,
-    SpinStrikeVectorEnv,
-    Task,
-    check_actions,
-    layout_table,
-)
+from spinstrike.envs.core import SpinStrikeEnv, SpinStrikeVectorEnv, Task, check_actions
+from spinstrike.envs.layout import ObsField, layout_table
 from spinstrike.envs.rendering import BodyDraw, Frame
-from spinstrike.physics import World
-from spinstrike.physics.world import PARALLEL_BATCH
+from spinstrike.physics import SceneError, World
 
 __all__ = ["PuckSpeedEnv", "PuckSpeedVectorEnv", "RodSpinEnv", "RodSpinVectorEnv",
            "rod_spin_after_strike", "rod_spin_max"]
@@ -64,8 +57,8 @@ class _StrikeTask(Task):
     ACTIONS = ("offset", "approach", "speed")
     render_fps = 30
 
-    def __init__(self, cfg, batch_size: int) -> None:
-        super().__init__(cfg, batch_size)
+    def __init__(self, cfg, batch_size: int, single: bool = False) -> None:
+        super().__init__(cfg, batch_size, single)
         scene = build_scene(self.SCENE, cfg, self._body_overrides(cfg))
         self.world = World(self._park_striker(scene), batch_size)
         w = self.world
@@ -86,11 +79,10 @@ class _StrikeTask(Task):
         sc[[fast.SC_CHUNK, fast.SC_CHUNKS, fast.SC_TARGET, fast.SC_STRIKER]] = (
             CHUNK, n_chunks, self.it, self.js)
         sc[fast.SC_FREE] = self._free
-        sc[fast.SC_FIXED] = w.solver.mode == "fixed"
         self._scfg = sc
-        self._trace_buf = np.zeros((n_chunks + 1, w.n_bodies, 3))
-        self._ctrace_buf = np.zeros((fast.TRACE_CONTACTS, 5))
-        self._tcount = np.zeros(2, dtype=np.int64)
+        self._trace_buf = np.zeros((n_chunks + 1, w.n_bodies, len(fast.TRACE_POSE)))
+        self._ctrace_buf = np.zeros((fast.TRACE_CONTACTS, len(fast.TRACE_CONTACT)))
+        self._tcount = np.zeros(len(fast.TRACE_COUNT), dtype=np.int64)
         self._trace: list[tuple[np.ndarray, np.ndarray]] = []
         self._last: dict[str, np.ndarray] = {}
         self._contacts_b0: list[tuple[float, float, float, float, float]] = []
@@ -126,18 +118,17 @@ class _StrikeTask(Task):
         self.result_vs = np.zeros((B, 2))
 
     # -- randomisation ------------------------------------------------------------------------
-    def _set_random(self, key, value, env) -> None:
-        w = self.world
+    def _set_random(self, edit, key, value) -> None:
         if key == "striker_mass":
-            w.set_body("striker", mass=value, env=env)
+            edit.set_body("striker", mass=value)
         elif key == "target_mass":
-            w.set_body(self.TARGET, mass=value, env=env)
+            edit.set_body(self.TARGET, mass=value)
         elif key == "rod_length":
-            w.set_body("rod", length=value, env=env)
+            edit.set_body("rod", length=value)
         elif key == "restitution":
-            w.set_material(self.TARGET, "striker", restitution=value, env=env)
+            edit.set_material(self.TARGET, "striker", restitution=value)
         elif key == "friction":
-            w.set_material(self.TARGET, "striker", friction=value, env=env)
+            edit.set_material(self.TARGET, "striker", friction=value)
 
     def _reach(self) -> np.ndarray:
         """[B] largest distance of the target's surface from its centre, m."""
@@ -146,21 +137,23 @@ class _StrikeTask(Task):
 
     def reset(self, env: np.ndarray, uniforms: np.ndarray) -> dict[str, np.ndarray]:
         n_rand = len(self.CONFIG.RANDOMIZABLE)
-        self._apply_random(env, uniforms[:, :n_rand])
         u = uniforms[:, n_rand:]
         w = self.world
-        angle = 2 * math.pi * u[:, 0] - math.pi
-        centre = 0.1 * (2 * u[:, 1:3] - 1)
-        # park the striker where a straight, centred strike would start
-        dist = self._reach()[env] + w.radius[env, self.js] + START_MARGIN
-        normal = np.stack([-np.sin(angle), np.cos(angle)], axis=1)
-        pos = np.zeros((len(env), w.n_bodies, 2))
-        pos[:, self.it] = centre
-        pos[:, self.js] = centre + dist[:, None] * normal
-        angles = np.zeros((len(env), w.n_bodies))
-        angles[:, self.it] = angle
-        # apart by construction: the striker is parked beyond the target's reach
-        w._place(env, pos, angles, np.zeros_like(pos), np.zeros_like(angles))
+        with w.edit(env) as e:
+            self._apply_random(e, uniforms[:, :n_rand])
+            angle = 2 * math.pi * u[:, 0] - math.pi
+            centre = 0.1 * (2 * u[:, 1:3] - 1)
+            # park the striker where a straight, centred strike would start: beyond the
+            # target's reach, so nothing overlaps
+            reach = e.half_length[:, self.it] + e.radius[:, self.it]
+            dist = reach + e.radius[:, self.js] + START_MARGIN
+            normal = np.stack([-np.sin(angle), np.cos(angle)], axis=1)
+            pos = np.zeros((len(env), w.n_bodies, 2))
+            pos[:, self.it] = centre
+            pos[:, self.js] = centre + dist[:, None] * normal
+            angles = np.zeros((len(env), w.n_bodies))
+            angles[:, self.it] = angle
+            e.set_state(positions=pos, angles=angles, velocities=0.0, omegas=0.0)
         self._sample_goal(env, u[:, 3:])
         self._zero_result_rows(env)
         if self.record_trace:
@@ -179,42 +172,45 @@ class _StrikeTask(Task):
         """Put the striker on its line, moving (subclasses: geometry of the action)."""
 
     def _put_striker(self, start: np.ndarray, velocity: np.ndarray) -> None:
-        """Place every element's striker at ``start`` [B, 2] moving at ``velocity`` [B, 2];
-        the start lies beyond the target's reach (START_MARGIN), so nothing overlaps."""
-        w = self.world
-        pos = w.state.positions.copy()
-        vel = np.zeros_like(pos)
-        pos[:, self.js] = start
-        vel[:, self.js] = velocity
-        w._place(np.arange(self.batch_size), pos, w.state.angles.copy(), vel,
-                 np.zeros_like(w.state.omegas))
+        """Launch every element's striker from ``start`` [B, 2] at ``velocity`` [B, 2] (the
+        compiled strike places it, every other body at rest, and refuses an overlap)."""
+        sb = self._sbuf
+        sb[:, fast.S_LAUNCH_X:fast.S_LAUNCH_Y + 1] = start
+        sb[:, fast.S_LAUNCH_VX:fast.S_LAUNCH_VY + 1] = velocity
 
     def _speed(self, a: np.ndarray) -> np.ndarray:
         lo, hi = self.cfg.speed_range
         return lo + 0.5 * (a + 1.0) * (hi - lo)
 
     def _simulate(self) -> dict[str, np.ndarray]:
-        """Run every element's strike to its end (``envs.fast``: compiled, each element only
-        as long as it needs; pymunk: chunk by chunk from Python, booked by the same code)."""
-        w = self.world
+        """Run every element's strike to its end (``envs.fast.STRIKE``: compiled, each element
+        only as long as it needs; pymunk: chunk by chunk from Python, booked by the same code)."""
         sc = self._scfg
         sc[fast.SC_RECORD] = self.record_trace
         sb = self._sbuf
         self._tcount[:] = 0
-        if w._backend is None:
-            parallel = self.batch_size >= PARALLEL_BATCH
-            kernel = fast.strike_parallel if parallel else fast.strike_serial
-            kernel(w._fbuf, w._ibuf, sb, sc, self._trace_buf, self._ctrace_buf, self._tcount)
-            w._finish_step()
-        else:
-            self._simulate_stepwise()
+        w = self.world
+        w.run(fast.STRIKE, sb, sc, self._trace_buf, self._ctrace_buf, self._tcount)
+        refused = np.flatnonzero(sb[:, fast.S_OVERLAP_PAIR] != -1)
+        if len(refused):
+            b = refused[0]
+            p = int(sb[b, fast.S_OVERLAP_PAIR])
+            if p < 0:
+                raise SceneError(f"strike: the striker's launch in element {b} is not finite")
+            raise SceneError(
+                f"strike: launching the striker in element {b} would make "
+                f"{w.names[w.pair_a[p]]!r} and {w.names[w.pair_b[p]]!r} overlap by "
+                f"{-sb[b, fast.S_OVERLAP_GAP]:.3g} m")
         self.result_v[:] = sb[:, fast.S_TARGET_VX:fast.S_TARGET_VY + 1]
         self.result_w[:] = sb[:, fast.S_TARGET_W]
         self.result_vs[:] = sb[:, fast.S_STRIKER_VX:fast.S_STRIKER_VY + 1]
         if self.record_trace:
-            n = int(self._tcount[0])
-            self._trace = [(t[:, :2].copy(), t[:, 2].copy()) for t in self._trace_buf[:n]]
-            self._contacts_b0 = [tuple(r) for r in self._ctrace_buf[:int(self._tcount[1])]]
+            n = int(self._tcount[fast.TN_POSES])
+            poses = self._trace_buf[:n]
+            self._trace = [(t[:, fast.TP_X:fast.TP_Y + 1].copy(), t[:, fast.TP_ANGLE].copy())
+                           for t in poses]
+            m = int(self._tcount[fast.TN_CONTACTS])
+            self._contacts_b0 = [tuple(r) for r in self._ctrace_buf[:m]]
         contacts = sb[:, fast.S_CONTACTS].astype(np.int64)
         return {"n_contacts": contacts, "impulse": sb[:, fast.S_IMPULSE].copy(),
                 "first_contact_time": sb[:, fast.S_FIRST_TIME].copy(),
@@ -223,33 +219,9 @@ class _StrikeTask(Task):
                 "fallback": sb[:, fast.S_FALLBACK] != 0,
                 "sim_time": sb[:, fast.S_SIM_TIME].copy(), "second_contact": contacts >= 2}
 
-    def _simulate_stepwise(self) -> None:
-        """The strike for a backend that steps outside numba (pymunk): world steps of one
-        chunk from here, each booked by the compiled ``envs.fast.strike_post_batch``."""
-        w = self.world
-        sb = self._sbuf
-        fast.strike_start_batch(sb)
-        if self.record_trace:
-            self._trace_buf[0] = np.c_[w.state.positions[0], w.state.angles[0]]
-            self._tcount[0] = 1
-        for k in range(int(self._scfg[fast.SC_CHUNKS])):
-            c = w.step(CHUNK)
-            if self.record_trace and sb[0, fast.S_DONE] == 0.0:
-                mine = np.flatnonzero(c.batch == 0)
-                n = int(self._tcount[1])
-                rows = np.c_[c.point[mine], c.normal[mine], c.impulse[mine]]
-                rows = rows[:fast.TRACE_CONTACTS - n]
-                self._ctrace_buf[n:n + len(rows)] = rows
-                self._tcount[1] = n + len(rows)
-                self._trace_buf[self._tcount[0]] = np.c_[w.state.positions[0],
-                                                         w.state.angles[0]]
-                self._tcount[0] += 1
-            fast.strike_post_batch(k, w._fbuf, w._ibuf, sb, self._scfg)
-            if sb[:, fast.S_DONE].all():
-                break
-
     def step(self, actions, batch_info: bool = True):
-        self._launch(check_actions(actions, (self.batch_size, len(self.ACTIONS))))
+        a = check_actions(actions, self.action_shape)
+        self._launch(a.reshape(self.batch_size, len(self.ACTIONS)))
         sim = self._simulate()
         reward, terms = self._reward()
         info = {**sim, **terms, **self._result_info()}
@@ -383,13 +355,11 @@ class RodSpinTask(_StrikeTask):
 
     def observe(self) -> np.ndarray:
         w = self.world
-        hi = self.cfg.target_spin[1]
-        return np.stack([
-            self.goal[:, 0] / hi,
-            np.log10(w.mass[:, self.js] / w.mass[:, self.it]),
-            w.restitution("rod", "striker"),
-            w.half_length[:, self.it],
-        ], axis=1)
+        return self.by_layout(
+            target_spin=self.goal[:, 0] / self.cfg.target_spin[1],
+            log_mass_ratio=np.log10(w.mass[:, self.js] / w.mass[:, self.it]),
+            restitution=w.restitution("rod", "striker"),
+            half_length=w.half_length[:, self.it])
 
     def achieved(self) -> np.ndarray:
         return (self.result_w / self.cfg.target_spin[1])[:, None]
@@ -474,12 +444,11 @@ class PuckSpeedTask(_StrikeTask):
     def observe(self) -> np.ndarray:
         w = self.world
         hi = self.cfg.target_speed[1]
-        return np.stack([
-            self.goal[:, 0] / hi, self.goal[:, 1] / hi,
-            np.log10(w.mass[:, self.js] / w.mass[:, self.it]),
-            w.restitution("puck", "striker"),
-            w.friction("puck", "striker"),
-        ], axis=1)
+        return self.by_layout(
+            target_vx=self.goal[:, 0] / hi, target_vy=self.goal[:, 1] / hi,
+            log_mass_ratio=np.log10(w.mass[:, self.js] / w.mass[:, self.it]),
+            restitution=w.restitution("puck", "striker"),
+            friction=w.friction("puck", "striker"))
 
     def achieved(self) -> np.ndarray:
         return self.result_v / self.cfg.target_speed[1]
@@ -545,8 +514,9 @@ class RodSpinEnv(_StrikeEnvMixin, SpinStrikeEnv):
     Terminates after the one strike.
 
     ## Arguments
-    See :class:`envs.config.RodSpinConfig` (masses, rod size and inertia, restitution, effects,
-    solver, randomisation ranges, goal, obs_mode) and ``render_mode``; or one ``config`` dict.
+    See :class:`spinstrike.envs.config.RodSpinConfig` (masses, rod size and inertia,
+    restitution, effects, solver, randomisation ranges, goal, obs_mode) and ``render_mode``; or
+    one ``config`` dict.
 
     ## Info
     ``spin`` (rad/s), ``speed``/``rod_velocity`` (m/s), ``striker_speed``, ``n_contacts``,
@@ -593,7 +563,7 @@ class PuckSpeedEnv(_StrikeEnvMixin, SpinStrikeEnv):
     Terminates after the one strike.
 
     ## Arguments
-    See :class:`envs.config.PuckSpeedConfig`.
+    See :class:`spinstrike.envs.config.PuckSpeedConfig`.
 
     ## Info
     ``velocity``, ``speed``, ``spin``, ``target_velocity``, ``n_contacts``, ``impulse``,

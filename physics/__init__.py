@@ -7,14 +7,21 @@ Public API::
     contacts = world.step(dt)                                       # flat arrays, batch index
     world.state.positions, .angles, .velocities, .omegas            # [B, N, 2] / [B, N]
     world.set_state(...), world.set_body(...), world.set_force(...), world.index("rod")
+    with world.edit(env) as e: ...                                  # several changes, one check
+    physics.SOLVERS, physics.EFFECTS                                # the names a scene may use
+
+Compiled env kernels run the world's own element step through ``physics.kernels`` and
+``world.run`` (see ``docs/design.md``).
 """
 
 from spinstrike.physics._cache import refresh_kernel_cache
 
 refresh_kernel_cache()  # before the numba kernels load (see physics/_cache.py)
 
+from spinstrike.physics.edit import WorldEdit  # noqa: E402
 from spinstrike.physics.effects import EFFECTS, Effect  # noqa: E402
 from spinstrike.physics.scene import (  # noqa: E402
+    SOLVERS,
     WALL_NAMES,
     Body,
     ExactSolver,
@@ -24,16 +31,14 @@ from spinstrike.physics.scene import (  # noqa: E402
     SceneError,
     load_scene,
 )
-from spinstrike.physics.world import Contacts, State, StepStats, World  # noqa: E402
-
-#: solver modes a scene may name
-SOLVERS = ("exact", "fixed", "pymunk")
+from spinstrike.physics.world import Buffers, Contacts, State, StepStats, World  # noqa: E402
 
 __all__ = [
     "EFFECTS",
     "SOLVERS",
     "WALL_NAMES",
     "Body",
+    "Buffers",
     "Contacts",
     "Effect",
     "ExactSolver",
@@ -44,5 +49,6 @@ __all__ = [
     "State",
     "StepStats",
     "World",
+    "WorldEdit",
     "load_scene",
 ]

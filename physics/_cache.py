@@ -15,7 +15,8 @@ from __future__ import annotations
 import hashlib
 from pathlib import Path
 
-_KERNEL_MODULES = ("contacts.py", "events.py", "impulse.py", "jam.py", "layout.py", "motion.py",
+_KERNEL_MODULES = ("contacts.py", "events.py", "impulse.py", "jam.py", "jit.py", "kernels.py",
+                   "layout.py", "motion.py",
                    "solvers.py", "world.py")
 _HERE = Path(__file__).resolve().parent
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 
-import numba
+from spinstrike.physics.jit import jit
 
 __all__ = ["capsule_capsule", "capsule_wall", "closest_segment_params", "core_segment",
            "wall_frame"]
@@ -28,7 +28,6 @@ __all__ = ["capsule_capsule", "capsule_wall", "closest_segment_params", "core_se
 PARALLEL = 1e-12
 _TINY = 1e-300
 
-jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 
 
 @jit

@@ -17,20 +17,31 @@ of the block (the sweeps before it applied it).
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from spinstrike.physics.events import pair_bodies, pair_geometry
-from spinstrike.physics.layout import INV_INERTIA, INV_MASS, RESTITUTION, X, Y
+from spinstrike.physics.jit import jit
+from spinstrike.physics.layout import (
+    HALF_H,
+    HALF_W,
+    INV_INERTIA,
+    INV_MASS,
+    RESTITUTION,
+    Table,
+    X,
+    Y,
+)
 
 __all__ = ["JAM_COLUMNS", "MAX_JAM_PAIRS", "jam_impulses"]
 
-jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 
 #: most touching pairs the block solve takes (it tries up to 2^n active sets)
 MAX_JAM_PAIRS = 10
-#: columns of the per-pair rows it returns: nx, ny, cross_a, cross_b, px, py, vn
-JAM_COLUMNS = 7
+#: the per-pair rows it returns: unit normal (a to b), lever terms r x n of a and b, contact
+#: point (m), normal relative velocity (m/s)
+JAM = Table("jam pair", "nx", "ny", "cross_a", "cross_b", "px", "py", "vn", prefix="JAM_")
+JAM_NX, JAM_NY, JAM_CROSS_A, JAM_CROSS_B, JAM_PX, JAM_PY, JAM_VN = JAM
+JAM_COLUMNS = len(JAM)
 
 
 @jit
@@ -40,19 +51,19 @@ def _collect(S, Pm, hw, PA, PB, slop, idx, geo):
     m = 0
     for p in range(PA.shape[0]):
         a, bb, wall = pair_bodies(p, PA, PB, n)
-        g, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, bb, wall, hw[0],
-                                                                  hw[1])
+        g, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, bb, wall, hw[HALF_W],
+                                                                  hw[HALF_H])
         if g <= slop:
             if m == MAX_JAM_PAIRS:
                 return -1
             idx[m] = p
-            geo[m, 0] = nx
-            geo[m, 1] = ny
-            geo[m, 2] = oax * ny - oay * nx
-            geo[m, 3] = obx * ny - oby * nx
-            geo[m, 4] = S[a, X] + oax + ka * nx
-            geo[m, 5] = S[a, Y] + oay + ka * ny
-            geo[m, 6] = vn
+            geo[m, JAM_NX] = nx
+            geo[m, JAM_NY] = ny
+            geo[m, JAM_CROSS_A] = oax * ny - oay * nx
+            geo[m, JAM_CROSS_B] = obx * ny - oby * nx
+            geo[m, JAM_PX] = S[a, X] + oax + ka * nx
+            geo[m, JAM_PY] = S[a, Y] + oay + ka * ny
+            geo[m, JAM_VN] = vn
             m += 1
     return m
 
@@ -61,8 +72,8 @@ def _collect(S, Pm, hw, PA, PB, slop, idx, geo):
 def _side(PA, PB, idx, geo, i, side):
     """(body, sign, lever r x n) of one side of pair row i (side 0: a, 1: b)."""
     if side == 0:
-        return PA[idx[i]], -1.0, geo[i, 2]
-    return PB[idx[i]], 1.0, geo[i, 3]
+        return PA[idx[i]], -1.0, geo[i, JAM_CROSS_A]
+    return PB[idx[i]], 1.0, geo[i, JAM_CROSS_B]
 
 
 @jit
@@ -80,7 +91,8 @@ def _delassus(Pm, PA, PB, n, idx, geo, m, rotation):
                     y, sgn_k, ck = _side(PA, PB, idx, geo, k, sk)
                     if y != x:
                         continue
-                    term = Pm[x, INV_MASS] * (geo[i, 0] * geo[k, 0] + geo[i, 1] * geo[k, 1])
+                    term = Pm[x, INV_MASS] * (geo[i, JAM_NX] * geo[k, JAM_NX]
+                                              + geo[i, JAM_NY] * geo[k, JAM_NY])
                     if rotation:
                         term += Pm[x, INV_INERTIA] * ci * ck
                     acc += sgn_i * sgn_k * term
@@ -162,8 +174,8 @@ def _energy_norm(Pm, PA, PB, n, idx, geo, m, lam, rotation):
             for side in range(2):
                 y, sgn, c = _side(PA, PB, idx, geo, i, side)
                 if y == x:
-                    px += sgn * lam[i] * geo[i, 0]
-                    py += sgn * lam[i] * geo[i, 1]
+                    px += sgn * lam[i] * geo[i, JAM_NX]
+                    py += sgn * lam[i] * geo[i, JAM_NY]
                     lx += sgn * lam[i] * c
         total += Pm[x, INV_MASS] * (px * px + py * py)
         if rotation:
@@ -187,7 +199,7 @@ def jam_impulses(S, Pm, hw, PA, PB, MAT, slop, rotation, idx, geo, lam):
     m = _collect(S, Pm, hw, PA, PB, slop, idx, geo)
     if m <= 0:
         return 0
-    vn = geo[:m, 6].copy()
+    vn = geo[:m, JAM_VN].copy()
     vmax = np.abs(vn).max()
     if vmax == 0.0:
         return 0

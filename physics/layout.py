@@ -1,62 +1,167 @@
-"""Column layout of the packed per-element arrays the kernels work on.
+"""The one declaration of every packed layout the compiled kernels read (``docs/design.md`` §3).
 
-The world keeps its state in one float64 array ``[B, N, 6]`` and exposes named views of it
-(``positions[B, N, 2]``, ``angles[B, N]``, ``velocities[B, N, 2]``, ``omegas[B, N]``); the kernels
-read the packed rows. Per-body parameters live in ``[B, N, 6]`` the same way.
+A world keeps all its kernel arrays as named views into one float64 and one int64 buffer, so a
+kernel call takes two arguments (numba unboxes every array argument on every call: ~0.2 us
+each). Each packed row (a body's state, its parameters, a contact record, the solver's
+configuration, a buffer's fields...) is a :class:`Table`: its columns are declared once, here or,
+for the envs' own rows, in ``envs/fast.py``, and the module-level column constants the kernels
+index with are unpacked from it (``X, Y, ANGLE, VX, VY, OMEGA = STATE``). numba freezes those
+globals into the compiled code as plain offsets.
+
+``tests/physics/test_layout.py`` walks every table: column names are unique, each constant
+equals its column (``PREFIX + NAME.upper()``), and no kernel addresses a packed column with a
+literal number.
 """
 
-# state columns
-X, Y, ANGLE, VX, VY, OMEGA = 0, 1, 2, 3, 4, 5
-STATE_COLUMNS = 6
+from __future__ import annotations
 
-# parameter columns
-INV_MASS, INV_INERTIA, RADIUS, HALF_LENGTH, FRICTION_DECEL, SPIN_DECEL = 0, 1, 2, 3, 4, 5
-PARAM_COLUMNS = 6
+from collections.abc import Iterator
 
-# pair material columns
-RESTITUTION, FRICTION = 0, 1
+__all__ = ["TABLES", "Table", "field_shapes"]
 
-# time-of-impact outcomes
-NONE, CONTACT, CHECKPOINT = 0, 1, 2
+#: every table declared, by name (what the layout test walks)
+TABLES: dict[str, Table] = {}
 
-# per-element statistics columns (world.last_step.stats)
-STAT_EVENTS, STAT_ITERATIONS, STAT_FALLBACK, STAT_CONTACTS, STAT_SUBSTEPS = 0, 1, 2, 3, 4
-STAT_COLUMNS = 5
 
-# ---------------------------------------------------------------------------------------------
-# Packed buffers. A world keeps all its kernel arrays as named views into one float64 and one
-# int64 buffer, so a step calls its kernel with two arguments (numba unboxes every array
-# argument on every call: ~0.2 us each). The int buffer starts with a header: sizes, then the
-# offset of each field in its buffer; ``solvers.unpack`` rebuilds the views inside the kernel.
-# ---------------------------------------------------------------------------------------------
+class Table:
+    """Named columns of a packed row, declared once.
 
-#: header slots: batch size, bodies, pairs, stored contacts per element, stat columns
-H_B, H_N, H_P, H_M, H_C = 0, 1, 2, 3, 4
-#: float fields, in buffer order, and their shapes in terms of (B, N, P, M)
-FLOAT_FIELDS = ("state", "params", "forces", "hw", "materials", "crec", "toi", "fcfg", "time")
-#: int fields
-INT_FIELDS = ("pair_a", "pair_b", "cpair", "stats", "kind", "changed", "icfg")
-#: header slot of the first float field's offset (the rest follow), and of the int fields'
-H_FLOAT = 8
-H_INT = H_FLOAT + len(FLOAT_FIELDS)
-HEADER = H_INT + len(INT_FIELDS) + 1
+    Args:
+        name: what a row is (unique among tables).
+        columns: column names in row order; a ``(name, width)`` pair declares a block of
+            ``width`` consecutive columns (e.g. an observation inside a task row).
+        prefix: prefix of the module constants unpacked from the table (``"REC_"`` gives
+            ``REC_TIME``, ...); the test checks each constant against its column.
 
-#: contact record columns (``crec``): time, point x, y, normal x, y, impulse, tangent impulse
-REC_TIME, REC_PX, REC_PY, REC_NX, REC_NY, REC_J, REC_JT = 0, 1, 2, 3, 4, 5, 6
-REC_COLUMNS = 7
+    Iterating gives each column's offset in order; ``len`` is the row's width.
+    """
 
-#: solver configuration slots (``fcfg`` floats, ``icfg`` ints)
-CF_DT, CF_TOL, CF_ZENO_SPEED, CF_SETTLE = 0, 1, 2, 3
-FCFG_SIZE = 4
-CI_MAX_EVENTS, CI_MAX_ITERATIONS, CI_ZENO_IMPACTS, CI_ROTATION = 0, 1, 2, 3
-CI_CONTACT_FRICTION, CI_TABLE_FRICTION, CI_SUBSTEPS, CI_ITERATIONS = 4, 5, 6, 7
-ICFG_SIZE = 8
+    def __init__(self, name: str, *columns: str | tuple[str, int], prefix: str = "") -> None:
+        if name in TABLES:
+            raise ValueError(f"layout table {name!r} is declared twice")
+        self.name = name
+        self.prefix = prefix
+        self.offsets: dict[str, int] = {}
+        self.widths: dict[str, int] = {}
+        offset = 0
+        for column in columns:
+            key, width = (column, 1) if isinstance(column, str) else column
+            if key in self.offsets:
+                raise ValueError(f"layout table {name!r}: column {key!r} is declared twice")
+            if width < 1:
+                raise ValueError(f"layout table {name!r}: column {key!r} has width {width}")
+            self.offsets[key] = offset
+            self.widths[key] = width
+            offset += width
+        self.size = offset
+        TABLES[name] = self
+
+    def __iter__(self) -> Iterator[int]:
+        return iter(self.offsets.values())
+
+    def __len__(self) -> int:
+        return self.size
+
+    def __getitem__(self, column: str) -> int:
+        return self.offsets[column]
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(self.offsets)
+
+    def constant(self, column: str) -> str:
+        """Name of the module constant holding ``column``'s offset."""
+        return self.prefix + column.upper()
+
+    def __repr__(self) -> str:
+        return f"Table({self.name!r}, {', '.join(self.offsets)})"
+
+
+# -- a body's state and parameters ---------------------------------------------------------------
+
+#: state row of a body ``[B, N, .]``: m, m, rad (CCW from +x), m/s, m/s, rad/s (CCW > 0)
+STATE = Table("state", "x", "y", "angle", "vx", "vy", "omega")
+X, Y, ANGLE, VX, VY, OMEGA = STATE
+STATE_COLUMNS = len(STATE)
+
+#: parameter row of a body ``[B, N, .]``, derived from the scene's values by ``World``:
+#: 1/kg, 1/(kg m^2), m, m, m/s^2 (cloth deceleration), rad/s^2 (cloth spin-down)
+PARAMS = Table("params", "inv_mass", "inv_inertia", "radius", "half_length", "friction_decel",
+               "spin_decel")
+INV_MASS, INV_INERTIA, RADIUS, HALF_LENGTH, FRICTION_DECEL, SPIN_DECEL = PARAMS
+PARAM_COLUMNS = len(PARAMS)
+
+#: applied force on a body ``[B, N, .]``, N
+FORCE = Table("force", "fx", "fy")
+FX, FY = FORCE
+FORCE_COLUMNS = len(FORCE)
+
+#: table half size ``[B, .]``, m (inf when unbounded)
+HALF = Table("table half size", "half_w", "half_h")
+HALF_W, HALF_H = HALF
+HALF_COLUMNS = len(HALF)
+
+#: material of a contact pair ``[B, P, .]``
+MATERIAL = Table("material", "restitution", "friction")
+RESTITUTION, FRICTION = MATERIAL
+MATERIAL_COLUMNS = len(MATERIAL)
+
+# -- what a step reports -------------------------------------------------------------------------
+
+#: contact record ``crec [B, M, .]``: s, m, m, unit normal (a to b), N s, N s (along (-ny, nx))
+RECORD = Table("contact record", "time", "px", "py", "nx", "ny", "j", "jt", prefix="REC_")
+REC_TIME, REC_PX, REC_PY, REC_NX, REC_NY, REC_J, REC_JT = RECORD
+REC_COLUMNS = len(RECORD)
+
+#: per-element statistics of the last step (``world.last_step``)
+STATS = Table("statistics", "events", "iterations", "fallback", "contacts", "substeps",
+              prefix="STAT_")
+STAT_EVENTS, STAT_ITERATIONS, STAT_FALLBACK, STAT_CONTACTS, STAT_SUBSTEPS = STATS
+STAT_COLUMNS = len(STATS)
+
+#: outcome of a time-of-impact search (values, not columns)
+SEARCH = Table("search outcome", "none", "contact", "checkpoint")
+NONE, CONTACT, CHECKPOINT = SEARCH
+
+# -- solver configuration ------------------------------------------------------------------------
+
+#: float configuration ``fcfg``: step length (s), contact tolerance (m), resting-bounce speed
+#: (m/s), longest settling substep (s), overlap beyond which a placement is refused (m)
+FCFG = Table("solver floats", "dt", "tol", "zeno_speed", "settle", "overlap_tol", prefix="CF_")
+CF_DT, CF_TOL, CF_ZENO_SPEED, CF_SETTLE, CF_OVERLAP_TOL = FCFG
+FCFG_SIZE = len(FCFG)
+
+#: int configuration ``icfg``: the exact solver's caps, the effects' flags (fixed when the world
+#: is built), the fixed solver's substeps and sweeps, and which solver steps (``fixed`` 1: fixed)
+ICFG = Table("solver ints", "max_events", "max_iterations", "zeno_impacts", "rotation",
+             "contact_friction", "table_friction", "substeps", "iterations", "fixed",
+             prefix="CI_")
+(CI_MAX_EVENTS, CI_MAX_ITERATIONS, CI_ZENO_IMPACTS, CI_ROTATION, CI_CONTACT_FRICTION,
+ CI_TABLE_FRICTION, CI_SUBSTEPS, CI_ITERATIONS, CI_FIXED) = ICFG
+ICFG_SIZE = len(ICFG)
+
+# -- the two packed buffers ----------------------------------------------------------------------
+
+#: the int buffer's header: sizes (batch, bodies, pairs, stored contacts per element), then the
+#: offset of each float field in the float buffer and of each int field in the int buffer
+FLOAT_FIELDS = Table("float fields", "state", "params", "forces", "half", "materials", "crec",
+                     "toi", "fcfg", "time", prefix="F_")
+F_STATE, F_PARAMS, F_FORCES, F_HALF, F_MATERIALS, F_CREC, F_TOI, F_FCFG, F_TIME = FLOAT_FIELDS
+INT_FIELDS = Table("int fields", "pair_a", "pair_b", "cpair", "stats", "kind", "changed", "icfg",
+                   prefix="I_")
+I_PAIR_A, I_PAIR_B, I_CPAIR, I_STATS, I_KIND, I_CHANGED, I_ICFG = INT_FIELDS
+HEADER = Table("int header", "b", "n", "p", "m", ("float", len(FLOAT_FIELDS)),
+               ("int", len(INT_FIELDS)), prefix="H_")
+H_B, H_N, H_P, H_M, H_FLOAT, H_INT = HEADER
+HEADER_SIZE = len(HEADER)
 
 
 def field_shapes(B: int, N: int, P: int, M: int) -> dict[str, tuple[int, ...]]:
-    """Shape of every packed field."""
-    return {"state": (B, N, STATE_COLUMNS), "params": (B, N, PARAM_COLUMNS), "forces": (B, N, 2),
-            "hw": (B, 2), "materials": (B, P, 2), "crec": (B, M, REC_COLUMNS), "toi": (B, P),
-            "fcfg": (FCFG_SIZE,), "pair_a": (P,), "pair_b": (P,), "cpair": (B, M),
-            "stats": (B, STAT_COLUMNS), "kind": (B, P), "changed": (B, N),
-            "icfg": (ICFG_SIZE,), "time": (B,)}
+    """Shape of every packed field for B elements of N bodies, P contact pairs and M stored
+    contacts per element (``solvers.unpack`` rebuilds the same views inside the kernels)."""
+    return {"state": (B, N, STATE_COLUMNS), "params": (B, N, PARAM_COLUMNS),
+            "forces": (B, N, FORCE_COLUMNS), "half": (B, HALF_COLUMNS),
+            "materials": (B, P, MATERIAL_COLUMNS), "crec": (B, M, REC_COLUMNS), "toi": (B, P),
+            "fcfg": (FCFG_SIZE,), "time": (B,),
+            "pair_a": (P,), "pair_b": (P,), "cpair": (B, M), "stats": (B, STAT_COLUMNS),
+            "kind": (B, P), "changed": (B, N), "icfg": (ICFG_SIZE,)}

@@ -87,6 +87,13 @@ from spinstrike.physics.layout import (
     FRICTION,
     FRICTION_DECEL,
     OMEGA,
+    REC_J,
+    REC_JT,
+    REC_NX,
+    REC_NY,
+    REC_PX,
+    REC_PY,
+    REC_TIME,
     RESTITUTION,
     SPIN_DECEL,
     STAT_CONTACTS,
@@ -166,7 +173,7 @@ class PymunkBackend:
                 cell[1] = float(mats[b, p, FRICTION])
 
     def _wall_geometry(self, b: int) -> list[tuple[tuple[tuple[float, float], ...], float]]:
-        hw, hh = (float(v) for v in self.world._hw[b])
+        hw, hh = (float(v) for v in self.world._half[b])
         r = WALL_DEPTH * min(hw, hh)
         ext = hw + hh + 2.0 * r  # past the corners
         xl, xr, yb, yt = -hw - r, hw + r, -hh - r, hh + r
@@ -298,6 +305,10 @@ class PymunkBackend:
                 el.space.reindex_static()
             self._set_cloth(b)
 
+    def space(self, b: int) -> pymunk.Space:
+        """Element b's pymunk space (rebuilt when the world moves its bodies)."""
+        return self._elements[b].space
+
     # ------------------------------------------------------------------------------------------
     # stepping
     # ------------------------------------------------------------------------------------------
@@ -305,7 +316,7 @@ class PymunkBackend:
     def _record_callback(self, p: int):
         w = self.world
         ctx = self._ctx
-        cpair, ctime, cgeo, cimp = w._cpair, w._ctime, w._cgeo, w._cimp
+        cpair, crec = w._cpair, w._crec
         M = w.max_contacts
 
         def post_solve(arbiter: pymunk.Arbiter, space: pymunk.Space, data: Any) -> None:
@@ -326,14 +337,14 @@ class PymunkBackend:
                 py += cp.point_a.y + cp.point_b.y
             m = 2.0 * max(len(points), 1)
             cpair[b, k] = p
-            ctime[b, k] = ctx[1]
-            g = cgeo[b, k]
-            g[0] = px / m
-            g[1] = py / m
-            g[2] = nx
-            g[3] = ny
-            cimp[b, k, 0] = -(J.x * nx + J.y * ny)
-            cimp[b, k, 1] = -(J.y * nx - J.x * ny)
+            rec = crec[b, k]
+            rec[REC_TIME] = ctx[1]
+            rec[REC_PX] = px / m
+            rec[REC_PY] = py / m
+            rec[REC_NX] = nx
+            rec[REC_NY] = ny
+            rec[REC_J] = -(J.x * nx + J.y * ny)
+            rec[REC_JT] = -(J.y * nx - J.x * ny)
 
         return post_solve
 

@@ -24,8 +24,18 @@ import re
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
+import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    Strict,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from spinstrike.physics.effects import EFFECTS
 from spinstrike.physics.shapes import capsule_inertia, disk_inertia
@@ -34,10 +44,15 @@ __all__ = [
     "Body",
     "ExactSolver",
     "FixedSolver",
+    "Finite",
+    "Flag",
+    "Integer",
+    "Number",
     "Materials",
     "PairMaterial",
     "PymunkSolver",
     "Scene",
+    "SOLVERS",
     "SceneError",
     "SolverConfig",
     "Table",
@@ -54,7 +69,22 @@ class SceneError(ValueError):
     """An invalid scene, solver block or body parameter. The message names the field."""
 
 
-Finite = Annotated[float, Field(allow_inf_nan=False)]
+def _integer(value: Any) -> int:
+    """An integer, numpy's included; booleans, strings and floats are refused."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ValueError(f"must be an integer (got {value!r})")
+    return int(value)
+
+
+#: a number: an int or float (numpy's too), never a string or a boolean (pydantic strict mode,
+#: so ``"0.5"`` or ``True`` is an error that names the field instead of 0.5 or 1.0)
+Number = Annotated[float, Strict()]
+#: a finite number
+Finite = Annotated[float, Strict(), Field(allow_inf_nan=False)]
+#: an integer
+Integer = Annotated[int, BeforeValidator(_integer)]
+#: a boolean (``true``/``false``, never 0, 1 or a string)
+Flag = Annotated[bool, Strict()]
 Vec2 = tuple[Finite, Finite]
 
 
@@ -92,12 +122,12 @@ class ExactSolver(_Model):
     """
 
     mode: Literal["exact"] = "exact"
-    tolerance: float = Field(1e-9, gt=0.0, le=1e-2)
-    max_events: int = Field(1000, ge=1, le=10_000_000)
-    max_iterations: int = Field(64, ge=4, le=100_000)
-    zeno_speed: float = Field(1e-3, ge=0.0)
-    zeno_impacts: int = Field(8, ge=1)
-    settle_substep: float = Field(1e-3, gt=0.0)
+    tolerance: Number = Field(1e-9, gt=0.0, le=1e-2)
+    max_events: Integer = Field(1000, ge=1, le=10_000_000)
+    max_iterations: Integer = Field(64, ge=4, le=100_000)
+    zeno_speed: Number = Field(1e-3, ge=0.0)
+    zeno_impacts: Integer = Field(8, ge=1)
+    settle_substep: Number = Field(1e-3, gt=0.0)
 
 
 class FixedSolver(_Model):
@@ -112,8 +142,8 @@ class FixedSolver(_Model):
     """
 
     mode: Literal["fixed"] = "fixed"
-    substeps: int = Field(1, ge=1, le=100_000)
-    iterations: int = Field(4, ge=1, le=1000)
+    substeps: Integer = Field(1, ge=1, le=100_000)
+    iterations: Integer = Field(4, ge=1, le=1000)
 
 
 class PymunkSolver(_Model):
@@ -125,8 +155,8 @@ class PymunkSolver(_Model):
     """
 
     mode: Literal["pymunk"] = "pymunk"
-    substeps: int = Field(10, ge=1, le=100_000)
-    iterations: int = Field(10, ge=1, le=100_000)
+    substeps: Integer = Field(10, ge=1, le=100_000)
+    iterations: Integer = Field(10, ge=1, le=100_000)
 
 
 SolverConfig = Annotated[ExactSolver | FixedSolver | PymunkSolver, Field(discriminator="mode")]
@@ -147,8 +177,8 @@ class Table(_Model):
     """
 
     size: Vec2 | None = None
-    friction: float = Field(0.0, ge=0.0, allow_inf_nan=False)
-    gravity: float = Field(9.81, gt=0.0, allow_inf_nan=False)
+    friction: Number = Field(0.0, ge=0.0, allow_inf_nan=False)
+    gravity: Number = Field(9.81, gt=0.0, allow_inf_nan=False)
 
     @field_validator("size")
     @classmethod
@@ -162,8 +192,8 @@ class PairMaterial(_Model):
     """Per-pair override: ``bodies`` names two bodies, or a body and ``walls`` / a wall name."""
 
     bodies: tuple[str, str]
-    restitution: float | None = Field(None, ge=0.0, le=1.0)
-    friction: float | None = Field(None, ge=0.0)
+    restitution: Number | None = Field(None, ge=0.0, le=1.0)
+    friction: Number | None = Field(None, ge=0.0)
 
 
 class Materials(_Model):
@@ -177,8 +207,8 @@ class Materials(_Model):
         pairs: per-pair overrides.
     """
 
-    restitution: float = Field(1.0, ge=0.0, le=1.0)
-    friction: float = Field(0.0, ge=0.0)
+    restitution: Number = Field(1.0, ge=0.0, le=1.0)
+    friction: Number = Field(0.0, ge=0.0)
     pairs: tuple[PairMaterial, ...] = ()
 
 
@@ -203,18 +233,18 @@ class Body(_Model):
 
     name: str = Field(min_length=1)
     shape: Literal["disk", "rod"]
-    mass: float | None = Field(None, gt=0.0)
-    radius: float | None = Field(None, gt=0.0)
-    length: float | None = Field(None, gt=0.0)
-    thickness: float | None = Field(None, ge=0.0)
-    inertia: float | Literal["thin_rod"] | None = None
+    mass: Number | None = Field(None, gt=0.0)
+    radius: Number | None = Field(None, gt=0.0)
+    length: Number | None = Field(None, gt=0.0)
+    thickness: Number | None = Field(None, ge=0.0)
+    inertia: Number | Literal["thin_rod"] | None = None
     position: Vec2 = (0.0, 0.0)
     angle: Finite = 0.0
     velocity: Vec2 = (0.0, 0.0)
     omega: Finite = 0.0
-    static: bool = False
-    pivot: bool = False
-    driven: bool = False
+    static: Flag = False
+    pivot: Flag = False
+    driven: Flag = False
 
     @field_validator("inertia")
     @classmethod
@@ -351,7 +381,9 @@ class Scene(_Model):
 #: float64 machine epsilon (relative round-off)
 _ULP = 2.0**-52
 _FIELD = re.compile(r"[A-Za-z_][\w.\[\]]*")
-_SOLVER_TAGS = {"exact", "fixed", "pymunk"}
+#: solver modes a scene may name (``solver: {mode: ...}``), from the solver models themselves
+SOLVERS: tuple[str, ...] = tuple(m.model_fields["mode"].default
+                                 for m in (ExactSolver, FixedSolver, PymunkSolver))
 
 
 def _format_error(err: ValidationError) -> str:
@@ -362,7 +394,7 @@ def _format_error(err: ValidationError) -> str:
         for part in e["loc"]:
             if isinstance(part, int):
                 loc += f"[{part}]"
-            elif part not in _SOLVER_TAGS:
+            elif part not in SOLVERS:
                 loc += ("." if loc else "") + str(part)
         msg = e["msg"].removeprefix("Value error, ")
         if e["type"] == "value_error":

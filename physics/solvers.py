@@ -1,13 +1,13 @@
-"""The solvers, written once for a batch: one numba kernel steps one element; two thin wrappers
-run it over the batch (serially, or in parallel threads for large batches).
+"""The solvers, written once for a batch: one numba kernel steps one element of a world
+(``physics.kernels`` runs it over the batch, serially or in parallel threads).
 
-``exact`` (DESIGN §5): event driven. All pairs get a time of impact (``events.time_of_impact``);
-the world flies in closed form to the earliest, resolves every pair then within ``tolerance`` and
-approaching (the *simultaneous-contact rule*: sequential impulses swept in pair order until no pair
-approaches, at most ``MAX_SWEEPS`` sweeps — this reproduces Newton's cradle; if pairs still
-approach after that, a *jam*, one block solve of all touching pairs removes the rest,
-``physics.jam``), and searches again only for the pairs whose bodies changed. Two guards keep a
-step finite:
+``exact`` (``docs/design.md`` §4): event driven. All pairs get a time of impact
+(``events.time_of_impact``); the world flies in closed form to the earliest, resolves every pair
+then within ``tolerance`` and approaching (the *simultaneous-contact rule*: sequential impulses
+swept in pair order until no pair approaches, at most ``MAX_SWEEPS`` sweeps — this reproduces
+Newton's cradle; if pairs still approach after that, a *jam*, one block solve of all touching pairs
+removes the rest, ``physics.jam``), and searches again only for the pairs whose bodies changed. Two
+guards keep a step finite:
 
 * a run of *resting bounces* (impacts closing slower than ``zeno_speed``, or time-of-impact
   searches that stall while the pair is within ``tolerance``: an inelastic body pinned by a force,
@@ -26,47 +26,38 @@ overlaps are pushed apart along the normal in proportion to the inverse masses.
 from __future__ import annotations
 
 import math
-from collections import namedtuple
 
-import numba
 import numpy as np
 
 from spinstrike.physics.events import far_apart, pair_bodies, pair_geometry, time_of_impact
 from spinstrike.physics.impulse import apply_impulse, resolve
-from spinstrike.physics.jam import JAM_COLUMNS, MAX_JAM_PAIRS, jam_impulses
+from spinstrike.physics.jam import (
+    JAM_COLUMNS,
+    JAM_CROSS_A,
+    JAM_CROSS_B,
+    JAM_NX,
+    JAM_NY,
+    JAM_PX,
+    JAM_PY,
+    MAX_JAM_PAIRS,
+    jam_impulses,
+)
+from spinstrike.physics.jit import jit, jit_inline
 from spinstrike.physics.layout import (
     ANGLE,
-    CF_DT,
-    CF_SETTLE,
-    CF_TOL,
-    CF_ZENO_SPEED,
     CHECKPOINT,
-    CI_CONTACT_FRICTION,
-    CI_ITERATIONS,
-    CI_MAX_EVENTS,
-    CI_MAX_ITERATIONS,
-    CI_ROTATION,
-    CI_SUBSTEPS,
-    CI_TABLE_FRICTION,
-    CI_ZENO_IMPACTS,
-    FCFG_SIZE,
     FRICTION,
     FRICTION_DECEL,
-    H_B,
-    H_C,
-    H_FLOAT,
-    H_INT,
-    H_M,
-    H_N,
-    H_P,
+    FX,
+    FY,
+    HALF_H,
     HALF_LENGTH,
-    ICFG_SIZE,
+    HALF_W,
     INV_INERTIA,
     INV_MASS,
     NONE,
     OMEGA,
     RADIUS,
-    REC_COLUMNS,
     REC_J,
     REC_JT,
     REC_NX,
@@ -88,28 +79,13 @@ from spinstrike.physics.layout import (
 )
 from spinstrike.physics.motion import flight
 
-__all__ = [
-    "MAX_SWEEPS",
-    "Views",
-    "step_element",
-    "unpack",
-    "exact_batch_parallel",
-    "exact_batch_serial",
-    "fixed_batch_parallel",
-    "fixed_batch_serial",
-]
+__all__ = ["MAX_SWEEPS", "exact_element", "fixed_element"]
 
 #: sequential-impulse sweeps over simultaneous contacts at one event
 MAX_SWEEPS = 64
 #: most substeps the settling integration of one step may take
 MAX_SETTLE_SUBSTEPS = 1_000_000
 
-jit = numba.njit(cache=True, nogil=True, error_model="numpy")
-#: small kernels that take arrays are inlined into their callers at numba level: a call
-#: that passes arrays costs an atomic reference-count increment and decrement per array,
-#: which inlining lets numba prune (vector control env: +25% throughput, +4 s cold compile)
-jit_inline = numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-jit_parallel = numba.njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 
 
 @jit_inline
@@ -148,10 +124,10 @@ def _search(p, S, Pm, F, hw, PA, PB, horizon, tol, max_iterations, rotation, tab
     inlined ``far_apart`` test without calling the search (which is what its first iteration
     would find, so the results are the same bit for bit)."""
     a, b, wall = pair_bodies(p, PA, PB, S.shape[0])
-    if far_apart(S, Pm, F, a, b, wall, hw[0], hw[1], horizon, tol, rotation):
+    if far_apart(S, Pm, F, a, b, wall, hw[HALF_W], hw[HALF_H], horizon, tol, rotation):
         return horizon, NONE, 1
-    return time_of_impact(S, Pm, F, a, b, wall, hw[0], hw[1], horizon, tol, max_iterations,
-                          rotation, table_friction)
+    return time_of_impact(S, Pm, F, a, b, wall, hw[HALF_W], hw[HALF_H], horizon, tol,
+                          max_iterations, rotation, table_friction)
 
 
 @jit
@@ -163,7 +139,8 @@ def _contact_pass(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact
     resting = 0
     for p in range(PA.shape[0]):
         a, b, wall = pair_bodies(p, PA, PB, n)
-        g, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, wall, hw[0], hw[1])
+        g, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, wall, hw[HALF_W],
+                                                                  hw[HALF_H])
         if g <= slop and vn < 0.0:
             px = S[a, X] + oax + ka * nx
             py = S[a, Y] + oay + ka * ny
@@ -193,10 +170,10 @@ def _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, crec, stats)
             continue
         p = idx[i]
         a, b, wall = pair_bodies(p, PA, PB, n)
-        apply_impulse(S, Pm, a, b, wall >= 0, lam[i], geo[i, 0], geo[i, 1], geo[i, 2],
-                      geo[i, 3], rotation)
-        _record(p, t, geo[i, 4], geo[i, 5], geo[i, 0], geo[i, 1], lam[i], 0.0, cpair, crec,
-                stats)
+        apply_impulse(S, Pm, a, b, wall >= 0, lam[i], geo[i, JAM_NX], geo[i, JAM_NY],
+                      geo[i, JAM_CROSS_A], geo[i, JAM_CROSS_B], rotation)
+        _record(p, t, geo[i, JAM_PX], geo[i, JAM_PY], geo[i, JAM_NX], geo[i, JAM_NY], lam[i], 0.0,
+                cpair, crec, stats)
         changed[a] = 1
         if wall < 0:
             changed[b] = 1
@@ -260,7 +237,8 @@ def _separate(S, Pm, hw, PA, PB, weighted, rotate):
     deepest = 0.0
     for p in range(PA.shape[0]):
         a, b, wall = pair_bodies(p, PA, PB, n)
-        g, nx, ny, oax, oay, _, obx, oby, _, _ = pair_geometry(S, Pm, a, b, wall, hw[0], hw[1])
+        g, nx, ny, oax, oay, _, obx, oby, _, _ = pair_geometry(S, Pm, a, b, wall, hw[HALF_W],
+                                                               hw[HALF_H])
         if g < 0.0:
             ca = oax * ny - oay * nx
             cb = obx * ny - oby * nx
@@ -293,8 +271,8 @@ def _kick(S, Pm, F, h, rotation, table_friction):
     """Velocity update of one substep: applied forces, cloth friction; then positions."""
     for i in range(S.shape[0]):
         ima = Pm[i, INV_MASS]
-        S[i, VX] += F[i, 0] * ima * h
-        S[i, VY] += F[i, 1] * ima * h
+        S[i, VX] += F[i, FX] * ima * h
+        S[i, VY] += F[i, FY] * ima * h
         if table_friction:
             dv = Pm[i, FRICTION_DECEL] * h
             if dv > 0.0:
@@ -340,7 +318,7 @@ def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, 
 def _speed_bound(S, Pm, F, i, T):
     """Fastest a point of body i's core can move within T: centre, spin, applied force."""
     return (math.sqrt(S[i, VX] ** 2 + S[i, VY] ** 2) + abs(S[i, OMEGA]) * Pm[i, HALF_LENGTH]
-            + math.sqrt(F[i, 0] ** 2 + F[i, 1] ** 2) * Pm[i, INV_MASS] * T)
+            + math.sqrt(F[i, FX] ** 2 + F[i, FY] ** 2) * Pm[i, INV_MASS] * T)
 
 
 @jit
@@ -404,7 +382,7 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
             # a search that stalls while the pair is in contact is a sliding/rolling contact:
             # it counts toward settling like a resting bounce
             a, b, wall = pair_bodies(best, PA, PB, S.shape[0])
-            g = pair_geometry(S, Pm, a, b, wall, hw[0], hw[1])[0]
+            g = pair_geometry(S, Pm, a, b, wall, hw[HALF_W], hw[HALF_H])[0]
             if g <= tol:
                 resting += 1
         else:
@@ -429,107 +407,3 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
             break
     stats[STAT_EVENTS] += events
     stats[STAT_ITERATIONS] += iterations
-
-
-#: a world's arrays, as ``unpack`` rebuilds them from the packed buffers: state, parameters,
-#: forces, table half sizes, pair materials, contact records, time-of-impact scratch, float
-#: config, pair bodies, contact pairs, statistics, search kinds, changed flags, int config, clock
-Views = namedtuple("Views", ["S", "Pm", "F", "HW", "MAT", "crec", "toi", "fcfg", "PA", "PB",
-                             "cpair", "stats", "kind", "changed", "icfg", "clock"])
-
-
-@jit
-def unpack(fbuf, ibuf):
-    """The named arrays of a world's two packed buffers (see ``physics.layout``), as
-    :data:`Views`."""
-    B = ibuf[H_B]
-    N = ibuf[H_N]
-    P = ibuf[H_P]
-    M = ibuf[H_M]
-    C = ibuf[H_C]
-    fo = ibuf[H_FLOAT:H_FLOAT + 9]
-    io = ibuf[H_INT:H_INT + 7]
-    S = fbuf[fo[0]:fo[0] + B * N * 6].reshape((B, N, 6))
-    Pm = fbuf[fo[1]:fo[1] + B * N * 6].reshape((B, N, 6))
-    F = fbuf[fo[2]:fo[2] + B * N * 2].reshape((B, N, 2))
-    HW = fbuf[fo[3]:fo[3] + B * 2].reshape((B, 2))
-    MAT = fbuf[fo[4]:fo[4] + B * P * 2].reshape((B, P, 2))
-    crec = fbuf[fo[5]:fo[5] + B * M * REC_COLUMNS].reshape((B, M, REC_COLUMNS))
-    toi = fbuf[fo[6]:fo[6] + B * P].reshape((B, P))
-    fcfg = fbuf[fo[7]:fo[7] + FCFG_SIZE]
-    PA = ibuf[io[0]:io[0] + P]
-    PB = ibuf[io[1]:io[1] + P]
-    cpair = ibuf[io[2]:io[2] + B * M].reshape((B, M))
-    stats = ibuf[io[3]:io[3] + B * C].reshape((B, C))
-    kind = ibuf[io[4]:io[4] + B * P].reshape((B, P))
-    changed = ibuf[io[5]:io[5] + B * N].reshape((B, N))
-    icfg = ibuf[io[6]:io[6] + ICFG_SIZE]
-    clock = fbuf[fo[8]:fo[8] + B]
-    return Views(S, Pm, F, HW, MAT, crec, toi, fcfg, PA, PB, cpair, stats, kind, changed, icfg,
-                 clock)
-
-
-@jit
-def step_element(v, b, dt, fixed):
-    """Advance element b of a world's views by dt with its solver (``exact`` unless
-    ``fixed``), from statistics zeroed here; the clock advances too."""
-    v.stats[b, :] = 0
-    v.clock[b] += dt
-    rotation = v.icfg[CI_ROTATION] != 0
-    cf = v.icfg[CI_CONTACT_FRICTION] != 0
-    tf = v.icfg[CI_TABLE_FRICTION] != 0
-    if fixed:
-        fixed_element(v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,
-                      v.icfg[CI_SUBSTEPS], v.icfg[CI_ITERATIONS], 0.0, 0.0, rotation, cf, tf,
-                      v.cpair[b], v.crec[b], v.stats[b], v.changed[b])
-    else:
-        exact_element(v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,
-                      v.fcfg[CF_TOL], v.icfg[CI_MAX_EVENTS], v.icfg[CI_MAX_ITERATIONS],
-                      v.fcfg[CF_ZENO_SPEED], v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE],
-                      rotation, cf, tf, v.cpair[b], v.crec[b], v.stats[b], v.toi[b], v.kind[b],
-                      v.changed[b])
-
-
-# The batch kernels unpack the buffers once per block of elements, not per element (unpacking
-# makes sixteen views, each with reference-count traffic: 0.7 us an element when done inside the
-# loop); the parallel ones spread blocks of ``BLOCK`` elements over the threads.
-
-#: elements per block of the parallel kernels
-BLOCK = 64
-
-
-@jit
-def step_range(fbuf, ibuf, start, stop, fixed):
-    """Step elements ``start..stop-1`` of a world by its ``dt`` (``exact`` unless ``fixed``)."""
-    v = unpack(fbuf, ibuf)
-    dt = v.fcfg[CF_DT]
-    for b in range(start, stop):
-        step_element(v, b, dt, fixed)
-
-
-@jit_parallel
-def exact_batch_parallel(fbuf, ibuf):
-    """``exact_element`` over a world's batch (its packed buffers), in parallel threads."""
-    n = ibuf[H_B]
-    for k in numba.prange((n + BLOCK - 1) // BLOCK):
-        step_range(fbuf, ibuf, k * BLOCK, min(n, (k + 1) * BLOCK), False)
-
-
-@jit
-def exact_batch_serial(fbuf, ibuf):
-    """``exact_element`` over a world's batch (its packed buffers), in this thread."""
-    step_range(fbuf, ibuf, 0, ibuf[H_B], False)
-
-
-@jit_parallel
-def fixed_batch_parallel(fbuf, ibuf):
-    """``fixed_element`` over a world's batch (its packed buffers), in parallel threads."""
-    n = ibuf[H_B]
-    for k in numba.prange((n + BLOCK - 1) // BLOCK):
-        step_range(fbuf, ibuf, k * BLOCK, min(n, (k + 1) * BLOCK), True)
-
-
-@jit
-def fixed_batch_serial(fbuf, ibuf):
-    """``fixed_element`` over a world's batch (its packed buffers), in this thread."""
-    step_range(fbuf, ibuf, 0, ibuf[H_B], True)

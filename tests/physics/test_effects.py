@@ -11,6 +11,7 @@ import json
 import os
 import subprocess
 import sys
+import tempfile
 import textwrap
 
 import numpy as np
@@ -96,8 +97,10 @@ TRACE = textwrap.dedent("""
 
 def _trace(scene):
     env = dict(os.environ, NUMBA_DISABLE_JIT="1")
+    # outside the repository, where only the installed names import
     out = subprocess.run([sys.executable, "-c", TRACE, json.dumps(scene)], env=env,
-                         capture_output=True, text=True, check=True, timeout=300)
+                         capture_output=True, text=True, check=True, timeout=300,
+                         cwd=tempfile.gettempdir())
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 

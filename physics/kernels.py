@@ -1,0 +1,219 @@
+"""The interface for compiled steps: what a kernel outside ``physics`` (the envs' fused control
+step and strike, ``envs/fast.py``) needs to run the world's own solver inside its own loop.
+
+A world keeps every array the kernels touch in two packed buffers (``World.buffers``, laid out
+by ``physics.layout``). A *batch kernel* takes those two buffers first, then its own arrays; it
+calls :func:`unpack` once per block of elements and :func:`step_element` for each element it
+steps, so an env kernel and ``world.step`` run the very same element kernel and agree bit for
+bit. :class:`BatchKernel` bundles a kernel's serial and parallel versions (and, for the pymunk
+backend, which steps outside numba, a Python version); ``World.run`` is the one place that picks
+among them and books the step.
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numba
+
+from spinstrike.physics.events import pair_bodies, pair_geometry
+from spinstrike.physics.jit import jit, jit_inline, jit_parallel
+from spinstrike.physics.layout import (
+    CF_DT,
+    CF_SETTLE,
+    CF_TOL,
+    CF_ZENO_SPEED,
+    CI_CONTACT_FRICTION,
+    CI_FIXED,
+    CI_ITERATIONS,
+    CI_MAX_EVENTS,
+    CI_MAX_ITERATIONS,
+    CI_ROTATION,
+    CI_SUBSTEPS,
+    CI_TABLE_FRICTION,
+    CI_ZENO_IMPACTS,
+    F_CREC,
+    F_FCFG,
+    F_FORCES,
+    F_HALF,
+    F_MATERIALS,
+    F_PARAMS,
+    F_STATE,
+    F_TIME,
+    F_TOI,
+    FCFG_SIZE,
+    FORCE_COLUMNS,
+    H_B,
+    H_FLOAT,
+    H_INT,
+    H_M,
+    H_N,
+    H_P,
+    HALF_COLUMNS,
+    HALF_H,
+    HALF_W,
+    I_CHANGED,
+    I_CPAIR,
+    I_ICFG,
+    I_KIND,
+    I_PAIR_A,
+    I_PAIR_B,
+    I_STATS,
+    ICFG_SIZE,
+    MATERIAL_COLUMNS,
+    PARAM_COLUMNS,
+    REC_COLUMNS,
+    STAT_COLUMNS,
+    STATE_COLUMNS,
+)
+from spinstrike.physics.solvers import exact_element, fixed_element
+
+__all__ = ["BLOCK", "STEP", "BatchKernel", "Views", "element_overlap", "n_blocks",
+           "step_element", "unpack"]
+
+#: elements per block of the parallel kernels (each block unpacks the buffers once)
+BLOCK = 64
+
+#: a world's arrays, as :func:`unpack` rebuilds them from the packed buffers: state ``S``,
+#: parameters ``Pm``, forces ``F``, table half sizes ``HW``, pair materials ``MAT``, contact
+#: records ``crec``, time-of-impact scratch ``toi``, float config ``fcfg``, pair bodies ``PA``,
+#: ``PB``, contact pairs ``cpair``, statistics ``stats``, search kinds ``kind``, changed flags
+#: ``changed``, int config ``icfg``, clock ``clock`` (shapes: ``layout.field_shapes``)
+Views = namedtuple("Views", ["S", "Pm", "F", "HW", "MAT", "crec", "toi", "fcfg", "PA", "PB",
+                             "cpair", "stats", "kind", "changed", "icfg", "clock"])
+
+
+@jit_inline
+def _floats(fbuf, ibuf, field, size):
+    o = ibuf[H_FLOAT + field]
+    return fbuf[o:o + size]
+
+
+@jit_inline
+def _ints(ibuf, field, size):
+    o = ibuf[H_INT + field]
+    return ibuf[o:o + size]
+
+
+@jit
+def unpack(fbuf, ibuf):
+    """The named arrays of a world's two packed buffers, as :data:`Views`."""
+    B = ibuf[H_B]
+    N = ibuf[H_N]
+    P = ibuf[H_P]
+    M = ibuf[H_M]
+    S = _floats(fbuf, ibuf, F_STATE, B * N * STATE_COLUMNS).reshape((B, N, STATE_COLUMNS))
+    Pm = _floats(fbuf, ibuf, F_PARAMS, B * N * PARAM_COLUMNS).reshape((B, N, PARAM_COLUMNS))
+    F = _floats(fbuf, ibuf, F_FORCES, B * N * FORCE_COLUMNS).reshape((B, N, FORCE_COLUMNS))
+    HW = _floats(fbuf, ibuf, F_HALF, B * HALF_COLUMNS).reshape((B, HALF_COLUMNS))
+    MAT = _floats(fbuf, ibuf, F_MATERIALS, B * P * MATERIAL_COLUMNS).reshape(
+        (B, P, MATERIAL_COLUMNS))
+    crec = _floats(fbuf, ibuf, F_CREC, B * M * REC_COLUMNS).reshape((B, M, REC_COLUMNS))
+    toi = _floats(fbuf, ibuf, F_TOI, B * P).reshape((B, P))
+    fcfg = _floats(fbuf, ibuf, F_FCFG, FCFG_SIZE)
+    clock = _floats(fbuf, ibuf, F_TIME, B)
+    PA = _ints(ibuf, I_PAIR_A, P)
+    PB = _ints(ibuf, I_PAIR_B, P)
+    cpair = _ints(ibuf, I_CPAIR, B * M).reshape((B, M))
+    stats = _ints(ibuf, I_STATS, B * STAT_COLUMNS).reshape((B, STAT_COLUMNS))
+    kind = _ints(ibuf, I_KIND, B * P).reshape((B, P))
+    changed = _ints(ibuf, I_CHANGED, B * N).reshape((B, N))
+    icfg = _ints(ibuf, I_ICFG, ICFG_SIZE)
+    return Views(S, Pm, F, HW, MAT, crec, toi, fcfg, PA, PB, cpair, stats, kind, changed, icfg,
+                 clock)
+
+
+@jit
+def step_element(v, b, dt):
+    """Advance element b of a world's views by dt seconds with the world's solver (``fixed``
+    or ``exact``, from its int config), from statistics zeroed here; the clock advances too."""
+    v.stats[b, :] = 0
+    v.clock[b] += dt
+    rotation = v.icfg[CI_ROTATION] != 0
+    cf = v.icfg[CI_CONTACT_FRICTION] != 0
+    tf = v.icfg[CI_TABLE_FRICTION] != 0
+    if v.icfg[CI_FIXED] != 0:
+        fixed_element(v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,
+                      v.icfg[CI_SUBSTEPS], v.icfg[CI_ITERATIONS], 0.0, 0.0, rotation, cf, tf,
+                      v.cpair[b], v.crec[b], v.stats[b], v.changed[b])
+    else:
+        exact_element(v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,
+                      v.fcfg[CF_TOL], v.icfg[CI_MAX_EVENTS], v.icfg[CI_MAX_ITERATIONS],
+                      v.fcfg[CF_ZENO_SPEED], v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE],
+                      rotation, cf, tf, v.cpair[b], v.crec[b], v.stats[b], v.toi[b], v.kind[b],
+                      v.changed[b])
+
+
+@jit
+def element_overlap(S, Pm, hw, PA, PB, tol):
+    """(pair, gap) of the first contact pair of one element (state ``S [N, 6]``) that overlaps
+    by more than ``tol`` metres, or (-1, 0.0): the check every placement passes."""
+    n = S.shape[0]
+    for p in range(PA.shape[0]):
+        a, c, wall = pair_bodies(p, PA, PB, n)
+        g = pair_geometry(S, Pm, a, c, wall, hw[HALF_W], hw[HALF_H])[0]
+        if g < -tol:
+            return p, g
+    return -1, 0.0
+
+
+@jit_inline
+def n_blocks(n):
+    """Blocks of :data:`BLOCK` elements covering a batch of n (the parallel kernels' prange)."""
+    return (n + BLOCK - 1) // BLOCK
+
+
+# The world's own step. Batch kernels unpack the buffers once per block of elements, not per
+# element (unpacking makes sixteen views, each with reference-count traffic: 0.7 us an element
+# when done inside the loop); the parallel one spreads blocks over the threads.
+
+
+@jit
+def _step_range(fbuf, ibuf, start, stop):
+    v = unpack(fbuf, ibuf)
+    dt = v.fcfg[CF_DT]
+    for b in range(start, stop):
+        step_element(v, b, dt)
+
+
+@jit
+def step_serial(fbuf, ibuf):
+    """Step every element of a world by its ``dt`` (``fcfg``), in this thread."""
+    _step_range(fbuf, ibuf, 0, ibuf[H_B])
+
+
+@jit_parallel
+def step_parallel(fbuf, ibuf):
+    """:func:`step_serial` in parallel threads, a block of elements per task."""
+    n = ibuf[H_B]
+    for k in numba.prange(n_blocks(n)):
+        _step_range(fbuf, ibuf, k * BLOCK, min(n, (k + 1) * BLOCK))
+
+
+@dataclass(frozen=True)
+class BatchKernel:
+    """A batch kernel in the versions ``World.run`` picks from.
+
+    Attributes:
+        name: what it does (for error messages).
+        serial: ``serial(fbuf, ibuf, *args)``, compiled, in this thread.
+        parallel: the same in parallel threads (used from ``world.PARALLEL_BATCH`` elements).
+        stepwise: ``stepwise(world, *args)`` in Python for a world on the pymunk backend, which
+            steps outside numba (``None``: not available there).
+    """
+
+    name: str
+    serial: Callable[..., Any]
+    parallel: Callable[..., Any]
+    stepwise: Callable[..., Any] | None = None
+
+
+def _backend_step(world) -> None:
+    world._step_backend()
+
+
+#: the world's own step (``World.step``)
+STEP = BatchKernel("step", step_serial, step_parallel, _backend_step)

@@ -1,0 +1,183 @@
+"""The reset -> observation seam, from the user's side (``gym.make``, ``gym.make_vec``, SB3).
+
+Every observation an env returns — after ``reset``, after every ``step``, and for vector elements
+reset inside ``step`` — equals an independent numpy reference of the documented layout computed
+from the world's public state and parameters (and the episode's target from ``info``). A reset
+with a seed returns the same observation whatever ran before, and no first observation is all
+zeros. (Before this was tested, the control envs' reset returned the previous step's
+observation, and Gymnasium's ``check_env`` passed.)
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import spinstrike  # noqa: F401  (registers the ids)
+from spinstrike.envs.sb3 import make_sb3_vec_env
+
+CONTROL_IDS = ["SpinStrike/RodSpinControl-v0", "SpinStrike/PuckSpeedControl-v0"]
+STRIKE_IDS = ["SpinStrike/RodSpin-v0", "SpinStrike/PuckSpeed-v0"]
+ENV_IDS = STRIKE_IDS + CONTROL_IDS
+TARGET = {"SpinStrike/RodSpin-v0": "rod", "SpinStrike/PuckSpeed-v0": "puck",
+          "SpinStrike/RodSpinControl-v0": "rod", "SpinStrike/PuckSpeedControl-v0": "puck"}
+#: documented scales (env docstrings): control envs' speed and spin, strike targets' maxima
+SPEED_SCALE, SPIN_SCALE = 3.0, 20.0
+MAX_TARGET_SPIN, MAX_TARGET_SPEED = 20.0, 3.0
+
+
+def reference(env_id: str, world, space: gym.spaces.Box, goal: np.ndarray,
+              max_speed: float = 3.0) -> np.ndarray:
+    """The documented observation layout of every element, from the world's public arrays.
+
+    ``goal``: [B] target spin (RodSpin) or [B, 2] target velocity (PuckSpeed); unused else.
+    """
+    names = world.names
+    t = names.index(TARGET[env_id])
+    if env_id in CONTROL_IDS:
+        m = names.index("mallet")
+        pos, vel = world.state.positions, world.state.velocities
+        hw = world.table_half_size
+        cols = [pos[:, m, 0] / hw[:, 0], pos[:, m, 1] / hw[:, 1],
+                vel[:, m, 0] / max_speed, vel[:, m, 1] / max_speed,
+                pos[:, t, 0] / hw[:, 0], pos[:, t, 1] / hw[:, 1],
+                np.cos(world.state.angles[:, t]), np.sin(world.state.angles[:, t]),
+                vel[:, t, 0] / SPEED_SCALE, vel[:, t, 1] / SPEED_SCALE,
+                world.state.omegas[:, t] / SPIN_SCALE]
+    else:
+        s = names.index("striker")
+        ratio = np.log10(world.mass[:, s] / world.mass[:, t])
+        e = world.restitution(TARGET[env_id], "striker")
+        if env_id == "SpinStrike/RodSpin-v0":
+            cols = [goal / MAX_TARGET_SPIN, ratio, e, world.half_length[:, t]]
+        else:
+            mu = world.friction("puck", "striker")
+            cols = [goal[:, 0] / MAX_TARGET_SPEED, goal[:, 1] / MAX_TARGET_SPEED, ratio, e, mu]
+    obs = np.stack(cols, axis=1)
+    return np.clip(obs, space.low, space.high).astype(np.float32)
+
+
+def _goal(env_id: str, info: dict, b: slice | int = slice(None)) -> np.ndarray:
+    if env_id == "SpinStrike/RodSpin-v0":
+        return np.atleast_1d(np.asarray(info["target_spin"], float))
+    if env_id == "SpinStrike/PuckSpeed-v0":
+        return np.atleast_2d(np.asarray(info["target_velocity"], float))
+    return np.zeros(1)
+
+
+def _check(env_id, world, space, obs, goal, max_speed=3.0):
+    want = reference(env_id, world, space, goal, max_speed)
+    np.testing.assert_allclose(np.atleast_2d(obs), want, rtol=0, atol=2e-6)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_single_env_observations_match_the_documented_layout(env_id):
+    env = gym.make(env_id)
+    u = env.unwrapped
+    rng = np.random.default_rng(0)
+    for episode in range(3):
+        obs, info = env.reset(seed=episode)
+        assert np.any(obs != 0), "a first observation is all zeros"
+        goal = _goal(env_id, info)
+        _check(env_id, u.world, u.observation_space, obs, goal)
+        for _ in range(6):
+            obs, _, term, trunc, info = env.step(env.action_space.sample()
+                                                 if rng.random() < 0.5 else
+                                                 np.ones(env.action_space.shape, np.float32))
+            _check(env_id, u.world, u.observation_space, obs, goal)
+            if term or trunc:
+                break
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_seeded_reset_returns_the_same_observation_whatever_ran_before(env_id):
+    fresh = gym.make(env_id)
+    want, _ = fresh.reset(seed=11)
+    used = gym.make(env_id)
+    used.reset(seed=3)
+    for _ in range(7):
+        _, _, term, trunc, _ = used.step(used.action_space.sample())
+        if term or trunc:
+            used.reset()
+    got, _ = used.reset(seed=11)
+    np.testing.assert_array_equal(got, want)
+    # and the step after it continues from that observation, not from the old episode
+    a = np.zeros(fresh.action_space.shape, np.float32)
+    np.testing.assert_array_equal(used.step(a)[0], fresh.step(a)[0])
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_pixel_observation_after_reset_shows_the_new_state(env_id):
+    kw = {"obs_mode": "pixels", "render_size": (64, 48)}
+    fresh = gym.make(env_id, **kw)
+    want, _ = fresh.reset(seed=5)
+    used = gym.make(env_id, **kw)
+    used.reset(seed=2)
+    last = used.step(used.action_space.sample())[0]
+    got, _ = used.reset(seed=5)
+    np.testing.assert_array_equal(got, want)
+    assert not np.array_equal(got, last)
+
+
+@pytest.mark.parametrize("env_id", STRIKE_IDS)
+def test_goal_conditioned_observation_splits_the_flat_layout(env_id):
+    flat_env, dict_env = gym.make(env_id), gym.make(env_id, obs_mode="dict")
+    flat, _ = flat_env.reset(seed=4)
+    d, _ = dict_env.reset(seed=4)
+    k = d["desired_goal"].shape[0]
+    np.testing.assert_array_equal(d["desired_goal"], flat[:k])
+    np.testing.assert_array_equal(d["observation"], flat[k:])
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_vector_env_observations_match_the_layout_across_autoresets(env_id):
+    """Every element's observation after reset and after every step equals the reference,
+    elements reset inside ``step`` included (their episode's first observation)."""
+    n = 4
+    short = {} if env_id in STRIKE_IDS else {"max_episode_steps": 3}
+    vec = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **short)
+    obs, info = vec.reset(seed=[7, 8, 9, 10])
+    assert np.all(np.any(obs != 0, axis=1)), "a first observation is all zeros"
+    goal = _goal(env_id, info)
+    _check(env_id, vec.world, vec.single_observation_space, obs, goal)
+    resets = 0
+    for _ in range(7):
+        obs, _, term, trunc, info = vec.step(vec.action_space.sample())
+        done = term | trunc
+        resets += int(done.sum())
+        if env_id in STRIKE_IDS:
+            goal = _goal(env_id, info)  # every element starts a new episode (one strike)
+            assert done.all()
+        _check(env_id, vec.world, vec.single_observation_space, obs, goal)
+        if done.any():  # the finished episodes' last observations are not the new ones
+            final = np.stack([info["final_obs"][i] for i in np.flatnonzero(done)])
+            assert not np.array_equal(final, obs[done])
+    assert resets >= n
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_vector_element_matches_a_single_env_seeded_alike_after_reset(env_id):
+    vec = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point")
+    obs, _ = vec.reset(seed=20)
+    for i in range(3):
+        single, _ = gym.make(env_id).reset(seed=20 + i)
+        np.testing.assert_array_equal(obs[i], single)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_sb3_adapter_observations_match_the_layout(env_id):
+    kwargs = {} if env_id in STRIKE_IDS else {"max_episode_steps": 3}
+    vec = make_sb3_vec_env(env_id, n_envs=3, seed=1, env_kwargs=kwargs)
+    native = vec.venv
+    obs = vec.reset()
+    goal = _goal(env_id, vec.last_info)
+    _check(env_id, native.world, native.single_observation_space, obs, goal)
+    for _ in range(5):
+        vec.step_async(np.stack([vec.action_space.sample() for _ in range(3)]))
+        obs, _, done, infos = vec.step_wait()
+        if env_id in STRIKE_IDS:
+            goal = _goal(env_id, vec.last_info)
+        _check(env_id, native.world, native.single_observation_space, obs, goal)
+        for i in np.flatnonzero(done):
+            assert not np.array_equal(infos[i]["terminal_observation"], obs[i])
