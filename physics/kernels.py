@@ -127,9 +127,10 @@ def unpack(fbuf, ibuf):
 
 
 @jit
-def step_element(v, b, dt):
+def step_element(v, b, dt, trace=None):
     """Advance element b of a world's views by dt seconds with the world's solver (``fixed``
-    or ``exact``, from its int config), from statistics zeroed here; the clock advances too."""
+    or ``exact``, from its int config), from statistics zeroed here; the clock advances too.
+    ``trace``: the solvers' optional trace hook (``solvers.Trace``), passed through."""
     v.stats[b, :] = 0
     v.clock[b] += dt
     rotation = v.icfg[CI_ROTATION] != 0
@@ -138,13 +139,13 @@ def step_element(v, b, dt):
     if v.icfg[CI_FIXED] != 0:
         fixed_element(v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,
                       v.icfg[CI_SUBSTEPS], v.icfg[CI_ITERATIONS], 0.0, 0.0, rotation, cf, tf,
-                      v.cpair[b], v.crec[b], v.stats[b], v.changed[b])
+                      v.cpair[b], v.crec[b], v.stats[b], v.changed[b], 1, trace)
     else:
         exact_element(v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,
                       v.fcfg[CF_TOL], v.icfg[CI_MAX_EVENTS], v.icfg[CI_MAX_ITERATIONS],
                       v.fcfg[CF_ZENO_SPEED], v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE],
                       rotation, cf, tf, v.cpair[b], v.crec[b], v.stats[b], v.toi[b], v.kind[b],
-                      v.changed[b])
+                      v.changed[b], trace)
 
 
 @jit

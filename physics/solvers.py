@@ -21,11 +21,15 @@ guards keep a step finite:
 ``fixed``: ``substeps`` symplectic-Euler substeps; after each, pairs that overlap (or are within
 ``slop``) and approach get impulses from that (overlapped) pose, ``iterations`` sweeps, then
 overlaps are pushed apart along the normal in proportion to the inverse masses.
+
+Both take an optional :data:`Trace` (the *trace hook*, below): a renderer's record of one
+element's trajectory. Without it (the default) the hook's branches are compiled away.
 """
 
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 
@@ -74,17 +78,53 @@ from spinstrike.physics.layout import (
     STAT_SUBSTEPS,
     VX,
     VY,
+    Table,
     X,
     Y,
 )
 from spinstrike.physics.motion import flight
 
-__all__ = ["MAX_SWEEPS", "exact_element", "fixed_element"]
+__all__ = ["MAX_SWEEPS", "TRACE_COUNT", "Trace", "exact_element", "fixed_element",
+           "trace_state"]
 
 #: sequential-impulse sweeps over simultaneous contacts at one event
 MAX_SWEEPS = 64
 #: most substeps the settling integration of one step may take
 MAX_SETTLE_SUBSTEPS = 1_000_000
+
+# ---------------------------------------------------------------------------------------------
+# The trace hook (renderers; envs/fast.py's strike). Optional and read-only for the physics:
+# when a solver is given a Trace, it appends the element's whole state after every event that
+# resolved contacts (exact) and after every substep (fixed, and the exact solver's settling).
+# Between two entries every body is in closed-form free flight (``motion.flight``, what
+# ``_advance`` computes), so the state at any time t is the last entry at or before t flown by
+# the remaining time: frames sampled that way lie on the very trajectory the solver computed.
+# Calls without a trace (``trace`` omitted: None) compile the hook's branches away, so the
+# physics and its cost are unchanged. Carried over by any rewrite of the event loop: call
+# ``trace_state`` wherever the state has just changed other than by free flight.
+# ---------------------------------------------------------------------------------------------
+
+#: a trajectory trace: ``time [K]`` (s, from the start of the step), ``state [K, N, 6]`` (the
+#: element's state rows after the event, ``layout.STATE``), ``count`` (``TRACE_COUNT``)
+Trace = namedtuple("Trace", ["time", "state", "count"])
+
+#: a trace's counters: entries written, entries that did not fit (the trace is full)
+TRACE_COUNT = Table("solver trace count", "entries", "dropped", prefix="TRACE_")
+TRACE_ENTRIES, TRACE_DROPPED = TRACE_COUNT
+
+
+@jit_inline
+def trace_state(trace, t, S):
+    """Append the time ``t`` (s) and the element's state ``S [N, 6]`` to ``trace``."""
+    n = trace.count[TRACE_ENTRIES]
+    if n < trace.time.shape[0]:
+        trace.time[n] = t
+        for i in range(S.shape[0]):
+            for c in range(S.shape[1]):
+                trace.state[n, i, c] = S[i, c]
+        trace.count[TRACE_ENTRIES] = n + 1
+    else:
+        trace.count[TRACE_DROPPED] += 1
 
 
 
@@ -293,13 +333,14 @@ def _kick(S, Pm, F, h, rotation, table_friction):
 @jit
 def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, rotation,
                   contact_friction, table_friction, cpair, crec, stats, changed,
-                  separate_sweeps=1):
+                  separate_sweeps=1, trace=None):
     """Advance one element by T seconds in ``substeps`` fixed substeps.
 
     ``separate_sweeps``: positional-correction sweeps per substep, repeated while one still
     corrects an overlap deeper than ``slop``. The plain fixed solver uses 1 (its documented,
     cheap behaviour); the exact solver's settling uses ``MAX_SWEEPS`` so that a chain of
-    contacts (mallet -> puck -> cushion) is not left overlapping.
+    contacts (mallet -> puck -> cushion) is not left overlapping. ``trace``: the trace hook
+    (records the state after every substep).
     """
     h = T / substeps
     for k in range(substeps):
@@ -311,6 +352,8 @@ def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, 
         for sweep in range(separate_sweeps):
             if _separate(S, Pm, hw, PA, PB, sweep == 0, rotation and separate_sweeps > 1) <= slop:
                 break
+        if trace is not None:  # the trace hook
+            trace_state(trace, t, S)
     stats[STAT_SUBSTEPS] += substeps
 
 
@@ -348,10 +391,11 @@ def _settle_substeps(S, Pm, F, PA, PB, T, settle_substep):
 @jit
 def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
                   zeno_impacts, settle_substep, rotation, contact_friction, table_friction,
-                  cpair, crec, stats, toi, kind, changed):
+                  cpair, crec, stats, toi, kind, changed, trace=None):
     """Advance one element by dt seconds, event by event.
 
-    ``toi``, ``kind`` (per pair) and ``changed`` (per body) are the element's scratch rows.
+    ``toi``, ``kind`` (per pair) and ``changed`` (per body) are the element's scratch rows;
+    ``trace``: the trace hook (records the state after every event that resolved contacts).
     """
     n_pairs = PA.shape[0]
     iterations = 0
@@ -389,6 +433,8 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
             resting += _sweeps(S, Pm, hw, PA, PB, MAT, tol, zeno_speed, t_now, rotation,
                                contact_friction, changed, cpair, crec, stats,
                                MAX_SWEEPS, True)
+            if trace is not None:  # the trace hook
+                trace_state(trace, t_now, S)
         horizon = dt - t_now
         for p in range(n_pairs):
             if p == best or changed[PA[p]] or (PB[p] < S.shape[0] and changed[PB[p]]):
@@ -402,7 +448,7 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
                 substeps = _settle_substeps(S, Pm, F, PA, PB, dt - t_now, settle_substep)
                 fixed_element(S, Pm, F, hw, PA, PB, MAT, dt - t_now, substeps, MAX_SWEEPS, tol,
                               t_now, rotation, contact_friction, table_friction, cpair, crec,
-                              stats, changed, MAX_SWEEPS)
+                              stats, changed, MAX_SWEEPS, trace)
                 stats[STAT_FALLBACK] = 1
             break
     stats[STAT_EVENTS] += events
