@@ -2,7 +2,7 @@
 
     spinstrike train    --algo ppo --env SpinStrike/RodSpin-v0 [--seed 0] [--timesteps N]
     spinstrike evaluate RUN_DIR | --oracle/--random --env ID   [--episodes 50]
-    spinstrike record   RUN_DIR | --oracle --env ID            [--out rollout.mp4]
+    spinstrike record   RUN_DIR | --oracle --env ID            [--out rollout.mp4|.gif] [--grid]
     spinstrike envs
     spinstrike bench    accuracy|speed [--quick]
     spinstrike baselines [--quick]
@@ -120,16 +120,33 @@ def cmd_evaluate(args) -> int:
     return 0
 
 
+def _size(text: str) -> tuple[int, int]:
+    from spinstrike.agents.config import AgentConfigError
+
+    try:
+        w, h = (int(x) for x in text.lower().split("x"))
+    except ValueError:
+        raise AgentConfigError(f"--size: must be WIDTHxHEIGHT in pixels, e.g. 720x480 "
+                               f"(got {text!r})") from None
+    return w, h
+
+
 def cmd_record(args) -> int:
+    from spinstrike.agents.config import AgentConfigError
     from spinstrike.agents.record import record
 
     _check_episodes("--episodes", args.episodes)
     policy, env_id, env_kwargs, name = _policy(args)
     out = args.out or (str(Path(args.run_dir) / "rollout.mp4") if args.run_dir
                        else f"{name}-{env_id.split('/')[-1]}.mp4")
+    if Path(out).suffix.lower() not in (".mp4", ".gif"):
+        raise AgentConfigError(f"--out: must end in .mp4 or .gif (got {out!r})")
+    size = _size(args.size) if args.size else None
     result = record(policy, env_id, out, episodes=args.episodes, seed=args.seed,
-                    env_kwargs=env_kwargs)
-    print(f"video: {result['path']} ({result['frames']} frames at {result['fps']} fps)")
+                    env_kwargs=env_kwargs, size=size, grid=args.grid)
+    w, h = result["size"]
+    print(f"video: {result['path']} ({result['frames']} frames at {result['fps']} fps, "
+          f"{w}x{h})")
     return 0
 
 
@@ -194,9 +211,14 @@ def build_parser() -> argparse.ArgumentParser:
             e.add_argument("--json", action="store_true")
             e.add_argument("--no-save", action="store_true")
         else:
-            e.add_argument("--out")
+            e.add_argument("--out", help="video file, .mp4 or .gif (default: rollout.mp4 in "
+                           "the run directory)")
             e.add_argument("--episodes", type=int, default=3)
             e.add_argument("--seed", type=int, default=2000)
+            e.add_argument("--grid", action="store_true",
+                           help="tile the episodes in one video, played side by side")
+            e.add_argument("--size", help="WIDTHxHEIGHT of an episode's frames (default: the "
+                           "env's render_size, 720x480)")
         e.set_defaults(func=func)
 
     s = sub.add_parser("envs", help="list the environments")

@@ -1,73 +1,99 @@
-"""Record mp4 rollouts of a policy.
+"""Record rollouts of a policy: an mp4 (or a GIF, for docs) of every frame the env renders.
 
-Control envs: one frame per step. One-strike envs: the strike itself is animated (one frame per
-``envs.strike.CHUNK`` of simulated time), then the final frame with the strike's ghost poses and
-impulses is held for half a second.
+The env runs with ``render_mode="rgb_array_list"``, so these are the env's own video frames:
+one per control step; for a one-strike env the whole strike in slow motion (at least a second
+at the env's ``render_fps``, a frame at each contact instant, with its overlays). Each
+episode's last frame is held for ``hold`` seconds (a strike's last frame sums it up: ghost
+poses, every impulse). ``grid=True`` plays the episodes side by side, in lockstep, each holding
+its last frame until the slowest is done.
 """
 
 from __future__ import annotations
 
+import math
+from collections import deque
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 
 from spinstrike import envs  # noqa: F401
-from spinstrike.envs.strike import CHUNK
+from spinstrike.envs.recording import VideoWriter, tile
 
 __all__ = ["record"]
 
 
-def _writer(path: Path, size: tuple[int, int], fps: int):
-    import imageio_ffmpeg
+class _Episode:
+    """One episode of a policy, rendered frame by frame (stepped whenever its frames run out)."""
 
-    gen = imageio_ffmpeg.write_frames(str(path), size, fps=fps, codec="libx264",
-                                      pix_fmt_out="yuv420p", macro_block_size=2,
-                                      output_params=["-loglevel", "error"])
-    gen.send(None)
-    return gen
+    def __init__(self, policy, env_id: str, seed: int, kwargs: dict) -> None:
+        self.env = gym.make(env_id, render_mode="rgb_array_list", **kwargs)
+        self.policy = policy
+        self.obs, _ = self.env.reset(seed=seed)
+        self.frames: deque[np.ndarray] = deque(self.env.render())
+        self.done = False
+        self.total = 0.0
+        self.last: np.ndarray | None = None
+
+    def next_frame(self) -> np.ndarray | None:
+        """The episode's next frame (None once it is over and every frame was shown)."""
+        while not self.frames and not self.done:
+            self.obs, r, term, trunc, _ = self.env.step(self.policy(self.env, self.obs))
+            self.total += float(r)
+            self.done = bool(term or trunc)
+            self.frames.extend(self.env.render())
+        if self.frames:
+            self.last = self.frames.popleft()
+            return self.last
+        return None
+
+    def close(self) -> None:
+        self.env.close()
 
 
 def record(policy, env_id: str, path: str | Path, episodes: int = 3, seed: int = 2000,
-           env_kwargs: dict | None = None, size: tuple[int, int] = (480, 320)) -> dict:
-    """Write ``episodes`` rollouts of ``policy(env, obs)`` to one mp4 at ``path``.
+           env_kwargs: dict | None = None, size: tuple[int, int] | None = None,
+           grid: bool = False, hold: float = 0.5) -> dict:
+    """Write ``episodes`` rollouts of ``policy(env, obs)`` (seeds ``seed``, ``seed + 1``...)
+    to one video at ``path`` (``.mp4``, or ``.gif``).
+
+    Args:
+        size: (width, height) of an episode's frames (default: the env's ``render_size``).
+        grid: tile the episodes in one frame (``ceil(sqrt(episodes))`` columns), played
+            together; else one after the other.
+        hold: seconds each episode's last frame is held.
 
     Returns:
-        ``{"path", "frames", "fps", "returns"}``.
+        ``{"path", "frames", "fps", "returns", "size"}`` (``size``: the video's width, height).
     """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    env = gym.make(env_id, render_mode="rgb_array", render_size=size, **(env_kwargs or {}))
-    task = env.unwrapped.task
-    one_strike = hasattr(task, "strike_frames")
-    fps = int(round(1 / CHUNK)) if one_strike else env.metadata["render_fps"]
-    writer = _writer(path, size, fps)
-    frames = 0
-    returns = []
+    kwargs = dict(env_kwargs or {})
+    if size is not None:
+        kwargs["render_size"] = tuple(size)
+    runs = [_Episode(policy, env_id, seed + k, kwargs) for k in range(episodes)]
+    fps = runs[0].env.metadata["render_fps"]
+    held = int(round(hold * fps))
+    writer = VideoWriter(path, fps)
     try:
-        for k in range(episodes):
-            obs, _ = env.reset(seed=seed + k)
-            total, done = 0.0, False
-            if not one_strike:
-                writer.send(np.ascontiguousarray(env.render()))
-                frames += 1
-            while not done:
-                obs, r, term, trunc, _ = env.step(policy(env, obs))
-                total += float(r)
-                done = term or trunc
-                if one_strike:
-                    for frame in task.strike_frames():
-                        writer.send(np.ascontiguousarray(task.draw(frame)))
-                        frames += 1
-                    final = np.ascontiguousarray(env.render())
-                    for _ in range(fps // 2):
-                        writer.send(final)
-                        frames += 1
-                else:
-                    writer.send(np.ascontiguousarray(env.render()))
-                    frames += 1
-            returns.append(total)
+        if grid:
+            columns = math.ceil(math.sqrt(episodes))
+            while True:
+                frames = [run.next_frame() for run in runs]
+                if all(f is None for f in frames):
+                    break
+                writer.write(tile([f if f is not None else run.last
+                                   for f, run in zip(frames, runs, strict=True)], columns))
+            final = tile([run.last for run in runs], columns)
+            for _ in range(held):
+                writer.write(final)
+        else:
+            for run in runs:
+                while (frame := run.next_frame()) is not None:
+                    writer.write(frame)
+                for _ in range(held):
+                    writer.write(run.last)
     finally:
         writer.close()
-        env.close()
-    return {"path": str(path), "frames": frames, "fps": fps, "returns": returns}
+        for run in runs:
+            run.close()
+    return {"path": str(writer.path), "frames": writer.frames, "fps": fps,
+            "returns": [run.total for run in runs], "size": writer.size}

@@ -51,7 +51,10 @@ class EnvConfig(BaseModel):
         randomize: ranges ``{param: [low, high]}`` drawn per episode (masses log-uniformly, the
             rest uniformly); the allowed params are listed by each env.
         obs_mode: ``vector`` (flat Box), ``dict`` (goal-conditioned, target envs) or ``pixels``.
-        render_size: (width, height) of rendered frames, pixels.
+        render_size: (width, height) of the video frames ``render()`` returns, pixels (the
+            whole table, or the strike's surroundings on an unbounded plane, stays in view).
+        obs_size: (width, height) of the pixel observations (``obs_mode='pixels'``), pixels;
+            independent of ``render_size``, so a bigger video leaves the observations alone.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
@@ -64,7 +67,8 @@ class EnvConfig(BaseModel):
     table_friction: Number | None = Field(None, ge=0.0)
     randomize: dict[str, Range] = Field(default_factory=dict)
     obs_mode: Literal["vector", "dict", "pixels"] = "vector"
-    render_size: tuple[Integer, Integer] = (480, 320)
+    render_size: tuple[Integer, Integer] = (720, 480)
+    obs_size: tuple[Integer, Integer] = (480, 320)
 
     #: parameters ``randomize`` may name (set by subclasses)
     RANDOMIZABLE: ClassVar[tuple[str, ...]] = ()
@@ -78,7 +82,7 @@ class EnvConfig(BaseModel):
                     raise ValueError(f"unknown effect {e!r}; allowed: {sorted(EFFECTS)}")
         return v
 
-    @field_validator("render_size")
+    @field_validator("render_size", "obs_size")
     @classmethod
     def _size(cls, v):
         if not (16 <= v[0] <= 4096 and 16 <= v[1] <= 4096):

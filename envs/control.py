@@ -9,6 +9,7 @@ reward is the spin (or speed) the mallet's hits add to the rod (or puck) during 
 from __future__ import annotations
 
 import math
+from collections import deque
 from typing import ClassVar
 
 import numpy as np
@@ -24,7 +25,7 @@ from spinstrike.envs.core import (
 )
 from spinstrike.envs.fast import CONTROL_STEP, limit_force
 from spinstrike.envs.layout import SPEED_SCALE, SPIN_SCALE, control_layout, layout_table
-from spinstrike.envs.rendering import BodyDraw, Frame
+from spinstrike.envs.rendering import BodyDraw, Frame, Gauge, Marker, body_points
 from spinstrike.physics import World
 from spinstrike.physics.layout import FORCE
 
@@ -33,6 +34,8 @@ __all__ = ["PuckSpeedControlEnv", "PuckSpeedControlVectorEnv", "RodSpinControlEn
 
 #: distance (m) kept between the bodies and from the cushions when placing them at reset
 CLEARANCE = 0.02
+#: steps over which a body's motion trail reaches back in the video frames
+TRAIL_STEPS = 12
 
 
 class _ControlTask(Task):
@@ -69,6 +72,9 @@ class _ControlTask(Task):
         self._actions = self.tbuf[:, fast.T_ACTION:fast.T_ACTION + len(self.ACTIONS)]
         self._never = np.zeros(batch_size, dtype=bool)
         self._never.flags.writeable = False
+        # element 0's recent poses and return, for the video frames (``record_trace``)
+        self._trail: deque[list[list[tuple[float, float]]]] = deque(maxlen=TRAIL_STEPS)
+        self._return = 0.0
 
     def _set_random(self, edit, key, value) -> None:
         if key == "mallet_mass":
@@ -107,7 +113,16 @@ class _ControlTask(Task):
         buf = w.buffers
         fast.control_observe(buf.fbuf, buf.ibuf, self.tbuf, self.kcfg,
                              np.asarray(env, dtype=np.int64))
+        if 0 in env:
+            self._trail.clear()
+            self._return = 0.0
+            self._remember()
         return {}
+
+    def _remember(self) -> None:
+        """Add element 0's pose to its motion trail (when recording)."""
+        if self.record_trace:
+            self._trail.append([body_points(b) for b in self._bodies(0)])
 
     def step(self, actions, batch_info: bool = True):
         a = np.asarray(actions)
@@ -118,6 +133,9 @@ class _ControlTask(Task):
             raise ValueError(action_error(actions))
         t = self.tbuf
         reward = t[:, fast.T_REWARD].copy()
+        if self.record_trace:
+            self._return += reward[0]
+            self._remember()
         if not batch_info:
             return reward, self._never, None
         info = {"hits": t[:, fast.T_HITS].astype(np.int64),
@@ -148,21 +166,39 @@ class _ControlTask(Task):
     def restore(self, snap: dict) -> None:
         pass
 
+    def _bodies(self, b: int) -> list[BodyDraw]:
+        w = self.world
+        return [BodyDraw(w.names[i], *w.state.positions[b, i], w.state.angles[b, i],
+                         w.radius[b, i], w.half_length[b, i], w.state.omegas[b, i],
+                         *w.state.velocities[b, i]) for i in range(w.n_bodies)]
+
     def frame(self, b: int, decorate: bool = True) -> Frame:
         w = self.world
-        bodies = [BodyDraw(w.names[i], *w.state.positions[b, i], w.state.angles[b, i],
-                           w.radius[b, i], w.half_length[b, i], w.state.omegas[b, i])
-                  for i in range(w.n_bodies)]
-        contacts = []
-        c = self.world.last_contacts if decorate else None
-        if c is not None and len(c):
-            for i in np.flatnonzero(c.batch == b):
-                contacts.append((*c.point[i], *c.normal[i], c.impulse[i]))
+        bodies = self._bodies(b)
         hw = w.table_half_size[b]
-        text = (f"spin {w.state.omegas[b, self.it]:+6.2f} rad/s   "
-                f"speed {math.hypot(*w.state.velocities[b, self.it]):.2f} m/s")
-        return Frame(bodies, (float(hw[0]), float(hw[1])), walls=True, contacts=contacts,
-                     text=text)
+        half = (float(hw[0]), float(hw[1]))
+        target = bodies[self.it]
+        spin = f"spin {target.omega:+6.2f} rad/s"
+        speed = f"speed {math.hypot(target.vx, target.vy):.2f} m/s"
+        if not decorate:  # the pixel observation (its pixels are a contract: keep it plain)
+            return Frame(bodies, half, walls=True, text=f"{spin}   {speed}")
+        markers = []
+        c = w.last_contacts
+        if len(c):
+            markers = [Marker(*c.point[i], *c.normal[i], c.impulse[i])
+                       for i in np.flatnonzero(c.batch == b)]
+        trails = []
+        if b == 0 and self._trail:
+            trails = [[pose[i][k] for pose in self._trail]
+                      for i in range(len(bodies)) for k in range(len(self._trail[-1][i]))]
+        ret = f"   return {self._return:+.3f}" if b == 0 and self.record_trace else ""
+        name = self.TARGET
+        return Frame(bodies, half, walls=True, trails=trails, markers=markers, smooth=True,
+                     gauge=Gauge(self.GAUGE, self._gauge_value(target), None, 0.0,
+                                 self.GAUGE_TOP),
+                     panel=[f"{self.TITLE}   t = {w.time[b]:5.2f} s   real time (x1)",
+                            f"{name} {spin}   {speed}",
+                            f"reward {self.tbuf[b, fast.T_REWARD]:+.3f} (step){ret}"])
 
     def view_half(self) -> tuple[float, float]:
         hw = self.world.table_half_size[0]
@@ -175,6 +211,11 @@ class RodSpinControlTask(_ControlTask):
     SCALE = SPIN_SCALE
     MEASURE = fast.MEASURE_SPIN
     LAYOUT = control_layout("rod")
+    TITLE = "RodSpinControl-v0"
+    GAUGE, GAUGE_TOP = "rod |spin| (rad/s)", SPIN_SCALE
+
+    def _gauge_value(self, rod: BodyDraw) -> float:
+        return abs(rod.omega)
 
 
 
@@ -184,6 +225,11 @@ class PuckSpeedControlTask(_ControlTask):
     SCALE = SPEED_SCALE
     MEASURE = fast.MEASURE_SPEED
     LAYOUT = control_layout("puck")
+    TITLE = "PuckSpeedControl-v0"
+    GAUGE, GAUGE_TOP = "puck speed (m/s)", SPEED_SCALE
+
+    def _gauge_value(self, puck: BodyDraw) -> float:
+        return math.hypot(puck.vx, puck.vy)
 
 
 
@@ -233,7 +279,7 @@ _CONTROL_DOC = """{summary}
 
 
 class _ControlEnv(SpinStrikeEnv):
-    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 50}
+    metadata = dict(SpinStrikeEnv.metadata, render_fps=50)
 
 
 class RodSpinControlEnv(_ControlEnv):

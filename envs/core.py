@@ -10,6 +10,13 @@ seeded s + i bit for bit.
 
 Actions: float32 Boxes in [-1, 1]. A NaN or infinite action raises ``ValueError``; finite values
 outside the box are clipped to it (as Gymnasium's ``ClipAction`` would), silently.
+
+Render modes of a single env (``SpinStrikeEnv.render``): ``rgb_array`` (the current frame: after
+a strike, its last frame, with the strike's ghost poses and impulses), ``rgb_array_list`` (the
+frames since the last ``render()``, then cleared, as Gymnasium's ``RenderCollection`` does: the
+reset frame, then every step's frames: one per control step, a whole strike in slow motion per
+one-strike step) and ``human`` (the same frames in a window, at ``render_fps``). With
+``render_mode=None`` nothing is traced or drawn.
 """
 
 from __future__ import annotations
@@ -68,6 +75,8 @@ class Task(ABC):
     GOAL: ClassVar[slice | None] = None
     ACHIEVED: ClassVar[tuple[ObsField, ...]] = ()
     UNIFORMS: ClassVar[int]
+    #: the env's name on its video frames
+    TITLE: ClassVar[str] = ""
     render_fps: ClassVar[int] = 50
     #: ``observe`` returns values already clipped to the layout's bounds
     OBS_CLIPPED: ClassVar[bool] = False
@@ -81,7 +90,10 @@ class Task(ABC):
         self.obs_low = np.array([f.low for f in self.LAYOUT], dtype=np.float32)
         self.obs_high = np.array([f.high for f in self.LAYOUT], dtype=np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (len(self.ACTIONS),), dtype=np.float32)
+        #: record element 0's steps for video frames (set by a single env that renders)
+        self.record_trace = False
         self._renderer: Renderer | None = None
+        self._obs_renderer: Renderer | None = None
 
     # --- to implement ---------------------------------------------------------------------
     @abstractmethod
@@ -127,7 +139,12 @@ class Task(ABC):
 
     @abstractmethod
     def frame(self, b: int, decorate: bool = True) -> Frame:
-        """What element ``b`` looks like now (``decorate``: with the last step's history)."""
+        """What element ``b`` looks like now: a video frame with its overlays, or (``decorate``
+        False) the plain frame of a pixel observation."""
+
+    def step_frames(self) -> list[Frame]:
+        """Element 0's last step as video frames (one-strike tasks: the whole strike)."""
+        return [self.frame(0)]
 
     @abstractmethod
     def view_half(self) -> tuple[float, float]:
@@ -160,7 +177,7 @@ class Task(ABC):
         if mode == "vector":
             return vec
         if mode == "pixels":
-            w, h = self.cfg.render_size
+            w, h = self.cfg.obs_size
             return spaces.Box(0, 255, (h, w, 3), dtype=np.uint8)
         if self.GOAL is None:
             raise ValueError(f"obs_mode: 'dict' needs a goal-conditioned env (goal='target'); "
@@ -185,7 +202,7 @@ class Task(ABC):
         if mode == "vector":
             return flat
         if mode == "pixels":
-            return np.stack([self.render(b, decorate=False) for b in range(self.batch_size)])
+            return np.stack([self.pixels(b) for b in range(self.batch_size)])
         keep = np.ones(len(self.LAYOUT), bool)
         keep[self.GOAL] = False
         lo = np.array([f.low for f in self.ACHIEVED], np.float32)
@@ -194,19 +211,32 @@ class Task(ABC):
                 "achieved_goal": np.clip(self.achieved(), lo, hi).astype(np.float32),
                 "desired_goal": flat[:, self.GOAL]}
 
-    def render(self, b: int, decorate: bool = True) -> np.ndarray:
-        return self.draw(self.frame(b, decorate))
+    def pixels(self, b: int) -> np.ndarray:
+        """Element ``b``'s pixel observation: its plain frame at ``obs_size``."""
+        if self._obs_renderer is None:
+            self._obs_renderer = Renderer(self.cfg.obs_size, self.view_half())
+        return self._obs_renderer.draw(self.frame(b, decorate=False))
 
-    def draw(self, frame: Frame) -> np.ndarray:
-        """Draw any frame of this task (e.g. one of a strike's animation frames)."""
+    def render(self, b: int) -> np.ndarray:
+        """Element ``b``'s current video frame, at ``render_size``."""
+        return self.draw(self.frame(b))
+
+    @property
+    def renderer(self) -> Renderer:
+        """The video frames' renderer (``render_size``)."""
         if self._renderer is None:
             self._renderer = Renderer(self.cfg.render_size, self.view_half())
-        return self._renderer.draw(frame)
+        return self._renderer
+
+    def draw(self, frame: Frame) -> np.ndarray:
+        """Draw any video frame of this task (e.g. one of :meth:`step_frames`)."""
+        return self.renderer.draw(frame)
 
     def close(self) -> None:
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
+        for r in (self._renderer, self._obs_renderer):
+            if r is not None:
+                r.close()
+        self._renderer = self._obs_renderer = None
 
 
 def _take(tree: Any, i: int) -> Any:
@@ -227,8 +257,8 @@ class SpinStrikeEnv(gym.Env):
     """Gymnasium env over a :class:`Task` with one element. Subclasses set ``TASK``."""
 
     TASK: ClassVar[type[Task]]
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array", "human"],
-                                          "render_fps": 50}
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array", "rgb_array_list",
+                                                           "human"], "render_fps": 50}
 
     def __init__(self, render_mode: str | None = None, config: dict | None = None,
                  **kwargs: Any) -> None:
@@ -239,6 +269,11 @@ class SpinStrikeEnv(gym.Env):
         self._config = dict(config or {}) | kwargs
         self.cfg = parse_config(self.TASK.CONFIG, config, kwargs)
         self.task = self.TASK(self.cfg, 1, single=True)
+        self.task.record_trace = render_mode is not None
+        if self.task.render_fps != self.metadata["render_fps"]:  # e.g. a control dt != 0.02 s
+            self.metadata = dict(self.metadata, render_fps=self.task.render_fps)
+        #: ``rgb_array_list``: the frames since the last ``render()`` (drawn when it is called)
+        self._frames: list[Frame] = []
         self.action_space = self.task.action_space
         self.observation_space = self.task.observation_space()
         self._stream = UniformStream(1, self.TASK.UNIFORMS)
@@ -275,8 +310,10 @@ class SpinStrikeEnv(gym.Env):
         env = np.zeros(1, dtype=np.int64)
         info = self.task.reset(env, self._stream.draw(env))
         self._started = True
-        if self.render_mode == "human":
-            self.render()
+        if self.render_mode == "rgb_array_list":
+            self._frames = [self.task.frame(0)]
+        elif self.render_mode == "human":
+            self._show([self.task.frame(0)])
         return _take(self.task.observations(), 0), _scalar_info(info, 0)
 
     def step(self, action):
@@ -284,8 +321,10 @@ class SpinStrikeEnv(gym.Env):
             raise gym.error.ResetNeeded("call reset() before step()")
         reward, terminated, info = self.task.step(action, batch_info=False)
         obs = _take(self.task.observations(), 0)
-        if self.render_mode == "human":
-            self.render()
+        if self.render_mode == "rgb_array_list":
+            self._frames += self.task.step_frames()
+        elif self.render_mode == "human":
+            self._show(self.task.step_frames())
         return obs, float(reward[0]), bool(terminated[0]), False, self.task.info_row(0, info)
 
     def _goal_reward(self, achieved_goal, desired_goal, info):
@@ -308,14 +347,23 @@ class SpinStrikeEnv(gym.Env):
         self._started = True
 
     def render(self):
+        """``rgb_array``: the current frame; ``rgb_array_list``: the frames since the last call
+        (then cleared); ``human``: shows the current frame, returns None."""
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode")
             return None
-        image = self.task.render(0)
+        if self.render_mode == "rgb_array_list":
+            frames, self._frames = self._frames, []
+            return [self.task.draw(f) for f in frames]
         if self.render_mode == "human":
-            self.task._renderer.show(image, self.metadata["render_fps"])
+            self._show([self.task.frame(0)])
             return None
-        return image
+        return self.task.render(0)
+
+    def _show(self, frames: list[Frame]) -> None:
+        """Play frames in the window at ``render_fps`` (a strike at its slowed pace)."""
+        for f in frames:
+            self.task.renderer.show(self.task.draw(f), self.metadata["render_fps"])
 
     def close(self) -> None:
         self.task.close()

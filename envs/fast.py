@@ -16,6 +16,7 @@ The tasks' own packed rows are declared below as ``physics.layout.Table`` s, lik
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 from pathlib import Path
 
 import numba
@@ -36,6 +37,8 @@ from spinstrike.physics.layout import (
     ANGLE,
     CF_DT,
     CF_OVERLAP_TOL,
+    CI_ROTATION,
+    CI_TABLE_FRICTION,
     FX,
     FY,
     H_B,
@@ -54,19 +57,22 @@ from spinstrike.physics.layout import (
     REC_TIME,
     STAT_CONTACTS,
     STAT_FALLBACK,
+    STATE_COLUMNS,
     VX,
     VY,
     Table,
     X,
     Y,
 )
+from spinstrike.physics.motion import flight
+from spinstrike.physics.solvers import TRACE_COUNT, TRACE_DROPPED, TRACE_ENTRIES, Trace, trace_state
 
 # these kernels inline the physics kernels: recompile them when either changes (numba loads its
 # cache at a kernel's first call, so clearing it here, at import, is in time)
 refresh_kernel_cache(Path(__file__).resolve().parent, ("fast.py",))
 
-__all__ = ["CONTROL_OBS", "CONTROL_STEP", "OBS_SIZE", "STRIKE", "control_observe",
-           "limit_force"]
+__all__ = ["CONTROL_OBS", "CONTROL_STEP", "OBS_SIZE", "STRIKE", "STRIKE_TRACED", "StrikeTrace",
+           "control_observe", "limit_force", "sample_trace", "strike_trace"]
 
 # ---------------------------------------------------------------------------------------------
 # Control envs: the task's rows
@@ -317,21 +323,37 @@ STRIKE_ROW = Table("strike row", "launch_x", "launch_y", "launch_vx", "launch_vy
 S_COLUMNS = len(STRIKE_ROW)
 
 #: the strike's constants ``scfg``: chunk length (s), most chunks, target and striker body
-#: indices, free plane (1) or table (0), record element 0's trace (1)
-STRIKE_CFG = Table("strike config", "chunk", "chunks", "target", "striker", "free", "record",
+#: indices, free plane (1) or table (0)
+STRIKE_CFG = Table("strike config", "chunk", "chunks", "target", "striker", "free",
                    prefix="SC_")
-SC_CHUNK, SC_CHUNKS, SC_TARGET, SC_STRIKER, SC_FREE, SC_RECORD = STRIKE_CFG
+SC_CHUNK, SC_CHUNKS, SC_TARGET, SC_STRIKER, SC_FREE = STRIKE_CFG
 SC_SIZE = len(STRIKE_CFG)
 
-#: element 0's trace for the animation: a pose per body per chunk, each contact, and counts
-TRACE_POSE = Table("trace pose", "x", "y", "angle", prefix="TP_")
-TP_X, TP_Y, TP_ANGLE = TRACE_POSE
-TRACE_CONTACT = Table("trace contact", "px", "py", "nx", "ny", "j", prefix="TC_")
-TC_PX, TC_PY, TC_NX, TC_NY, TC_J = TRACE_CONTACT
-TRACE_COUNT = Table("trace count", "poses", "contacts", prefix="TN_")
-TN_POSES, TN_CONTACTS = TRACE_COUNT
-#: contact rows recorded for element 0's animation
-TRACE_CONTACTS = 256
+#: a contact of the traced element: time from the launch (s), point (m), unit normal (a to b),
+#: normal impulse (N s), bodies a and b (b >= N: a cushion)
+TRACE_CONTACT = Table("trace contact", "time", "px", "py", "nx", "ny", "j", "a", "b",
+                      prefix="TC_")
+TC_TIME, TC_PX, TC_PY, TC_NX, TC_NY, TC_J, TC_A, TC_B = TRACE_CONTACT
+
+#: what a traced strike records of element 0 (``STRIKE_TRACED``), for its video: ``events``,
+#: the solver's trace hook (``solvers.Trace``: the state after every event, times from the
+#: launch); ``chunks``, the state at the launch and after every chunk (a ``Trace`` too: the
+#: only record on the pymunk backend); ``contacts [C, TRACE_CONTACT]`` and their
+#: ``contact_count [TRACE_COUNT]``. Between two states of either trace every body is in
+#: free flight, so :func:`sample_trace` gives the state at any time of the strike.
+StrikeTrace = namedtuple("StrikeTrace", ["events", "chunks", "contacts", "contact_count"])
+
+
+def strike_trace(n_chunks: int, n_bodies: int, events: int = 4096,
+                 contacts: int = 1024) -> StrikeTrace:
+    """Empty buffers for a traced strike of ``n_chunks`` chunks at most (``events`` solver
+    states and ``contacts`` contacts at most; more are counted as dropped)."""
+    def trace(n):
+        return Trace(np.zeros(n), np.zeros((n, n_bodies, STATE_COLUMNS)),
+                     np.zeros(len(TRACE_COUNT), dtype=np.int64))
+    return StrikeTrace(trace(events), trace(n_chunks + 1),
+                       np.zeros((contacts, len(TRACE_CONTACT))),
+                       np.zeros(len(TRACE_COUNT), dtype=np.int64))
 
 
 @jit
@@ -416,68 +438,96 @@ def _strike_post(b, k, S, Pm, cpair, crec, stats, n_stored, sbuf, scfg):
 
 
 @jit
-def _trace_pose(S, trace, tcount):
-    n = tcount[TN_POSES]
-    if n < trace.shape[0]:
-        for i in range(S.shape[1]):
-            trace[n, i, TP_X] = S[0, i, X]
-            trace[n, i, TP_Y] = S[0, i, Y]
-            trace[n, i, TP_ANGLE] = S[0, i, ANGLE]
-        tcount[TN_POSES] = n + 1
+def _trace_contacts(b, t0, PA, PB, cpair, crec, stats, n_stored, contacts, count):
+    """Append element b's contacts of the chunk that started at t0 (s) to the trace."""
+    for q in range(min(stats[b, STAT_CONTACTS], n_stored)):
+        n = count[TRACE_ENTRIES]
+        if n < contacts.shape[0]:
+            p = cpair[b, q]
+            contacts[n, TC_TIME] = t0 + crec[b, q, REC_TIME]
+            contacts[n, TC_PX] = crec[b, q, REC_PX]
+            contacts[n, TC_PY] = crec[b, q, REC_PY]
+            contacts[n, TC_NX] = crec[b, q, REC_NX]
+            contacts[n, TC_NY] = crec[b, q, REC_NY]
+            contacts[n, TC_J] = crec[b, q, REC_J]
+            contacts[n, TC_A] = PA[p]
+            contacts[n, TC_B] = PB[p]
+            count[TRACE_ENTRIES] = n + 1
+        else:
+            count[TRACE_DROPPED] += 1
 
 
 @jit
-def _trace_contacts(cpair, crec, stats, n_stored, ctrace, tcount):
-    for q in range(min(stats[0, STAT_CONTACTS], n_stored)):
-        n = tcount[TN_CONTACTS]
-        if n < ctrace.shape[0]:
-            ctrace[n, TC_PX] = crec[0, q, REC_PX]
-            ctrace[n, TC_PY] = crec[0, q, REC_PY]
-            ctrace[n, TC_NX] = crec[0, q, REC_NX]
-            ctrace[n, TC_NY] = crec[0, q, REC_NY]
-            ctrace[n, TC_J] = crec[0, q, REC_J]
-            tcount[TN_CONTACTS] = n + 1
-
-
-@jit
-def _strike_one(b, v, n_stored, sbuf, scfg, trace, ctrace, tcount):
-    row = sbuf[b]
-    _strike_start(row)
-    if not _launch(v.S[b], v.Pm[b], v.HW[b], v.PA, v.PB, row, int(scfg[SC_STRIKER]),
-                   v.fcfg[CF_OVERLAP_TOL]):
-        return
-    record = scfg[SC_RECORD] != 0.0 and b == 0
-    if record:
-        _trace_pose(v.S, trace, tcount)
+def _strike_chunks(b, v, n_stored, sbuf, scfg, trace):
+    """Element b's chunks until its strike is over; with a ``StrikeTrace`` (not None), traced."""
+    chunk = scfg[SC_CHUNK]
     for k in range(int(scfg[SC_CHUNKS])):
-        step_element(v, b, scfg[SC_CHUNK])
-        if record:
-            _trace_contacts(v.cpair, v.crec, v.stats, n_stored, ctrace, tcount)
-            _trace_pose(v.S, trace, tcount)
+        if trace is None:
+            step_element(v, b, chunk)
+        else:
+            t0 = k * chunk
+            events = trace.events
+            first = events.count[TRACE_ENTRIES]
+            step_element(v, b, chunk, events)
+            for q in range(first, events.count[TRACE_ENTRIES]):
+                events.time[q] = t0 + events.time[q]  # the hook records times within the step
+            trace_state(trace.chunks, (k + 1) * chunk, v.S[b])
+            _trace_contacts(b, t0, v.PA, v.PB, v.cpair, v.crec, v.stats, n_stored,
+                            trace.contacts, trace.contact_count)
         if _strike_post(b, k, v.S, v.Pm, v.cpair, v.crec, v.stats, n_stored, sbuf, scfg):
             break
 
 
 @jit
-def _strike_range(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount, start, stop):
-    v = unpack(fbuf, ibuf)
-    for b in range(start, stop):
-        _strike_one(b, v, ibuf[H_M], sbuf, scfg, trace, ctrace, tcount)
+def _strike_one(b, v, n_stored, sbuf, scfg, trace):
+    row = sbuf[b]
+    _strike_start(row)
+    if not _launch(v.S[b], v.Pm[b], v.HW[b], v.PA, v.PB, row, int(scfg[SC_STRIKER]),
+                   v.fcfg[CF_OVERLAP_TOL]):
+        return
+    if trace is None:
+        _strike_chunks(b, v, n_stored, sbuf, scfg, None)
+    elif b != 0:
+        _strike_chunks(b, v, n_stored, sbuf, scfg, None)
+    else:
+        trace_state(trace.chunks, 0.0, v.S[b])
+        _strike_chunks(b, v, n_stored, sbuf, scfg, trace)
 
 
 @jit
-def strike_serial(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount):
+def _strike_range(fbuf, ibuf, sbuf, scfg, trace, start, stop):
+    v = unpack(fbuf, ibuf)
+    for b in range(start, stop):
+        _strike_one(b, v, ibuf[H_M], sbuf, scfg, trace)
+
+
+@jit
+def strike_serial(fbuf, ibuf, sbuf, scfg):
     """Simulate every element's strike to its end (see the section comment)."""
-    _strike_range(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount, 0, ibuf[H_B])
+    _strike_range(fbuf, ibuf, sbuf, scfg, None, 0, ibuf[H_B])
 
 
 @jit_parallel
-def strike_parallel(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount):
+def strike_parallel(fbuf, ibuf, sbuf, scfg):
     """:func:`strike_serial` in parallel threads (blocks of ``BLOCK`` elements)."""
     n = ibuf[H_B]
     for k in numba.prange(n_blocks(n)):
-        _strike_range(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount, k * BLOCK,
-                      min(n, (k + 1) * BLOCK))
+        _strike_range(fbuf, ibuf, sbuf, scfg, None, k * BLOCK, min(n, (k + 1) * BLOCK))
+
+
+@jit
+def strike_traced_serial(fbuf, ibuf, sbuf, scfg, trace):
+    """:func:`strike_serial`, tracing element 0 into a :data:`StrikeTrace` (compiled apart, so
+    that the untraced strike neither pays for the hook nor waits for its compilation)."""
+    _strike_range(fbuf, ibuf, sbuf, scfg, trace, 0, ibuf[H_B])
+
+
+@jit_parallel
+def strike_traced_parallel(fbuf, ibuf, sbuf, scfg, trace):
+    """:func:`strike_traced_serial` in parallel threads (element 0 is traced in the first)."""
+    n = ibuf[H_B]
+    for k in numba.prange(n_blocks(n)):
+        _strike_range(fbuf, ibuf, sbuf, scfg, trace, k * BLOCK, min(n, (k + 1) * BLOCK))
 
 
 @jit
@@ -495,9 +545,21 @@ def strike_start_batch(sbuf):
         _strike_start(sbuf[b])
 
 
-def _strike_stepwise(world, sbuf, scfg, trace, ctrace, tcount) -> None:
+@jit
+def trace_chunk_batch(k, fbuf, ibuf, sbuf, scfg, trace):
+    """Trace element 0's chunk k (a backend stepping outside numba: no solver events)."""
+    if sbuf[0, S_DONE] != 0.0:
+        return
+    v = unpack(fbuf, ibuf)
+    chunk = scfg[SC_CHUNK]
+    trace_state(trace.chunks, (k + 1) * chunk, v.S[0])
+    _trace_contacts(0, k * chunk, v.PA, v.PB, v.cpair, v.crec, v.stats, ibuf[H_M],
+                    trace.contacts, trace.contact_count)
+
+
+def _strike_stepwise(world, sbuf, scfg, trace=None) -> None:
     """The strike for a world on the pymunk backend: the launch by a validated edit, then world
-    steps of one chunk from Python, each booked by the same compiled code."""
+    steps of one chunk from Python, each booked (and traced) by the same compiled code."""
     buf = world.buffers
     strike_start_batch(sbuf)
     state = world.state
@@ -508,34 +570,52 @@ def _strike_stepwise(world, sbuf, scfg, trace, ctrace, tcount) -> None:
     velocities[:, js] = sbuf[:, S_LAUNCH_VX:S_LAUNCH_VY + 1]
     with world.edit() as e:
         e.set_state(positions=positions, velocities=velocities, omegas=0.0)
-    record = scfg[SC_RECORD] != 0.0
-    if record:
-        trace[0, :, TP_X] = state.positions[0, :, 0]
-        trace[0, :, TP_Y] = state.positions[0, :, 1]
-        trace[0, :, TP_ANGLE] = state.angles[0]
-        tcount[TN_POSES] = 1
+    if trace is not None:
+        trace_state(trace.chunks, 0.0, unpack(buf.fbuf, buf.ibuf).S[0])
     for k in range(int(scfg[SC_CHUNKS])):
-        c = world.step(scfg[SC_CHUNK])
-        if record and sbuf[0, S_DONE] == 0.0:
-            mine = c.batch == 0
-            n = int(tcount[TN_CONTACTS])
-            rows = min(int(mine.sum()), len(ctrace) - n)
-            ctrace[n:n + rows, TC_PX] = c.point[mine, 0][:rows]
-            ctrace[n:n + rows, TC_PY] = c.point[mine, 1][:rows]
-            ctrace[n:n + rows, TC_NX] = c.normal[mine, 0][:rows]
-            ctrace[n:n + rows, TC_NY] = c.normal[mine, 1][:rows]
-            ctrace[n:n + rows, TC_J] = c.impulse[mine][:rows]
-            tcount[TN_CONTACTS] = n + rows
-            p = int(tcount[TN_POSES])
-            trace[p, :, TP_X] = state.positions[0, :, 0]
-            trace[p, :, TP_Y] = state.positions[0, :, 1]
-            trace[p, :, TP_ANGLE] = state.angles[0]
-            tcount[TN_POSES] = p + 1
+        world.step(scfg[SC_CHUNK])
+        if trace is not None:
+            trace_chunk_batch(k, buf.fbuf, buf.ibuf, sbuf, scfg, trace)
         strike_post_batch(k, buf.fbuf, buf.ibuf, sbuf, scfg)
         if (sbuf[:, S_DONE] != 0.0).all():
             break
 
 
+@jit
+def sample_trace(fbuf, ibuf, b, key_time, key_state, times, out):
+    """States of element b at ``times`` (s, ascending) from a trace's states ``key_state [K, N,
+    6]`` at ``key_time [K]`` (ascending; the first at or before the first time): each is the
+    last state at or before the time, flown by the rest (``motion.flight``), into
+    ``out [len(times), N, 6]``."""
+    v = unpack(fbuf, ibuf)
+    Pm = v.Pm[b]
+    F = v.F[b]
+    rotation = v.icfg[CI_ROTATION] != 0
+    table_friction = v.icfg[CI_TABLE_FRICTION] != 0
+    k = 0
+    n_keys = key_time.shape[0]
+    S = np.empty((key_state.shape[1], STATE_COLUMNS))
+    for f in range(times.shape[0]):
+        t = times[f]
+        while k + 1 < n_keys and key_time[k + 1] <= t:
+            k += 1
+        for i in range(S.shape[0]):
+            for c in range(STATE_COLUMNS):
+                S[i, c] = key_state[k, i, c]
+        for i in range(S.shape[0]):
+            x, y, an, vx, vy, w = flight(S, Pm, F, i, t - key_time[k], rotation, table_friction)
+            out[f, i, X] = x
+            out[f, i, Y] = y
+            out[f, i, ANGLE] = an
+            out[f, i, VX] = vx
+            out[f, i, VY] = vy
+            out[f, i, OMEGA] = w
+
+
 #: every element's whole strike, from its launch (``sbuf``'s launch columns):
-#: ``world.run(STRIKE, sbuf, scfg, trace, ctrace, tcount)``
+#: ``world.run(STRIKE, sbuf, scfg)``
 STRIKE = BatchKernel("strike", strike_serial, strike_parallel, _strike_stepwise)
+#: the same, tracing element 0 for its video: ``world.run(STRIKE_TRACED, sbuf, scfg, trace)``
+#: with a :data:`StrikeTrace` (counts zeroed)
+STRIKE_TRACED = BatchKernel("traced strike", strike_traced_serial, strike_traced_parallel,
+                            _strike_stepwise)

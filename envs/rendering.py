@@ -1,8 +1,18 @@
 """Top-down rendering with pygame-ce: ``rgb_array`` frames (no display needed) and ``human``.
 
-Draws the table and its cushions, every body (rods as capsules, disks), an arc arrow showing each
-spinning body's direction and rate, the last contacts' impulses as arrows, ghost poses of a strike
-(one-strike envs) and a line of text. pygame is imported lazily, when the first frame is drawn.
+Two kinds of frame, drawn by one :class:`Renderer`:
+
+* *plain* frames (pixel observations): the table and its cushions, every body (rods as
+  capsules, disks), an arc arrow for each spinning body, one caption line. Their pixels are a
+  contract (``obs_mode="pixels"``): the overlays below never touch them.
+* *video* frames (``render()``): the same, plus a short motion trail of each body, impulse
+  markers at contacts (an arrow along the normal, scaled by the impulse, fading out over the
+  next frames), ghost poses of a whole strike, velocity arrows (achieved and target), a gauge of
+  the achieved against the target value and an information panel (time, slow-motion factor,
+  achieved and target spin or speed, reward).
+
+This module also times a strike's video (:func:`strike_times`): how much it is slowed and which
+simulated instants become frames. pygame is imported lazily, when the first frame is drawn.
 """
 
 from __future__ import annotations
@@ -13,7 +23,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["BodyDraw", "Frame", "Renderer"]
+__all__ = ["BodyDraw", "Frame", "Gauge", "Marker", "Renderer", "Vector", "body_points",
+           "strike_times"]
 
 COLOURS = {
     "table": (28, 84, 58),
@@ -28,12 +39,21 @@ COLOURS = {
     "impulse": (255, 60, 200),
     "ghost": (255, 255, 255),
     "text": (240, 240, 240),
+    "panel": (0, 0, 0),
+    "target": (120, 255, 140),
+    "velocity": (255, 255, 255),
 }
+
+#: opacity (0..255) of the information panel's background
+PANEL_ALPHA = 150
+#: metres drawn per m/s of a velocity arrow
+VELOCITY_SCALE = 0.1
 
 
 @dataclass
 class BodyDraw:
-    """One body to draw: name picks the colour; pose in metres and radians (CCW from +x)."""
+    """One body to draw: name picks the colour; pose in metres and radians (CCW from +x); spin
+    (rad/s, CCW > 0) and velocity (m/s)."""
 
     name: str
     x: float
@@ -42,18 +62,97 @@ class BodyDraw:
     radius: float
     half_length: float
     omega: float = 0.0
+    vx: float = 0.0
+    vy: float = 0.0
+
+
+@dataclass
+class Marker:
+    """An impulse at a contact: point (m), unit normal from body a to body b, normal impulse
+    (N s, drawn as the push on body b); ``fade`` 1 on the contact's own frame, towards 0 after."""
+
+    x: float
+    y: float
+    nx: float
+    ny: float
+    j: float
+    fade: float = 1.0
+
+
+@dataclass
+class Vector:
+    """A velocity arrow from (x, y) (m) of (vx, vy) (m/s); ``colour`` a key of ``COLOURS``;
+    ``outline``: drawn thin (a target, not a state)."""
+
+    x: float
+    y: float
+    vx: float
+    vy: float
+    colour: str = "velocity"
+    outline: bool = False
+
+
+@dataclass
+class Gauge:
+    """A bar of an achieved value against its target, on the axis [low, high]."""
+
+    label: str
+    value: float
+    target: float | None
+    low: float
+    high: float
 
 
 @dataclass
 class Frame:
-    """Everything a frame shows."""
+    """Everything a frame shows (the fields after ``text`` are the video overlays)."""
 
     bodies: list[BodyDraw]
     half_size: tuple[float, float]
     walls: bool = False
-    contacts: list[tuple[float, float, float, float, float]] = field(default_factory=list)
     ghosts: list[list[BodyDraw]] = field(default_factory=list)
     text: str = ""
+    trails: list[list[tuple[float, float]]] = field(default_factory=list)
+    markers: list[Marker] = field(default_factory=list)
+    vectors: list[Vector] = field(default_factory=list)
+    gauge: Gauge | None = None
+    panel: list[str] = field(default_factory=list)
+    #: draw rods as anti-aliased capsules (video frames; plain frames keep their pixels)
+    smooth: bool = False
+
+
+def body_points(b: BodyDraw) -> list[tuple[float, float]]:
+    """The points of a body whose paths make its motion trail (m): the centre, and a rod's
+    two tips (they show the spin)."""
+    if b.half_length <= 0:
+        return [(b.x, b.y)]
+    c, s = math.cos(b.angle), math.sin(b.angle)
+    h = b.half_length
+    return [(b.x, b.y), (b.x + h * c, b.y + h * s), (b.x - h * c, b.y - h * s)]
+
+
+def strike_times(duration: float, fps: float, contacts: np.ndarray,
+                 min_seconds: float = 1.0) -> tuple[np.ndarray, int]:
+    """The simulated instants (s) that become a strike's frames, and its slow-motion factor.
+
+    The strike (``duration`` s of simulated time) is slowed by the smallest whole factor that
+    makes it last at least ``min_seconds`` at ``fps``; frames fall on the regular grid of
+    ``1 / (fps * factor)`` s from 0, then the end of the strike, then every contact instant
+    the grid misses (so that each contact has its own frame, at the very instant of the impulse).
+    """
+    factor = max(1, math.ceil(min_seconds / duration - 1e-9)) if duration > 0 else 1
+    h = 1.0 / (fps * factor)
+    n = int(math.floor(duration / h + 1e-9))
+    grid = np.arange(n + 1) * h
+    times = np.concatenate([grid, [duration], np.asarray(contacts, dtype=float)])
+    times = np.unique(times[(times >= 0.0) & (times <= duration)])
+    return times, factor
+
+
+def _mix(colour, background, fade: float) -> tuple[int, int, int]:
+    """``colour`` faded towards ``background`` (``fade`` 1: the colour, 0: the background)."""
+    f = min(1.0, max(0.0, fade))
+    return tuple(int(round(b + (c - b) * f)) for c, b in zip(colour, background, strict=True))
 
 
 class Renderer:
@@ -75,6 +174,7 @@ class Renderer:
         self._pygame = None
         self._surface = None
         self._font = None
+        self._small = None
         self._window = None
         self._clock = None
 
@@ -90,16 +190,35 @@ class Renderer:
             self._pygame = pygame
             self._surface = pygame.Surface((self.width, self.height))
             self._font = pygame.font.Font(None, max(14, self.height // 20))
+            self._small = pygame.font.Font(None, max(14, self.height // 24))
         return self._pygame
 
     def _px(self, x: float, y: float) -> tuple[int, int]:
         return (int(round(self.width / 2 + x * self.scale)),
                 int(round(self.height / 2 - y * self.scale)))
 
-    def _body(self, surf, b: BodyDraw, colour, width_px: int = 0) -> None:
+    def _capsule(self, surf, b: BodyDraw, colour) -> None:
+        """A rod as a filled capsule with anti-aliased edges (video frames)."""
+        pg = self._pygame
+        c, s = math.cos(b.angle), math.sin(b.angle)
+        r = max(1.0, b.radius * self.scale)
+        x0, y0 = self._px(b.x - b.half_length * c, b.y - b.half_length * s)
+        x1, y1 = self._px(b.x + b.half_length * c, b.y + b.half_length * s)
+        nx, ny = -s * r, -c * r  # the rod's normal in screen coordinates (y down)
+        corners = [(x0 + nx, y0 + ny), (x1 + nx, y1 + ny), (x1 - nx, y1 - ny), (x0 - nx, y0 - ny)]
+        pg.draw.polygon(surf, colour, corners)
+        pg.draw.aaline(surf, colour, corners[0], corners[1])
+        pg.draw.aaline(surf, colour, corners[2], corners[3])
+        for end in ((x0, y0), (x1, y1)):
+            pg.draw.aacircle(surf, colour, end, r)
+            pg.draw.circle(surf, colour, end, r)
+
+    def _body(self, surf, b: BodyDraw, colour, width_px: int = 0, smooth: bool = False) -> None:
         pg = self._pygame
         r = max(1, int(round(b.radius * self.scale)))
-        if b.half_length > 0:
+        if b.half_length > 0 and smooth and width_px == 0:
+            self._capsule(surf, b, colour)
+        elif b.half_length > 0:
             c, s = math.cos(b.angle), math.sin(b.angle)
             p0 = self._px(b.x - b.half_length * c, b.y - b.half_length * s)
             p1 = self._px(b.x + b.half_length * c, b.y + b.half_length * s)
@@ -108,6 +227,8 @@ class Renderer:
                 pg.draw.circle(surf, colour, p0, r)
                 pg.draw.circle(surf, colour, p1, r)
         else:
+            if smooth and width_px == 0:
+                pg.draw.aacircle(surf, colour, self._px(b.x, b.y), r)
             pg.draw.circle(surf, colour, self._px(b.x, b.y), r, width_px)
             # a tick shows the disk's orientation (and so its spin)
             if width_px == 0:
@@ -135,6 +256,87 @@ class Renderer:
         right = (ex - 8 * tangent[0] - 5 * tangent[1], ey - 8 * tangent[1] + 5 * tangent[0])
         pg.draw.polygon(surf, COLOURS["spin"], [(ex, ey), left, right])
 
+    def _arrow(self, surf, start, end, colour, width: int) -> None:
+        """A straight arrow between two pixel points, head at ``end``."""
+        pg = self._pygame
+        dx, dy = end[0] - start[0], end[1] - start[1]
+        length = math.hypot(dx, dy)
+        if length < 1.0:
+            return
+        pg.draw.line(surf, colour, start, end, width)
+        ux, uy = dx / length, dy / length
+        head = min(10.0, 0.4 * length) + width
+        left = (end[0] - head * ux + 0.5 * head * uy, end[1] - head * uy - 0.5 * head * ux)
+        right = (end[0] - head * ux - 0.5 * head * uy, end[1] - head * uy + 0.5 * head * ux)
+        pg.draw.polygon(surf, colour, [end, left, right])
+
+    def _trails(self, surf, trails) -> None:
+        pg = self._pygame
+        width = max(2, self.height // 160)
+        for trail in trails:
+            n = len(trail)
+            for k in range(1, n):
+                colour = _mix(COLOURS["ghost"], COLOURS["table"], 0.2 + 0.6 * k / n)
+                pg.draw.line(surf, colour, self._px(*trail[k - 1]), self._px(*trail[k]), width)
+
+    def _marker(self, surf, m: Marker) -> None:
+        pg = self._pygame
+        colour = _mix(COLOURS["impulse"], COLOURS["table"], m.fade)
+        length = min(1.0, m.j / self.impulse_scale) * 0.25 * self.height
+        start = self._px(m.x, m.y)
+        end = (start[0] + m.nx * length, start[1] - m.ny * length)
+        width = max(2, self.height // 160)
+        self._arrow(surf, start, end, colour, width)
+        pg.draw.circle(surf, colour, start, max(4, self.height // 80) + int(6 * m.fade), 2)
+        label = self._small.render(f"j = {m.j:.3f} N s", True, colour)
+        surf.blit(label, (end[0] + 6, end[1] - label.get_height() // 2))
+
+    def _vector(self, surf, v: Vector) -> None:
+        start = self._px(v.x, v.y)
+        end = self._px(v.x + VELOCITY_SCALE * v.vx, v.y + VELOCITY_SCALE * v.vy)
+        self._arrow(surf, start, end, COLOURS[v.colour], 1 if v.outline else 3)
+
+    def _panel(self, surf, lines: list[str]) -> None:
+        pg = self._pygame
+        rendered = [self._small.render(line, True, COLOURS["text"]) for line in lines]
+        pad = 6
+        width = max(r.get_width() for r in rendered) + 2 * pad
+        height = sum(r.get_height() for r in rendered) + 2 * pad
+        box = pg.Surface((width, height), pg.SRCALPHA)
+        box.fill((*COLOURS["panel"], PANEL_ALPHA))
+        surf.blit(box, (6, 6))
+        y = 6 + pad
+        for r in rendered:
+            surf.blit(r, (6 + pad, y))
+            y += r.get_height()
+
+    def _gauge(self, surf, g: Gauge) -> None:
+        """A bar along the bottom edge: the axis [low, high], the achieved value filled from
+        the axis' zero (or low end), the target as a tick."""
+        pg = self._pygame
+        x0, x1 = int(0.25 * self.width), int(0.75 * self.width)
+        h = max(8, self.height // 40)
+        y = self.height - 2 * h - 4
+        box = pg.Surface((x1 - x0 + 12, 2 * h + 8), pg.SRCALPHA)
+        box.fill((*COLOURS["panel"], PANEL_ALPHA))
+        surf.blit(box, (x0 - 6, y - h - 2))
+
+        def at(value: float) -> int:
+            f = (min(max(value, g.low), g.high) - g.low) / (g.high - g.low)
+            return int(round(x0 + f * (x1 - x0)))
+
+        base = at(min(max(0.0, g.low), g.high))
+        pg.draw.line(surf, COLOURS["text"], (x0, y), (x1, y), 1)
+        pg.draw.line(surf, COLOURS["text"], (base, y - h // 2), (base, y + h // 2), 1)
+        end = at(g.value)
+        rect = pg.Rect(min(base, end), y - h // 2, max(1, abs(end - base)), h)
+        pg.draw.rect(surf, COLOURS["velocity"], rect)
+        if g.target is not None:
+            t = at(g.target)
+            pg.draw.line(surf, COLOURS["target"], (t, y - h), (t, y + h), 3)
+        label = self._small.render(g.label, True, COLOURS["text"])
+        surf.blit(label, (x0, y - h - label.get_height()))
+
     def draw(self, frame: Frame) -> np.ndarray:
         """Draw a frame; return it as ``(height, width, 3)`` uint8."""
         pg = self._init()
@@ -149,23 +351,26 @@ class Renderer:
                 pg.draw.rect(surf, COLOURS["cushion"], pg.Rect(x0, y0, x1 - x0, y1 - y0), 5)
         else:
             surf.fill(COLOURS["table"])
+        self._trails(surf, frame.trails)
         for ghosts in frame.ghosts:
             for g in ghosts:
                 self._body(surf, g, COLOURS["ghost"], width_px=1)
         for b in frame.bodies:
-            self._body(surf, b, COLOURS.get(b.name, COLOURS["other"]))
+            self._body(surf, b, COLOURS.get(b.name, COLOURS["other"]), smooth=frame.smooth)
             self._spin_arrow(surf, b)
-        for px, py, nx, ny, j in frame.contacts:
-            length = min(1.0, j / self.impulse_scale) * 0.25 * self.height
-            start = self._px(px, py)
-            end = (start[0] + nx * length, start[1] - ny * length)
-            pg.draw.line(surf, COLOURS["impulse"], start, end, 3)
-            pg.draw.circle(surf, COLOURS["impulse"], start, 4)
+        for v in frame.vectors:
+            self._vector(surf, v)
+        for m in frame.markers:
+            self._marker(surf, m)
         if frame.text:
             surf.blit(self._font.render(frame.text, True, COLOURS["text"]), (8, 6))
+        if frame.panel:
+            self._panel(surf, frame.panel)
+        if frame.gauge is not None:
+            self._gauge(surf, frame.gauge)
         return np.ascontiguousarray(pg.surfarray.array3d(surf).transpose(1, 0, 2))
 
-    def show(self, image: np.ndarray, fps: int) -> None:
+    def show(self, image: np.ndarray, fps: float) -> None:
         """Show an image in a window (``human`` mode), at most ``fps`` frames per second."""
         pg = self._init()
         if self._window is None:

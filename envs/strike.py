@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from abc import abstractmethod
+from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
@@ -17,13 +18,23 @@ from spinstrike.envs import fast
 from spinstrike.envs.config import PuckSpeedConfig, RodSpinConfig, build_scene
 from spinstrike.envs.core import SpinStrikeEnv, SpinStrikeVectorEnv, Task, check_actions
 from spinstrike.envs.layout import ObsField, layout_table
-from spinstrike.envs.rendering import BodyDraw, Frame
+from spinstrike.envs.rendering import (
+    BodyDraw,
+    Frame,
+    Gauge,
+    Marker,
+    Vector,
+    body_points,
+    strike_times,
+)
 from spinstrike.physics import SceneError, World
+from spinstrike.physics.layout import ANGLE, OMEGA, STATE_COLUMNS, VX, VY, X, Y
+from spinstrike.physics.solvers import TRACE_DROPPED, TRACE_ENTRIES
 
-__all__ = ["PuckSpeedEnv", "PuckSpeedVectorEnv", "RodSpinEnv", "RodSpinVectorEnv",
+__all__ = ["PuckSpeedEnv", "PuckSpeedVectorEnv", "RodSpinEnv", "RodSpinVectorEnv", "StrikeClip",
            "rod_spin_after_strike", "rod_spin_max"]
 
-#: simulated time per chunk of a strike, s (also the animation's frame interval)
+#: simulated time per chunk of a strike, s (the solver's step inside the strike kernel)
 CHUNK = 1.0 / 30.0
 #: margin between the striker's start and the target's reach, m
 START_MARGIN = 0.02
@@ -70,9 +81,8 @@ class _StrikeTask(Task):
         self.js = w.index("striker")
         B = batch_size
         self.goal = np.zeros((B, self.GOAL_WIDTH))
-        self.record_trace = False
-        # the compiled strike's buffers (envs.fast): outcome per element, constants, and the
-        # poses and contacts of element 0 for the animation
+        # the compiled strike's buffers (envs.fast): outcome per element, constants, and (when
+        # recording) element 0's trace, from which its video frames are sampled
         n_chunks = max(1, math.ceil(cfg.time_cap / CHUNK - 1e-9))
         self._sbuf = np.zeros((B, fast.S_COLUMNS))
         sc = np.zeros(fast.SC_SIZE)
@@ -80,12 +90,10 @@ class _StrikeTask(Task):
             CHUNK, n_chunks, self.it, self.js)
         sc[fast.SC_FREE] = self._free
         self._scfg = sc
-        self._trace_buf = np.zeros((n_chunks + 1, w.n_bodies, len(fast.TRACE_POSE)))
-        self._ctrace_buf = np.zeros((fast.TRACE_CONTACTS, len(fast.TRACE_CONTACT)))
-        self._tcount = np.zeros(len(fast.TRACE_COUNT), dtype=np.int64)
-        self._trace: list[tuple[np.ndarray, np.ndarray]] = []
-        self._last: dict[str, np.ndarray] = {}
-        self._contacts_b0: list[tuple[float, float, float, float, float]] = []
+        self._strace = fast.strike_trace(n_chunks, w.n_bodies)
+        #: element 0's last strike as video frames (``record_trace``), and its record
+        self._clip: list[Frame] = []
+        self.clip: StrikeClip | None = None
         self._zero_result()
 
     GOAL_WIDTH: ClassVar[int] = 1
@@ -156,9 +164,9 @@ class _StrikeTask(Task):
             e.set_state(positions=pos, angles=angles, velocities=0.0, omegas=0.0)
         self._sample_goal(env, u[:, 3:])
         self._zero_result_rows(env)
-        if self.record_trace:
-            self._trace = []
-            self._contacts_b0 = []
+        if 0 in env:
+            self._clip = []
+            self.clip = None
         return self._reset_info(env)
 
     def _zero_result_rows(self, env) -> None:
@@ -185,12 +193,15 @@ class _StrikeTask(Task):
     def _simulate(self) -> dict[str, np.ndarray]:
         """Run every element's strike to its end (``envs.fast.STRIKE``: compiled, each element
         only as long as it needs; pymunk: chunk by chunk from Python, booked by the same code)."""
-        sc = self._scfg
-        sc[fast.SC_RECORD] = self.record_trace
         sb = self._sbuf
-        self._tcount[:] = 0
         w = self.world
-        w.run(fast.STRIKE, sb, sc, self._trace_buf, self._ctrace_buf, self._tcount)
+        if self.record_trace:
+            for counts in (self._strace.events.count, self._strace.chunks.count,
+                           self._strace.contact_count):
+                counts[:] = 0
+            w.run(fast.STRIKE_TRACED, sb, self._scfg, self._strace)
+        else:
+            w.run(fast.STRIKE, sb, self._scfg)
         refused = np.flatnonzero(sb[:, fast.S_OVERLAP_PAIR] != -1)
         if len(refused):
             b = refused[0]
@@ -204,13 +215,6 @@ class _StrikeTask(Task):
         self.result_v[:] = sb[:, fast.S_TARGET_VX:fast.S_TARGET_VY + 1]
         self.result_w[:] = sb[:, fast.S_TARGET_W]
         self.result_vs[:] = sb[:, fast.S_STRIKER_VX:fast.S_STRIKER_VY + 1]
-        if self.record_trace:
-            n = int(self._tcount[fast.TN_POSES])
-            poses = self._trace_buf[:n]
-            self._trace = [(t[:, fast.TP_X:fast.TP_Y + 1].copy(), t[:, fast.TP_ANGLE].copy())
-                           for t in poses]
-            m = int(self._tcount[fast.TN_CONTACTS])
-            self._contacts_b0 = [tuple(r) for r in self._ctrace_buf[:m]]
         contacts = sb[:, fast.S_CONTACTS].astype(np.int64)
         return {"n_contacts": contacts, "impulse": sb[:, fast.S_IMPULSE].copy(),
                 "first_contact_time": sb[:, fast.S_FIRST_TIME].copy(),
@@ -225,7 +229,9 @@ class _StrikeTask(Task):
         sim = self._simulate()
         reward, terms = self._reward()
         info = {**sim, **terms, **self._result_info()}
-        self._last = info
+        if self.record_trace:
+            self.clip = self._record_clip()
+            self._clip = self._clip_frames(self.clip, float(reward[0]))
         return reward, np.ones(self.batch_size, dtype=bool), info
 
     # -- snapshots ----------------------------------------------------------------------------
@@ -240,30 +246,86 @@ class _StrikeTask(Task):
         self.result_vs[:] = snap["result_vs"]
 
     # -- rendering ----------------------------------------------------------------------------
-    def _draw_bodies(self, b: int, pos=None, ang=None, omegas=None) -> list[BodyDraw]:
+    def _draw_bodies(self, b: int, S: np.ndarray | None = None) -> list[BodyDraw]:
+        """Element b's bodies, in its current state or in the state rows ``S [N, 6]``."""
         w = self.world
-        pos = w.state.positions[b] if pos is None else pos
-        ang = w.state.angles[b] if ang is None else ang
-        om = w.state.omegas[b] if omegas is None else omegas
-        return [BodyDraw(w.names[i], *pos[i], ang[i], w.radius[b, i], w.half_length[b, i], om[i])
-                for i in range(w.n_bodies)]
+        if S is None:
+            pos, ang = w.state.positions[b], w.state.angles[b]
+            vel, om = w.state.velocities[b], w.state.omegas[b]
+        else:
+            pos, ang, vel, om = S[:, X:Y + 1], S[:, ANGLE], S[:, VX:VY + 1], S[:, OMEGA]
+        return [BodyDraw(w.names[i], *pos[i], ang[i], w.radius[b, i], w.half_length[b, i], om[i],
+                         *vel[i]) for i in range(w.n_bodies)]
+
+    def _record_clip(self) -> StrikeClip:
+        """Element 0's strike as the solver computed it, sampled at its frames' instants."""
+        tr = self._strace
+        n_ev, n_ch = int(tr.events.count[TRACE_ENTRIES]), int(tr.chunks.count[TRACE_ENTRIES])
+        # the launch and chunk ends first: at a tie, the event's (post-impulse) state wins
+        key_time = np.concatenate([tr.chunks.time[:n_ch], tr.events.time[:n_ev]])
+        key_state = np.concatenate([tr.chunks.state[:n_ch], tr.events.state[:n_ev]])
+        order = np.argsort(key_time, kind="stable")
+        contacts = tr.contacts[:int(tr.contact_count[TRACE_ENTRIES])].copy()
+        duration = float(self._sbuf[0, fast.S_SIM_TIME])
+        times, factor = strike_times(duration, self.render_fps, contacts[:, fast.TC_TIME])
+        states = np.empty((len(times), self.world.n_bodies, STATE_COLUMNS))
+        buf = self.world.buffers
+        fast.sample_trace(buf.fbuf, buf.ibuf, 0, key_time[order], key_state[order], times,
+                          states)
+        return StrikeClip(times, states, contacts, factor, duration,
+                          int(tr.events.count[TRACE_DROPPED]))
+
+    def _clip_frames(self, clip: StrikeClip, reward: float) -> list[Frame]:
+        """The video frames of a strike: trails, impulse markers (fading over
+        ``MARKER_FRAMES``), the panel and gauge; the last frame also shows ghost poses and every
+        impulse (it is what ``rgb_array`` shows after the step)."""
+        frame_of = np.searchsorted(clip.times, clip.contacts[:, fast.TC_TIME])
+        last_contact = clip.contacts[:, fast.TC_TIME].max() if len(clip.contacts) else np.inf
+        points = [[body_points(b) for b in self._draw_bodies(0, S)] for S in clip.states]
+        frames = []
+        for f, S in enumerate(clip.states):
+            t = clip.times[f]
+            trails = [[points[g][i][k] for g in range(max(0, f - TRAIL_FRAMES), f + 1)]
+                      for i in range(len(points[f])) for k in range(len(points[f][i]))]
+            markers = [_marker(c, 1.0 - (f - frame_of[q]) / MARKER_FRAMES)
+                       for q, c in enumerate(clip.contacts) if 0 <= f - frame_of[q] < MARKER_FRAMES]
+            final = f == len(clip.states) - 1
+            frames.append(self._video_frame(
+                0, S, t, clip.slow_motion, reward if (t >= last_contact or final) else None,
+                trails=trails, markers=markers))
+        last = frames[-1]
+        step = max(1, len(clip.states) // 8)
+        last.ghosts = [self._draw_bodies(0, S) for S in clip.states[::step]]
+        last.markers = [_marker(c, 1.0) for c in clip.contacts]
+        return frames
+
+    def _video_frame(self, b: int, S: np.ndarray | None, t: float, slow_motion: int,
+                     reward: float | None, trails=(), markers=()) -> Frame:
+        bodies = self._draw_bodies(b, S)
+        target = bodies[self.it]
+        when = (f"t = {1000 * t:6.1f} ms   slow motion x{slow_motion}" if slow_motion
+                else "before the strike")
+        score = "reward: after the last contact" if reward is None else f"reward {reward:.3f}"
+        return Frame(bodies, tuple(self.world.table_half_size[b]),
+                     walls="walls" in self.world.effects, trails=list(trails),
+                     markers=list(markers), vectors=self._vectors(b, target),
+                     gauge=self._gauge(b, target), smooth=True,
+                     panel=[f"{self.TITLE}   {when}", self._achieved(b, target), score])
 
     def frame(self, b: int, decorate: bool = True) -> Frame:
-        ghosts = []
-        contacts: list = []
-        if decorate and b == 0 and self._trace:
-            step = max(1, len(self._trace) // 8)
-            ghosts = [self._draw_bodies(0, p, a, np.zeros(len(a))) for p, a in self._trace[::step]]
-            contacts = self._contacts_b0
-        return Frame(self._draw_bodies(b), tuple(self.world.table_half_size[b]),
-                     walls="walls" in self.world.effects, contacts=contacts, ghosts=ghosts,
-                     text=self._caption(b))
+        if not decorate:  # the pixel observation (its pixels are a contract: keep it plain)
+            return Frame(self._draw_bodies(b), tuple(self.world.table_half_size[b]),
+                         walls="walls" in self.world.effects, text=self._caption(b))
+        if b == 0 and self._clip:
+            return self._clip[-1]
+        return self._video_frame(b, None, 0.0, 0, None)
 
-    def strike_frames(self, b: int = 0) -> list[Frame]:
-        """The last strike of element 0, one frame per ``CHUNK`` (for animated recordings)."""
-        return [Frame(self._draw_bodies(0, p, a), tuple(self.world.table_half_size[0]),
-                      walls="walls" in self.world.effects, text=self._caption(0))
-                for p, a in self._trace]
+    def step_frames(self) -> list[Frame]:
+        """Element 0's last strike, frame by frame (needs ``record_trace``)."""
+        return list(self._clip)
+
+    def _vectors(self, b: int, target: BodyDraw) -> list[Vector]:
+        return []
 
     def view_half(self) -> tuple[float, float]:
         hw = self.world.table_half_size[0]
@@ -271,6 +333,40 @@ class _StrikeTask(Task):
             return float(hw[0]) + 0.05, float(hw[1]) + 0.05
         r = float(self._reach()[0] + self.world.radius[0, self.js]) + START_MARGIN
         return 2.2 * r * 1.5, 2.2 * r
+
+
+#: frames over which a body's motion trail reaches back
+TRAIL_FRAMES = 10
+#: frames over which an impulse marker fades out after its contact
+MARKER_FRAMES = 12
+
+
+def _marker(c: np.ndarray, fade: float) -> Marker:
+    return Marker(c[fast.TC_PX], c[fast.TC_PY], c[fast.TC_NX], c[fast.TC_NY], c[fast.TC_J], fade)
+
+
+@dataclass(frozen=True)
+class StrikeClip:
+    """Element 0's last strike as recorded for its video.
+
+    Attributes:
+        times: the frames' simulated instants, s from the launch (the regular grid, the end,
+            and every contact instant: ``rendering.strike_times``).
+        states: the state rows ``[len(times), N, 6]`` at those instants, sampled from the
+            solver's trace (``fast.sample_trace``).
+        contacts: ``[C, fast.TRACE_CONTACT]``: each contact's time, point, normal, impulse and
+            bodies, as the solver recorded them.
+        slow_motion: the video's slow-motion factor (a whole number).
+        duration: the strike's simulated time, s (``info['sim_time']``).
+        dropped: solver states the trace had no room for (0: the frames are exact).
+    """
+
+    times: np.ndarray
+    states: np.ndarray
+    contacts: np.ndarray
+    slow_motion: int
+    duration: float
+    dropped: int
 
 
 class RodSpinTask(_StrikeTask):
@@ -286,6 +382,7 @@ class RodSpinTask(_StrikeTask):
     )
     GOAL = slice(0, 1)
     ACHIEVED = (ObsField("spin", -5.0, 5.0, "rod spin after the strike / max target spin"),)
+    TITLE = "RodSpin-v0"
     UNIFORMS = len(RodSpinConfig.RANDOMIZABLE) + 4
 
     def _body_overrides(self, cfg) -> dict:
@@ -375,6 +472,16 @@ class RodSpinTask(_StrikeTask):
         return (f"spin {self.world.state.omegas[b, self.it]:+.2f} rad/s   "
                 f"target {self.goal[b, 0]:+.2f}")
 
+    def _achieved(self, b: int, rod: BodyDraw) -> str:
+        if self.cfg.goal == "target":
+            return f"spin {rod.omega:+6.2f} rad/s   target {self.goal[b, 0]:+6.2f} rad/s"
+        return f"spin {rod.omega:+6.2f} rad/s   goal: the most spin"
+
+    def _gauge(self, b: int, rod: BodyDraw) -> Gauge:
+        top = 1.25 * self.cfg.target_spin[1]
+        target = self.goal[b, 0] if self.cfg.goal == "target" else None
+        return Gauge("rod spin (rad/s): achieved | target", rod.omega, target, -top, top)
+
 
 class PuckSpeedTask(_StrikeTask):
     TARGET = "puck"
@@ -392,6 +499,7 @@ class PuckSpeedTask(_StrikeTask):
                 ObsField("vy", -5.0, 5.0, "puck velocity y / max target speed"))
     UNIFORMS = len(PuckSpeedConfig.RANDOMIZABLE) + 5
     GOAL_WIDTH = 2
+    TITLE = "PuckSpeed-v0"
 
     def _sample_goal(self, env, u) -> None:
         lo, hi = self.cfg.target_speed
@@ -464,15 +572,27 @@ class PuckSpeedTask(_StrikeTask):
         return (f"puck ({v[0]:+.2f}, {v[1]:+.2f}) m/s   "
                 f"target ({self.goal[b, 0]:+.2f}, {self.goal[b, 1]:+.2f})")
 
+    def _achieved(self, b: int, puck: BodyDraw) -> str:
+        v = (puck.vx, puck.vy)
+        g = self.goal[b]
+        return (f"speed {math.hypot(*v):.2f} m/s  ({v[0]:+.2f}, {v[1]:+.2f})   "
+                f"target {math.hypot(*g):.2f} m/s  ({g[0]:+.2f}, {g[1]:+.2f})")
 
-class _StrikeEnvMixin:
-    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 30}
+    def _gauge(self, b: int, puck: BodyDraw) -> Gauge:
+        return Gauge("puck speed (m/s): achieved | target",
+                     math.hypot(puck.vx, puck.vy), math.hypot(*self.goal[b]), 0.0,
+                     1.25 * self.cfg.target_speed[1])
 
-    def _after_init(self) -> None:
-        self.task.record_trace = self.render_mode is not None
+    def _vectors(self, b: int, puck: BodyDraw) -> list[Vector]:
+        return [Vector(puck.x, puck.y, *self.goal[b], colour="target", outline=True),
+                Vector(puck.x, puck.y, puck.vx, puck.vy)]
 
 
-class RodSpinEnv(_StrikeEnvMixin, SpinStrikeEnv):
+class _StrikeEnv(SpinStrikeEnv):
+    metadata = dict(SpinStrikeEnv.metadata, render_fps=30)
+
+
+class RodSpinEnv(_StrikeEnv):
     """Strike a free rod once and give it a target spin.
 
     ## Description
@@ -530,12 +650,8 @@ class RodSpinEnv(_StrikeEnvMixin, SpinStrikeEnv):
 
     TASK = RodSpinTask
 
-    def __init__(self, render_mode=None, config=None, **kwargs):
-        super().__init__(render_mode=render_mode, config=config, **kwargs)
-        self._after_init()
 
-
-class PuckSpeedEnv(_StrikeEnvMixin, SpinStrikeEnv):
+class PuckSpeedEnv(_StrikeEnv):
     """Strike a puck once and send it off at a target velocity.
 
     ## Description
@@ -574,10 +690,6 @@ class PuckSpeedEnv(_StrikeEnvMixin, SpinStrikeEnv):
     """
 
     TASK = PuckSpeedTask
-
-    def __init__(self, render_mode=None, config=None, **kwargs):
-        super().__init__(render_mode=render_mode, config=config, **kwargs)
-        self._after_init()
 
 
 class RodSpinVectorEnv(SpinStrikeVectorEnv):

@@ -55,7 +55,7 @@ def test_cli_train_evaluate_record_envs(tmp_path, capsys):
     assert main(["record", "--oracle", "--env", "SpinStrike/RodSpinControl-v0", "--out",
                  str(video), "--episodes", "1"]) == 0
     frames, _ = imageio_ffmpeg.count_frames_and_secs(str(video))
-    assert frames == 251  # reset + 250 steps
+    assert frames == 251 + 25  # reset + 250 steps, the last held 0.5 s at 50 fps
     assert main(["envs"]) == 0
     assert "SpinStrike/RodSpinControl-v0" in capsys.readouterr().out
 

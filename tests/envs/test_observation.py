@@ -109,7 +109,7 @@ def test_seeded_reset_returns_the_same_observation_whatever_ran_before(env_id):
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_pixel_observation_after_reset_shows_the_new_state(env_id):
-    kw = {"obs_mode": "pixels", "render_size": (64, 48)}
+    kw = {"obs_mode": "pixels", "obs_size": (64, 48)}
     fresh = gym.make(env_id, **kw)
     want, _ = fresh.reset(seed=5)
     used = gym.make(env_id, **kw)

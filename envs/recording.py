@@ -1,0 +1,264 @@
+"""Video files of rollouts: every frame an env renders, written exactly once.
+
+* :class:`RecordEveryFrame` is Gymnasium's ``RecordVideo`` (same arguments, same triggers) for
+  envs whose ``render()`` returns *lists* of frames (``render_mode="rgb_array_list"``). Use it
+  for the one-strike envs: a strike is one step, whose frames are the whole strike in slow
+  motion, and ``RecordVideo`` keeps only the last frame of each list (its ``_capture_frame``),
+  so it films one frame per strike. It streams the frames to the encoder as they come (nothing
+  piles up in memory) and writes each one exactly once (moviepy 2.2, which ``RecordVideo`` uses,
+  drops the last frame of some clips).
+* :class:`VideoWriter` writes frames to an mp4 (H.264 through imageio-ffmpeg) or a GIF
+  (Pillow), by the file's extension; :func:`tile` puts several frames side by side (what
+  ``spinstrike record --grid`` shows).
+
+Saving one step's frames with Gymnasium's own helper works too:
+``gymnasium.utils.save_video.save_video(env.render(), "videos", fps=env.metadata["render_fps"])``.
+"""
+
+from __future__ import annotations
+
+import gc
+import math
+import os
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+__all__ = ["RecordEveryFrame", "VideoWriter", "tile"]
+
+#: file extensions :class:`VideoWriter` writes
+FORMATS = (".mp4", ".gif")
+
+
+class VideoWriter:
+    """Write frames (``(H, W, 3)`` uint8, all of one size) to ``path``: ``.mp4`` (H.264, yuv420p,
+    streamed to ffmpeg; an odd width or height is padded by one pixel, which yuv420p needs) or
+    ``.gif`` (Pillow, looping, written on :meth:`close`).
+
+    Args:
+        path: the file (its folder is created).
+        fps: frames per second of the video.
+    """
+
+    def __init__(self, path: str | Path, fps: float) -> None:
+        self.path = Path(path)
+        if self.path.suffix.lower() not in FORMATS:
+            raise ValueError(f"video path: must end in one of {list(FORMATS)} (got "
+                             f"{str(path)!r})")
+        if not (math.isfinite(fps) and fps > 0):
+            raise ValueError(f"fps: must be a number > 0 (got {fps!r})")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.fps = fps
+        #: frames written so far
+        self.frames = 0
+        self._size: tuple[int, int] | None = None
+        self._encoder = None
+        self._gif: list[np.ndarray] = []
+
+    @property
+    def size(self) -> tuple[int, int] | None:
+        """(width, height) of the frames written (None before the first)."""
+        return None if self._size is None else (self._size[1], self._size[0])
+
+    def write(self, frame: np.ndarray) -> None:
+        """Append one frame."""
+        frame = np.asarray(frame)
+        if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
+            raise ValueError(f"frame: must be (height, width, 3) uint8 (got {frame.shape} "
+                             f"{frame.dtype})")
+        if self._size is None:
+            self._size = frame.shape[:2]
+        elif frame.shape[:2] != self._size:
+            raise ValueError(f"frame: size {frame.shape[:2]} differs from the video's "
+                             f"{self._size}")
+        if self.path.suffix.lower() == ".gif":
+            self._gif.append(frame.copy())
+        else:
+            h, w = self._size
+            if h % 2 or w % 2:
+                frame = np.pad(frame, ((0, h % 2), (0, w % 2), (0, 0)), mode="edge")
+            if self._encoder is None:
+                self._encoder = self._open(frame.shape[1], frame.shape[0])
+            self._encoder.send(np.ascontiguousarray(frame))
+        self.frames += 1
+
+    def _open(self, width: int, height: int):
+        import imageio_ffmpeg
+
+        encoder = imageio_ffmpeg.write_frames(
+            str(self.path), (width, height), fps=self.fps, codec="libx264",
+            pix_fmt_out="yuv420p", macro_block_size=1, output_params=["-loglevel", "error"])
+        encoder.send(None)
+        return encoder
+
+    def close(self) -> None:
+        """Finish the file (nothing is written for a video without frames)."""
+        if self._encoder is not None:
+            self._encoder.close()
+            self._encoder = None
+        if self._gif:
+            from PIL import Image
+
+            images = [Image.fromarray(f) for f in self._gif]
+            images[0].save(self.path, save_all=True, append_images=images[1:], loop=0,
+                           duration=int(round(1000 / self.fps)), optimize=True)
+            self._gif = []
+
+    def __enter__(self) -> VideoWriter:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+
+def tile(frames: Sequence[np.ndarray | None], columns: int) -> np.ndarray:
+    """Frames of one size in a grid of ``columns`` columns, row by row; ``None`` (or a missing
+    frame at the end of the last row) is a black tile."""
+    shape = next(f.shape for f in frames if f is not None)
+    rows = math.ceil(len(frames) / columns)
+    out = np.zeros((rows * shape[0], columns * shape[1], 3), dtype=np.uint8)
+    for k, f in enumerate(frames):
+        if f is not None:
+            r, c = divmod(k, columns)
+            out[r * shape[0]:(r + 1) * shape[0], c * shape[1]:(c + 1) * shape[1]] = f
+    return out
+
+
+class RecordEveryFrame(gym.Wrapper, gym.utils.RecordConstructorArgs):
+    """Records videos of episodes, every frame the env renders: Gymnasium's ``RecordVideo``
+    for list-rendering envs, and the recorder to use for the one-strike envs.
+
+    With ``render_mode="rgb_array_list"`` each step renders a list of frames (a strike: its
+    whole slow-motion video) and every one of them goes into the video; with ``"rgb_array"`` it
+    records one frame per step, as ``RecordVideo`` does. The arguments and triggers are
+    ``RecordVideo``'s::
+
+        env = gym.make("SpinStrike/RodSpin-v0", render_mode="rgb_array_list")
+        env = RecordEveryFrame(env, "videos", episode_trigger=lambda e: e % 100 == 0)
+
+    Args:
+        env: the env (``render_mode`` ``rgb_array_list`` or ``rgb_array``).
+        video_folder: where the mp4 files go.
+        episode_trigger: ``episode_id -> bool``: start a recording at this episode.
+        step_trigger: ``step_id -> bool``: start a recording at this step. Neither:
+            ``gymnasium.utils.save_video.capped_cubic_video_schedule`` (episodes 0, 1, 8, 27...).
+        video_length: frames per video (0: whole episodes, a recording stops at the next reset).
+        name_prefix: file names are ``{name_prefix}-episode-{id}.mp4`` / ``-step-{id}.mp4``.
+        fps: frames per second (default: the env's ``render_fps``, else 30).
+        disable_logger: accepted for ``RecordVideo`` compatibility (this writer logs nothing).
+        gc_trigger: ``episode_id -> bool``: collect garbage after a recording of this episode.
+
+    While a recording runs the wrapper takes the env's frames after every reset and step, so
+    ``render()`` returns only frames rendered since then (``RecordVideo`` instead keeps every
+    frame it took for a later ``render()``, which piles up for as long as nobody calls it).
+    """
+
+    def __init__(self, env: gym.Env, video_folder: str,
+                 episode_trigger: Callable[[int], bool] | None = None,
+                 step_trigger: Callable[[int], bool] | None = None, video_length: int = 0,
+                 name_prefix: str = "rl-video", fps: float | None = None,
+                 disable_logger: bool = True,
+                 gc_trigger: Callable[[int], bool] | None = lambda episode: True) -> None:
+        gym.utils.RecordConstructorArgs.__init__(
+            self, video_folder=video_folder, episode_trigger=episode_trigger,
+            step_trigger=step_trigger, video_length=video_length, name_prefix=name_prefix,
+            fps=fps, disable_logger=disable_logger, gc_trigger=gc_trigger)
+        gym.Wrapper.__init__(self, env)
+        if env.render_mode not in ("rgb_array_list", "rgb_array"):
+            raise ValueError(f"render_mode: RecordEveryFrame needs 'rgb_array_list' (or "
+                             f"'rgb_array'), got {env.render_mode!r}")
+        if video_length < 0:
+            raise ValueError(f"video_length: must be >= 0 frames (got {video_length})")
+        if episode_trigger is None and step_trigger is None:
+            from gymnasium.utils.save_video import capped_cubic_video_schedule
+
+            episode_trigger = capped_cubic_video_schedule
+        self.episode_trigger = episode_trigger
+        self.step_trigger = step_trigger
+        self.gc_trigger = gc_trigger
+        self.video_folder = os.path.abspath(video_folder)
+        if os.path.isdir(self.video_folder):
+            gym.logger.warn(f"Overwriting existing videos at {self.video_folder} folder (try "
+                            "specifying a different `video_folder` if this is not desired)")
+        os.makedirs(self.video_folder, exist_ok=True)
+        self.frames_per_sec = fps if fps is not None else self.metadata.get("render_fps", 30)
+        self.name_prefix = name_prefix
+        self.video_length = video_length if video_length > 0 else math.inf
+        self.recording = False
+        self.step_id = -1
+        self.episode_id = -1
+        #: videos written so far (paths)
+        self.videos: list[str] = []
+        self._writer: VideoWriter | None = None
+
+    def _capture(self) -> None:
+        self._write(self.env.render())
+
+    def _write(self, out: Any) -> None:
+        """Write rendered frames (a list, or one frame) up to ``video_length``; stop there."""
+        for frame in out if isinstance(out, list) else [out]:
+            if not isinstance(frame, np.ndarray):
+                self.stop_recording()
+                gym.logger.warn(f"Recording stopped: render() returned {type(frame)}, not "
+                                "numpy arrays")
+                return
+            self._writer.write(frame)
+            if self._writer.frames >= self.video_length:
+                self.stop_recording()
+                return
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        obs, info = super().reset(seed=seed, options=options)
+        self.episode_id += 1
+        if self.recording and self.video_length == math.inf:
+            self.stop_recording()
+        if self.episode_trigger and self.episode_trigger(self.episode_id):
+            self.start_recording(f"{self.name_prefix}-episode-{self.episode_id}")
+        if self.recording:
+            self._capture()
+        return obs, info
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self.step_id += 1
+        if self.step_trigger and self.step_trigger(self.step_id):
+            self.start_recording(f"{self.name_prefix}-step-{self.step_id}")
+        if self.recording:
+            self._capture()
+        return obs, reward, terminated, truncated, info
+
+    def render(self):
+        """The env's frames since the last capture (recorded too, if a recording runs)."""
+        out = super().render()
+        if self.recording and self.env.render_mode == "rgb_array_list":
+            self._write(out)
+        return out
+
+    def start_recording(self, video_name: str) -> None:
+        """Start a video (stopping the one in progress)."""
+        if self.recording:
+            self.stop_recording()
+        self.recording = True
+        self._writer = VideoWriter(os.path.join(self.video_folder, f"{video_name}.mp4"),
+                                   self.frames_per_sec)
+
+    def stop_recording(self) -> None:
+        """Finish the video in progress."""
+        if self._writer is not None:
+            self._writer.close()
+            if self._writer.frames:
+                self.videos.append(str(self._writer.path))
+            else:
+                gym.logger.warn("Ignored saving a video as there were zero frames to save.")
+            self._writer = None
+        self.recording = False
+        if self.gc_trigger and self.gc_trigger(self.episode_id):
+            gc.collect()
+
+    def close(self) -> None:
+        super().close()
+        if self.recording:
+            self.stop_recording()
