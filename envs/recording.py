@@ -36,7 +36,8 @@ FORMATS = (".mp4", ".gif")
 class VideoWriter:
     """Write frames (``(H, W, 3)`` uint8, all of one size) to ``path``: ``.mp4`` (H.264, yuv420p,
     streamed to ffmpeg; an odd width or height is padded by one pixel, which yuv420p needs) or
-    ``.gif`` (Pillow, looping, written on :meth:`close`).
+    ``.gif`` (Pillow, looping, written on :meth:`close`; Pillow merges identical consecutive
+    frames into one of their summed duration).
 
     Args:
         path: the file (its folder is created).
@@ -103,8 +104,11 @@ class VideoWriter:
             from PIL import Image
 
             images = [Image.fromarray(f) for f in self._gif]
+            # a GIF counts time in hundredths of a second: round the frames' cumulative times
+            # to those, so that the whole lasts what it should (30 fps: 30, 30, 40, 30...)
+            ends = np.round(np.arange(len(images) + 1) * 100 / self.fps) * 10
             images[0].save(self.path, save_all=True, append_images=images[1:], loop=0,
-                           duration=int(round(1000 / self.fps)), optimize=True)
+                           duration=np.diff(ends).astype(int).tolist(), optimize=True)
             self._gif = []
 
     def __enter__(self) -> VideoWriter:
@@ -222,9 +226,12 @@ class RecordEveryFrame(gym.Wrapper, gym.utils.RecordConstructorArgs):
         return obs, info
 
     def step(self, action):
+        trigger = bool(self.step_trigger and self.step_trigger(self.step_id + 1))
+        if trigger and self.env.render_mode == "rgb_array_list":
+            self.env.render()  # frames of earlier steps, not part of the video about to start
         obs, reward, terminated, truncated, info = self.env.step(action)
         self.step_id += 1
-        if self.step_trigger and self.step_trigger(self.step_id):
+        if trigger:
             self.start_recording(f"{self.name_prefix}-step-{self.step_id}")
         if self.recording:
             self._capture()

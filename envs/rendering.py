@@ -373,7 +373,9 @@ class Renderer:
     def show(self, image: np.ndarray, fps: float) -> None:
         """Show an image in a window (``human`` mode), at most ``fps`` frames per second."""
         pg = self._init()
-        if self._window is None:
+        # pygame has one display: another renderer may have closed it or replaced the window
+        if (self._window is None or not pg.display.get_init()
+                or pg.display.get_surface() is not self._window):
             pg.display.init()
             self._window = pg.display.set_mode((self.width, self.height))
             pg.display.set_caption("SpinStrike")
@@ -384,6 +386,9 @@ class Renderer:
         self._clock.tick(fps)
 
     def close(self) -> None:
+        """Close this renderer's window (if it is still the one shown)."""
         if self._window is not None:
-            self._pygame.display.quit()
+            pg = self._pygame
+            if pg.display.get_init() and pg.display.get_surface() is self._window:
+                pg.display.quit()
             self._window = None

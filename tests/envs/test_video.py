@@ -1,0 +1,512 @@
+"""Rollout videos (issue 13), from the user's side: ``render_mode="rgb_array_list"`` through
+``gym.make``, the recording wrapper, ``spinstrike record``, and the laws a strike's frames obey
+(they lie on the trajectory the solver computed, one at each contact instant, slowed so that
+the strike lasts at least a second)."""
+
+import hashlib
+import math
+import pickle
+import time
+import warnings
+
+import gymnasium as gym
+import imageio_ffmpeg
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+from gymnasium.wrappers import RecordVideo, RenderCollection
+from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+from spinstrike import envs
+from spinstrike.agents.cli import main
+from spinstrike.agents.oracle import oracle_for
+from spinstrike.envs import fast
+from spinstrike.envs.recording import RecordEveryFrame, VideoWriter, tile
+from spinstrike.envs.rendering import Renderer, strike_times
+from spinstrike.envs.strike import CHUNK
+from spinstrike.physics.layout import ANGLE, OMEGA, VX, VY, X, Y
+
+ENV_IDS = list(envs.ENV_IDS)
+STRIKE_IDS = ["SpinStrike/RodSpin-v0", "SpinStrike/PuckSpeed-v0"]
+CONTROL_IDS = ["SpinStrike/RodSpinControl-v0", "SpinStrike/PuckSpeedControl-v0"]
+MODES = [None, "rgb_array", "rgb_array_list", "human"]
+
+
+def _strike(env_id, seed, action=None, **kwargs):
+    """One strike in list mode: (env, frames of the strike, info)."""
+    env = gym.make(env_id, render_mode="rgb_array_list", **kwargs)
+    obs, _ = env.reset(seed=seed)
+    assert len(env.render()) == 1  # the reset frame
+    if action is None:
+        action = oracle_for(env_id)(env, obs)
+    *_, info = env.step(action)
+    return env, env.render(), info
+
+
+def _actions(space, n, seed):
+    return np.random.default_rng(seed).uniform(-1, 1, (n, *space.shape)).astype(np.float32)
+
+
+def _gap(task, S):
+    """Surface distance (m) between the striker and the target (a capsule or a disk) in the
+    state rows ``S``, computed here from the geometry."""
+    w, it, js = task.world, task.it, task.js
+    h, rt, rs = w.half_length[0, it], w.radius[0, it], w.radius[0, js]
+    u = np.array([math.cos(S[it, ANGLE]), math.sin(S[it, ANGLE])])
+    d = S[js, X:Y + 1] - S[it, X:Y + 1]
+    s = np.clip(d @ u, -h, h)
+    return np.linalg.norm(d - s * u) - rt - rs
+
+
+# --- the render modes --------------------------------------------------------------------------
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_list_mode_is_the_envs_own(env_id):
+    """The env lists rgb_array_list, so gym.make passes it through (no RenderCollection)."""
+    env = gym.make(env_id, render_mode="rgb_array_list")
+    assert "rgb_array_list" in env.unwrapped.metadata["render_modes"]
+    assert env.unwrapped.render_mode == "rgb_array_list"
+    wrapper = env
+    while wrapper is not env.unwrapped:
+        assert not isinstance(wrapper, RenderCollection)
+        wrapper = wrapper.env
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("mode", ["rgb_array_list", "human"])
+def test_checkers_pass_without_warnings_in_every_render_mode(env_id, mode, monkeypatch):
+    play = Renderer.show
+    # the window shows every frame, without waiting for the pace (a strike plays >= 1 s, and
+    # check_env strikes a dozen times); the pace is tested below
+    monkeypatch.setattr(Renderer, "show", lambda self, image, fps: play(self, image, 1e6))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        env = gym.make(env_id, render_mode=mode)
+        check_env(env.unwrapped)
+        sb3_check_env(env.unwrapped)
+        env.close()
+
+
+@pytest.mark.parametrize("env_id", STRIKE_IDS)
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_a_strike_is_at_least_a_second_of_frames(env_id, seed):
+    rng = np.random.default_rng(seed)
+    action = None if seed % 2 == 0 else rng.uniform(-1, 1, 3).astype(np.float32)
+    env, frames, info = _strike(env_id, seed, action)
+    fps = env.metadata["render_fps"]
+    clip = env.unwrapped.task.clip
+    assert fps == 30 and len(frames) >= fps and len(frames) / fps >= 1.0
+    assert len(frames) == len(clip.times)
+    # the smallest whole slow-motion factor that makes the strike last a second
+    T = info["sim_time"]
+    assert clip.duration == T and clip.times[0] == 0.0 and clip.times[-1] == T
+    assert clip.slow_motion == max(1, math.ceil(1 / T - 1e-9))
+    assert T * clip.slow_motion >= 1 - 1e-9 and T * (clip.slow_motion - 1) < 1
+    want, _ = strike_times(T, fps, clip.contacts[:, fast.TC_TIME])
+    np.testing.assert_array_equal(clip.times, want)
+    assert env.render() == []  # cleared by the render() before
+    assert clip.dropped == 0
+
+
+@pytest.mark.parametrize("env_id", CONTROL_IDS)
+def test_control_envs_render_one_frame_per_step(env_id):
+    env = gym.make(env_id, render_mode="rgb_array_list")
+    env.reset(seed=0)
+    assert len(env.render()) == 1
+    for a in _actions(env.action_space, 7, 0):
+        env.step(a)
+    frames = env.render()
+    assert len(frames) == 7 and env.render() == []
+    assert all(not np.array_equal(a, b) for a, b in zip(frames, frames[1:], strict=False))
+    # a reset clears the frames not yet returned, and starts with its own frame
+    env.step(env.action_space.sample())
+    env.reset(seed=1)
+    assert len(env.render()) == 1
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_frames_have_the_configured_size(env_id):
+    env = gym.make(env_id, render_mode="rgb_array_list")
+    env.reset(seed=0)
+    frame = env.render()[0]
+    assert frame.shape == (480, 720, 3) and frame.dtype == np.uint8  # >= 640 wide by default
+    env = gym.make(env_id, render_mode="rgb_array_list", render_size=(640, 360))
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    assert {f.shape for f in env.render()} == {(360, 640, 3)}
+
+
+@pytest.mark.parametrize("env_id", STRIKE_IDS)
+def test_strike_frames_are_distinct_and_move(env_id):
+    env, frames, _ = _strike(env_id, 5)
+    assert all(not np.array_equal(a, b) for a, b in zip(frames, frames[1:], strict=False))
+    states = env.unwrapped.task.clip.states
+    striker = env.unwrapped.task.js
+    assert (np.diff(states[:, striker, X:Y + 1], axis=0) != 0).any(axis=1).all()
+
+
+@pytest.mark.parametrize("env_id", STRIKE_IDS)
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4])
+def test_a_frame_at_each_contact_with_the_bodies_touching(env_id, seed):
+    rng = np.random.default_rng(100 + seed)
+    action = None if seed == 0 else rng.uniform(-1, 1, 3).astype(np.float32)
+    env, frames, info = _strike(env_id, seed, action)
+    task = env.unwrapped.task
+    clip = task.clip
+    times = clip.contacts[:, fast.TC_TIME]
+    # the recorded contacts are the ones info reports
+    assert len(times) == info["n_contacts"]
+    if len(times):
+        assert times[0] == info["first_contact_time"]
+        assert clip.contacts[0, fast.TC_J] == info["first_impulse"]
+        assert clip.contacts[:, fast.TC_J].sum() == pytest.approx(info["impulse"], rel=1e-12)
+    tol = task.world.tolerance
+    for t in times:
+        (f,) = np.flatnonzero(clip.times == t)  # exactly one frame at the contact instant
+        assert abs(_gap(task, clip.states[f])) <= tol
+    # and no frame shows the bodies overlapping
+    assert min(_gap(task, S) for S in clip.states) >= -tol
+
+
+@pytest.mark.parametrize("env_id", STRIKE_IDS)
+def test_strike_frames_lie_on_the_solvers_trajectory(env_id):
+    """A World replay of the strike from its launch, chunk by chunk, has the clip's contact
+    instants and end state bit for bit, and at every frame instant (stepped to it) its state."""
+    env, _, info = _strike(env_id, 7, np.array([0.6, -0.3, 0.4], np.float32))
+    task = env.unwrapped.task
+    clip = task.clip
+    assert info["n_contacts"] >= 1
+    start = clip.states[0]
+
+    def launched():
+        w = pickle.loads(pickle.dumps(task.world))
+        w.set_state(positions=start[None, :, X:Y + 1], angles=start[None, :, ANGLE],
+                    velocities=start[None, :, VX:VY + 1], omegas=start[None, :, OMEGA])
+        return w
+
+    w = launched()
+    chunks = round(clip.duration / CHUNK)
+    contact_times = []
+    starts = []
+    for k in range(chunks):
+        starts.append(pickle.loads(pickle.dumps(w)))
+        c = w.step(CHUNK)
+        contact_times += list(k * CHUNK + c.time)
+    np.testing.assert_array_equal(contact_times, clip.contacts[:, fast.TC_TIME])
+    end = np.concatenate([w.state.positions[0], w.state.angles[0][:, None],
+                          w.state.velocities[0], w.state.omegas[0][:, None]], axis=1)
+    np.testing.assert_array_equal(end, clip.states[-1])
+    for t, S in zip(clip.times[1:-1:3], clip.states[1:-1:3], strict=True):
+        k = min(int(t // CHUNK), chunks - 1)
+        ref = pickle.loads(pickle.dumps(starts[k]))
+        ref.step(t - k * CHUNK)
+        np.testing.assert_allclose(ref.state.positions[0], S[:, X:Y + 1], atol=1e-9)
+        np.testing.assert_allclose(ref.state.angles[0], S[:, ANGLE], atol=1e-9)
+
+
+@pytest.mark.parametrize("env_id", STRIKE_IDS)
+@pytest.mark.parametrize("solver", [{"mode": "fixed", "substeps": 8}, {"mode": "pymunk"}])
+def test_other_solvers_film_their_own_strike(env_id, solver):
+    env, frames, info = _strike(env_id, 2, np.array([0.1, 0.2, 0.5], np.float32),
+                                solver=solver)
+    clip = env.unwrapped.task.clip
+    assert len(frames) >= 30 and len(clip.contacts) == info["n_contacts"] >= 1
+    assert set(clip.contacts[:, fast.TC_TIME]) <= set(clip.times)
+    end = env.unwrapped.world.state
+    np.testing.assert_array_equal(clip.states[-1][:, X:Y + 1], end.positions[0])
+
+
+# --- determinism, outcome, the other modes ------------------------------------------------------
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_same_seed_same_frames(env_id):
+    def run(seed):
+        env = gym.make(env_id, render_mode="rgb_array_list")
+        env.reset(seed=seed)
+        out = env.render()
+        for a in _actions(env.action_space, 3, 1):
+            *_, term, trunc, _ = env.step(a)
+            out += env.render()
+            if term or trunc:
+                env.reset()
+                out += env.render()
+        return out
+
+    a, b, c = run(4), run(4), run(5)
+    assert len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+    assert len(a) != len(c) or any(not np.array_equal(x, y) for x, y in zip(a, c, strict=True))
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_outcome_does_not_depend_on_the_render_mode(env_id):
+    """The traced strike and the plain one agree bit for bit: observations, rewards, info."""
+    runs = []
+    for mode in MODES:
+        env = gym.make(env_id, render_mode=mode, render_size=(64, 48))
+        obs, _ = env.reset(seed=9)
+        rows = [obs]
+        for a in _actions(env.action_space, 3, 2):
+            obs, r, term, trunc, info = env.step(a)
+            rows.append((obs, r, term, trunc, info))
+            if term or trunc:
+                rows.append(env.reset()[0])
+        runs.append(rows)
+        env.close()
+    for rows in runs[1:]:
+        for x, y in zip(runs[0], rows, strict=True):
+            if isinstance(x, tuple):
+                np.testing.assert_array_equal(x[0], y[0])
+                assert x[1:4] == y[1:4] and x[4].keys() == y[4].keys()
+                for k in x[4]:
+                    np.testing.assert_array_equal(x[4][k], y[4][k], err_msg=k)
+            else:
+                np.testing.assert_array_equal(x, y)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_rgb_array_returns_the_last_frame_of_the_list(env_id):
+    action = np.full(gym.make(env_id).action_space.shape, 0.3, np.float32)
+    single = gym.make(env_id, render_mode="rgb_array")
+    listed = gym.make(env_id, render_mode="rgb_array_list")
+    for env in (single, listed):
+        env.reset(seed=6)
+        env.step(action)
+    last = listed.render()[-1]
+    np.testing.assert_array_equal(single.render(), last)
+    np.testing.assert_array_equal(single.render(), last)  # and keeps returning it
+
+
+@pytest.mark.parametrize("env_id", ["SpinStrike/RodSpin-v0", "SpinStrike/RodSpinControl-v0"])
+def test_human_mode_plays_the_frames_at_the_env_pace(env_id, monkeypatch):
+    shown = []
+    play = Renderer.show
+
+    def spy(self, image, fps):
+        shown.append((image, fps))
+        play(self, image, fps)
+
+    monkeypatch.setattr(Renderer, "show", spy)
+    env = gym.make(env_id, render_mode="human")
+    env.reset(seed=3)
+    action = np.full(env.action_space.shape, 0.2, np.float32)
+    began = time.perf_counter()
+    env.step(action)
+    took = time.perf_counter() - began
+    assert env.render() is None
+    env.close()
+    fps = env.metadata["render_fps"]
+    assert {f for _, f in shown} == {fps}
+    if env_id in STRIKE_IDS:
+        want = _strike(env_id, 3, action)[1]
+        step_frames = [img for img, _ in shown[1:-1]]  # after the reset's, before render()'s
+        assert len(step_frames) == len(want) >= fps
+        assert all(np.array_equal(a, b) for a, b in zip(step_frames, want, strict=True))
+        assert took >= (len(want) - 1) / fps * 0.9  # played at the slowed pace, not at once
+    else:
+        assert len(shown) == 3  # reset, step, render
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_no_render_mode_records_nothing(env_id):
+    env = gym.make(env_id)
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    task = env.unwrapped.task
+    assert not task.record_trace and task._renderer is None
+    if env_id in STRIKE_IDS:
+        assert task.clip is None and task._strace.events.count.sum() == 0
+
+
+# --- pixel observations are not the video ------------------------------------------------------
+
+#: sha-256 (first 16 hex) of the default pixel observations, recorded before the video work
+#: (reset seed 3, then three steps of ``default_rng(0)`` actions, resets in between), with
+#: pygame-ce 2.5.8
+PIXELS_BEFORE = {
+    "SpinStrike/RodSpin-v0": ["f4f79c2b73e106e3", "6d260f5c5df9b6e3", "3fcfc77c44d12cd0",
+                              "0cb717f90611294e", "28c5735a487b2829", "a78193beb74d1734",
+                              "07f2c3e8f48c1f81"],
+    "SpinStrike/PuckSpeed-v0": ["1e86f669db4a7f60", "6dceb7981d6a2ed3", "7fcfa0a197ea0981",
+                                "ea43eb41aec5ac6c", "a81c27ceba0e5dc7", "4c4cc8b41ea8d864",
+                                "0c7fb20d51ae5bc7"],
+    "SpinStrike/RodSpinControl-v0": ["7a92fae74dad6456", "7f9a8a8b8aa05f28",
+                                     "0aa56224aa5601aa", "3a7a594c36a74efe"],
+    "SpinStrike/PuckSpeedControl-v0": ["10c70ab4b5e1e743", "de65b2c55240a94b",
+                                       "67396e81ac123baa", "91289de10d585ef6"],
+}
+
+
+def _pixel_run(env_id, **kwargs):
+    env = gym.make(env_id, obs_mode="pixels", **kwargs)
+    obs, _ = env.reset(seed=3)
+    rng = np.random.default_rng(0)
+    seq = [obs]
+    for _ in range(3):
+        obs, *_, term, trunc, _ = env.step(
+            rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
+        seq.append(obs)
+        if term or trunc:
+            seq.append(env.reset()[0])
+    return seq
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_pixel_observations_are_unchanged(env_id):
+    import pygame
+
+    plain = _pixel_run(env_id)
+    assert plain[0].shape == (320, 480, 3)
+    # independent of the video's size and of the render mode
+    video = _pixel_run(env_id, render_mode="rgb_array_list", render_size=(1280, 720))
+    assert all(np.array_equal(a, b) for a, b in zip(plain, video, strict=True))
+    small = _pixel_run(env_id, obs_size=(96, 64))
+    assert small[0].shape == (64, 96, 3)
+    if pygame.version.ver != "2.5.8":
+        pytest.skip("the recorded hashes are of pygame-ce 2.5.8's drawing")
+    assert [hashlib.sha256(o.tobytes()).hexdigest()[:16] for o in plain] == \
+        PIXELS_BEFORE[env_id]
+
+
+# --- recording -------------------------------------------------------------------------------
+
+def _mp4_frames(path):
+    return imageio_ffmpeg.count_frames_and_secs(str(path))[0]
+
+
+def _decode(path):
+    reader = imageio_ffmpeg.read_frames(str(path))
+    meta = next(reader)
+    w, h = meta["size"]
+    return [np.frombuffer(f, np.uint8).reshape(h, w, 3) for f in reader]
+
+
+@pytest.mark.parametrize("env_id", STRIKE_IDS)
+def test_record_every_frame_writes_whole_strikes(env_id, tmp_path):
+    env = gym.make(env_id, render_mode="rgb_array_list", render_size=(320, 215))
+    env = RecordEveryFrame(env, str(tmp_path / "v"), episode_trigger=lambda e: True,
+                           name_prefix="strike")
+    # the same episodes, through a twin env, tell how many frames each has
+    twin = gym.make(env_id, render_mode="rgb_array_list", render_size=(320, 215))
+    wanted = []
+    for seed in (0, 1):
+        action = np.array([0.2 * seed, 0.1, 0.3], np.float32)
+        env.reset(seed=seed)
+        env.step(action)
+        twin.reset(seed=seed)
+        twin.step(action)
+        wanted.append(twin.render())
+    env.close()
+    files = sorted((tmp_path / "v").glob("*.mp4"))
+    assert [f.name for f in files] == ["strike-episode-0.mp4", "strike-episode-1.mp4"]
+    for f, frames in zip(files, wanted, strict=True):
+        assert len(frames) >= 31  # the reset frame and a second of strike
+        assert _mp4_frames(f) == len(frames)
+        decoded = _decode(f)
+        assert len(decoded) == len(frames)
+        # lossy, but the same pictures in the same order (odd height: padded by a row)
+        for a, b in zip(decoded, frames, strict=True):
+            assert a.shape == (216, 320, 3)
+            assert np.abs(a[:215].astype(int) - b).mean() < 4
+        from moviepy import VideoFileClip
+
+        clip = VideoFileClip(str(f))
+        assert sum(1 for _ in clip.iter_frames()) == len(frames)
+        clip.close()
+
+
+def test_gymnasium_record_video_keeps_one_frame_per_strike(tmp_path):
+    """Why the wrapper exists: RecordVideo films a strike as one frame."""
+    env = gym.make("SpinStrike/RodSpin-v0", render_mode="rgb_array_list",
+                   render_size=(160, 108))
+    env = RecordVideo(env, str(tmp_path / "v"), episode_trigger=lambda e: True)
+    env.reset(seed=0)
+    env.step(np.zeros(3, np.float32))
+    env.close()
+    (video,) = (tmp_path / "v").glob("*.mp4")
+    assert _mp4_frames(video) <= 2
+
+
+def test_record_every_frame_cuts_videos_to_length(tmp_path):
+    env = gym.make("SpinStrike/RodSpinControl-v0", render_mode="rgb_array_list",
+                   render_size=(160, 108))
+    env = RecordEveryFrame(env, str(tmp_path / "v"), step_trigger=lambda s: s % 20 == 0,
+                           video_length=10)
+    env.reset(seed=0)
+    for a in _actions(env.action_space, 45, 3):
+        env.step(a)
+    env.close()
+    files = sorted((tmp_path / "v").glob("*.mp4"))
+    assert [f.name for f in files] == ["rl-video-step-0.mp4", "rl-video-step-20.mp4",
+                                       "rl-video-step-40.mp4"]
+    assert [_mp4_frames(f) for f in files] == [10, 10, 5]
+    assert env.videos == [str(f) for f in files]
+
+
+def test_record_every_frame_refuses_modes_without_frames(tmp_path):
+    with pytest.raises(ValueError, match="render_mode: RecordEveryFrame needs"):
+        RecordEveryFrame(gym.make("SpinStrike/RodSpin-v0"), str(tmp_path))
+    with pytest.raises(ValueError, match="video path: must end in one of"):
+        VideoWriter(tmp_path / "x.avi", 30)
+
+
+def test_video_writer_and_tile(tmp_path):
+    frames = [np.full((9, 15, 3), 40 * k, np.uint8) for k in range(5)]
+    with VideoWriter(tmp_path / "a.mp4", 30) as w:
+        for f in frames:
+            w.write(f)
+    assert w.frames == 5 and w.size == (15, 9) and _mp4_frames(tmp_path / "a.mp4") == 5
+    with VideoWriter(tmp_path / "a.gif", 30) as w:
+        for f in frames:
+            w.write(f)
+    from PIL import Image
+
+    assert Image.open(tmp_path / "a.gif").n_frames == 5
+    grid = tile([frames[1], None, frames[2]], 2)
+    assert grid.shape == (18, 30, 3)
+    assert (grid[:9, :15] == 40).all() and (grid[:9, 15:] == 0).all()
+    assert (grid[9:, :15] == 80).all() and (grid[9:, 15:] == 0).all()
+    w = VideoWriter(tmp_path / "b.mp4", 30)
+    w.write(frames[0])
+    with pytest.raises(ValueError, match="differs from the video's"):
+        w.write(np.zeros((8, 8, 3), np.uint8))
+    with pytest.raises(ValueError, match=r"must be \(height, width, 3\) uint8"):
+        w.write(np.zeros((9, 15), np.uint8))
+    w.close()
+
+
+def test_strike_times_law():
+    times, factor = strike_times(0.1, 30, np.array([0.0123, 0.05]))
+    assert factor == 10 and times[0] == 0 and times[-1] == 0.1
+    assert 0.0123 in times and 0.05 in times
+    assert len(times) == 31 + 1  # 31 grid instants (0.05 is one of them), one contact
+    times, factor = strike_times(2.0, 30, np.array([]))
+    assert factor == 1 and len(times) == 61
+
+
+def test_cli_records_a_grid_and_a_gif(tmp_path, capsys):
+    env_id = "SpinStrike/RodSpin-v0"
+    lengths = []
+    for k in range(3):
+        env = gym.make(env_id, render_mode="rgb_array_list", render_size=(240, 160))
+        obs, _ = env.reset(seed=50 + k)
+        n = len(env.render())
+        env.step(oracle_for(env_id)(env, obs))
+        lengths.append(n + len(env.render()))
+    video = tmp_path / "grid.mp4"
+    assert main(["record", "--oracle", "--env", env_id, "--episodes", "3", "--grid",
+                 "--size", "240x160", "--seed", "50", "--out", str(video)]) == 0
+    assert "480x320" in capsys.readouterr().out  # 2 x 2 tiles
+    assert _mp4_frames(video) == max(lengths) + 15  # the slowest episode, then 0.5 s held
+    (first,) = _decode(video)[:1]
+    assert first.shape == (320, 480, 3) and first[160:, 240:].mean() < 2  # no 4th episode
+    gif = tmp_path / "strikes.gif"
+    assert main(["record", "--oracle", "--env", env_id, "--episodes", "3", "--size",
+                 "240x160", "--seed", "50", "--out", str(gif)]) == 0
+    # one after the other (Pillow merges identical frames into one of the summed duration)
+    assert _gif_milliseconds(gif) == round((sum(lengths) + 3 * 15) * 100 / 30) * 10
+
+
+def _gif_milliseconds(path):
+    from PIL import Image, ImageSequence
+
+    return sum(f.info["duration"] for f in ImageSequence.Iterator(Image.open(path)))
