@@ -97,3 +97,44 @@ def record(policy, env_id: str, path: str | Path, episodes: int = 3, seed: int =
             run.close()
     return {"path": str(writer.path), "frames": writer.frames, "fps": fps,
             "returns": [run.total for run in runs], "size": writer.size}
+
+
+def docs_media(folder: str | Path = "docs/images", seed: int = 2) -> list[str]:
+    """Regenerate the README's media from this renderer: ``rodspin.gif`` (one oracle strike in
+    slow motion, overlays and all), ``rodspincontrol.gif`` (two seconds of chase-and-hit), and a
+    still of each env (``<env>.png``: a strike's last frame, or a control step's)."""
+    from PIL import Image
+
+    from spinstrike.agents.oracle import oracle_for
+
+    folder = Path(folder)
+    size = (480, 320)
+    written = []
+    out = folder / "rodspin.gif"
+    record(oracle_for("SpinStrike/RodSpin-v0"), "SpinStrike/RodSpin-v0", out, episodes=1,
+           seed=seed, size=size, hold=1.0)
+    written.append(str(out))
+    out = folder / "rodspincontrol.gif"
+    record(oracle_for("SpinStrike/RodSpinControl-v0"), "SpinStrike/RodSpinControl-v0", out,
+           episodes=1, seed=seed, size=size, hold=0.0, env_kwargs={"max_episode_steps": 100})
+    written.append(str(out))
+    for env_id in envs.ENV_IDS:
+        env = gym.make(env_id, render_mode="rgb_array", render_size=(360, 240))
+        policy = oracle_for(env_id)
+        obs, _ = env.reset(seed=seed)
+        for _ in range(1 if env_id in ("SpinStrike/RodSpin-v0", "SpinStrike/PuckSpeed-v0")
+                       else 60):
+            obs, *_ = env.step(policy(env, obs))
+        out = folder / f"{env_id.split('/')[1].removesuffix('-v0').lower()}.png"
+        Image.fromarray(env.render()).save(out, optimize=True)
+        written.append(str(out))
+        env.close()
+    return written
+
+
+if __name__ == "__main__":
+    import os
+    import sys
+
+    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+    print("\n".join(docs_media(*sys.argv[1:2])))

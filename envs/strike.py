@@ -91,9 +91,11 @@ class _StrikeTask(Task):
         sc[fast.SC_FREE] = self._free
         self._scfg = sc
         self._strace = fast.strike_trace(n_chunks, w.n_bodies)
-        #: element 0's last strike as video frames (``record_trace``), and its record
-        self._clip: list[Frame] = []
+        #: element 0's last strike as recorded (``record_trace``; None after a reset), its
+        #: reward, and its video frames (drawn up when first asked for)
         self.clip: StrikeClip | None = None
+        self._clip_reward = 0.0
+        self._clip_frames_cache: list[Frame] | None = None
         self._zero_result()
 
     GOAL_WIDTH: ClassVar[int] = 1
@@ -165,9 +167,12 @@ class _StrikeTask(Task):
         self._sample_goal(env, u[:, 3:])
         self._zero_result_rows(env)
         if 0 in env:
-            self._clip = []
-            self.clip = None
+            self._forget_clip()
         return self._reset_info(env)
+
+    def _forget_clip(self) -> None:
+        self.clip = None
+        self._clip_frames_cache = None
 
     def _zero_result_rows(self, env) -> None:
         self.result_v[env] = 0.0
@@ -231,7 +236,8 @@ class _StrikeTask(Task):
         info = {**sim, **terms, **self._result_info()}
         if self.record_trace:
             self.clip = self._record_clip()
-            self._clip = self._clip_frames(self.clip, float(reward[0]))
+            self._clip_reward = float(reward[0])
+            self._clip_frames_cache = None
         return reward, np.ones(self.batch_size, dtype=bool), info
 
     # -- snapshots ----------------------------------------------------------------------------
@@ -240,6 +246,7 @@ class _StrikeTask(Task):
                 "result_w": self.result_w.copy(), "result_vs": self.result_vs.copy()}
 
     def restore(self, snap: dict) -> None:
+        self._forget_clip()
         self.goal[:] = snap["goal"]
         self.result_v[:] = snap["result_v"]
         self.result_w[:] = snap["result_w"]
@@ -316,13 +323,18 @@ class _StrikeTask(Task):
         if not decorate:  # the pixel observation (its pixels are a contract: keep it plain)
             return Frame(self._draw_bodies(b), tuple(self.world.table_half_size[b]),
                          walls="walls" in self.world.effects, text=self._caption(b))
-        if b == 0 and self._clip:
-            return self._clip[-1]
+        if b == 0 and self.clip is not None:
+            return self._strike_frames()[-1]
         return self._video_frame(b, None, 0.0, 0, None)
 
     def step_frames(self) -> list[Frame]:
         """Element 0's last strike, frame by frame (needs ``record_trace``)."""
-        return list(self._clip)
+        return list(self._strike_frames()) if self.clip is not None else [self.frame(0)]
+
+    def _strike_frames(self) -> list[Frame]:
+        if self._clip_frames_cache is None:
+            self._clip_frames_cache = self._clip_frames(self.clip, self._clip_reward)
+        return self._clip_frames_cache
 
     def _vectors(self, b: int, target: BodyDraw) -> list[Vector]:
         return []
