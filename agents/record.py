@@ -102,7 +102,8 @@ def record(policy, env_id: str, path: str | Path, episodes: int = 3, seed: int =
 def docs_media(folder: str | Path = "docs/images", seed: int = 2) -> list[str]:
     """Regenerate the README's media from this renderer: ``rodspin.gif`` (one oracle strike in
     slow motion, overlays and all), ``rodspincontrol.gif`` (two seconds of chase-and-hit), and a
-    still of each env (``<env>.png``: a strike's last frame, or a control step's)."""
+    still of each env (``<env>.png``: a strike's last frame, or a control step's, at half of
+    720 x 480)."""
     from PIL import Image
 
     from spinstrike.agents.oracle import oracle_for
@@ -119,14 +120,16 @@ def docs_media(folder: str | Path = "docs/images", seed: int = 2) -> list[str]:
            episodes=1, seed=seed, size=size, hold=0.0, env_kwargs={"max_episode_steps": 100})
     written.append(str(out))
     for env_id in envs.ENV_IDS:
-        env = gym.make(env_id, render_mode="rgb_array", render_size=(360, 240))
+        env = gym.make(env_id, render_mode="rgb_array")  # 720 x 480, shown at half size
         policy = oracle_for(env_id)
         obs, _ = env.reset(seed=seed)
         for _ in range(1 if env_id in ("SpinStrike/RodSpin-v0", "SpinStrike/PuckSpeed-v0")
                        else 60):
             obs, *_ = env.step(policy(env, obs))
         out = folder / f"{env_id.split('/')[1].removesuffix('-v0').lower()}.png"
-        Image.fromarray(env.render()).save(out, optimize=True)
+        image = Image.fromarray(env.render())
+        image.resize((image.width // 2, image.height // 2), Image.LANCZOS).save(out,
+                                                                               optimize=True)
         written.append(str(out))
         env.close()
     return written

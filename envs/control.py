@@ -185,8 +185,8 @@ class _ControlTask(Task):
         markers = []
         c = w.last_contacts
         if len(c):
-            markers = [Marker(*c.point[i], *c.normal[i], c.impulse[i])
-                       for i in np.flatnonzero(c.batch == b)]
+            markers = [Marker.on(self.it, c.body_a[i], c.body_b[i], c.point[i], c.normal[i],
+                                 c.impulse[i]) for i in np.flatnonzero(c.batch == b)]
         trails = []
         if b == 0 and self._trail:
             trails = [[pose[i][k] for pose in self._trail]
@@ -272,6 +272,14 @@ _CONTROL_DOC = """{summary}
     ## Info
     ``hits``, ``hit_impulse`` (N s), ``force`` (N, after the speed limit), ``spin``, ``speed``,
     ``mallet_speed``, ``reward_hit``, ``fallback`` (the solver settled a resting contact).
+
+    ## Rendering
+    One frame per step (real time at ``render_fps`` = 1 / ``dt``): ``"rgb_array"`` (the current
+    frame), ``"rgb_array_list"`` (the frames since the last ``render()``), ``"human"`` (a
+    window). Overlays: time, the {target}'s spin and speed, the step's reward and the return,
+    impulse markers of the step's contacts, motion trails. Frames are ``render_size``
+    (720 x 480, the whole table in view); pixel observations ``obs_size`` (480 x 320), without
+    overlays.
 
     ## Version History
     * v0: initial version.

@@ -38,6 +38,9 @@ from spinstrike.physics import WorldEdit
 
 __all__ = ["SpinStrikeEnv", "SpinStrikeVectorEnv", "Task", "action_error", "check_actions"]
 
+#: lines of the video frames' information panel (a band along their top)
+PANEL_LINES = 3
+
 
 def action_error(actions: Any) -> str:
     """The message of a non-finite action."""
@@ -225,7 +228,8 @@ class Task(ABC):
     def renderer(self) -> Renderer:
         """The video frames' renderer (``render_size``)."""
         if self._renderer is None:
-            self._renderer = Renderer(self.cfg.render_size, self.view_half())
+            self._renderer = Renderer(self.cfg.render_size, self.view_half(),
+                                      panel_lines=PANEL_LINES)
         return self._renderer
 
     def draw(self, frame: Frame) -> np.ndarray:

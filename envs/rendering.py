@@ -42,12 +42,15 @@ COLOURS = {
     "panel": (0, 0, 0),
     "target": (120, 255, 140),
     "velocity": (255, 255, 255),
+    "band": (14, 32, 24),
 }
 
 #: opacity (0..255) of the information panel's background
 PANEL_ALPHA = 150
 #: metres drawn per m/s of a velocity arrow
 VELOCITY_SCALE = 0.1
+#: padding of the panel's text, pixels
+PAD = 6
 
 
 @dataclass
@@ -68,8 +71,8 @@ class BodyDraw:
 
 @dataclass
 class Marker:
-    """An impulse at a contact: point (m), unit normal from body a to body b, normal impulse
-    (N s, drawn as the push on body b); ``fade`` 1 on the contact's own frame, towards 0 after."""
+    """An impulse at a contact: point (m), unit direction of the push drawn, normal impulse
+    (N s); ``fade`` 1 on the contact's own frame, towards 0 after (see :meth:`on`)."""
 
     x: float
     y: float
@@ -77,6 +80,16 @@ class Marker:
     ny: float
     j: float
     fade: float = 1.0
+
+    @classmethod
+    def on(cls, target: int, a: int, b: int, point, normal, j: float,
+           fade: float = 1.0) -> Marker:
+        """The marker of a contact between bodies a and b (normal from a to b: b is pushed
+        along it, a against it), drawn as the push on ``target`` if it is one of them, else on
+        a (a cushion, static, is always b)."""
+        sign = -1.0 if (a == target or b != target) else 1.0
+        return cls(float(point[0]), float(point[1]), sign * float(normal[0]),
+                   sign * float(normal[1]), float(j), fade)
 
 
 @dataclass
@@ -163,12 +176,20 @@ class Renderer:
         view_half: half extents (m) of the visible area, centred on the origin.
         spin_scale: angular speed (rad/s) drawn as a full-circle arc.
         impulse_scale: impulse (N s) drawn as an arrow of a quarter of the view's height.
+        panel_lines: lines of text in a band along the top (video frames: the information
+            panel and the gauge), which the view then fits below; 0: no band (plain frames).
     """
 
     def __init__(self, size: tuple[int, int], view_half: tuple[float, float],
-                 spin_scale: float = 30.0, impulse_scale: float = 0.5) -> None:
+                 spin_scale: float = 30.0, impulse_scale: float = 0.5,
+                 panel_lines: int = 0) -> None:
         self.width, self.height = int(size[0]), int(size[1])
-        self.scale = min(self.width / (2 * view_half[0]), self.height / (2 * view_half[1]))
+        self.text_size = max(14, self.height // 22)
+        # the band's height: pygame's default font takes 3/4 of its size per line
+        self.band = (math.ceil(0.75 * self.text_size * panel_lines) + 2 * PAD
+                     if panel_lines else 0)
+        self.scale = min(self.width / (2 * view_half[0]),
+                         (self.height - self.band) / (2 * view_half[1]))
         self.spin_scale = spin_scale
         self.impulse_scale = impulse_scale
         self._pygame = None
@@ -190,12 +211,12 @@ class Renderer:
             self._pygame = pygame
             self._surface = pygame.Surface((self.width, self.height))
             self._font = pygame.font.Font(None, max(14, self.height // 20))
-            self._small = pygame.font.Font(None, max(14, self.height // 24))
+            self._small = pygame.font.Font(None, self.text_size)
         return self._pygame
 
     def _px(self, x: float, y: float) -> tuple[int, int]:
         return (int(round(self.width / 2 + x * self.scale)),
-                int(round(self.height / 2 - y * self.scale)))
+                int(round(self.band + (self.height - self.band) / 2 - y * self.scale)))
 
     def _capsule(self, surf, b: BodyDraw, colour) -> None:
         """A rod as a filled capsule with anti-aliased edges (video frames)."""
@@ -289,37 +310,46 @@ class Renderer:
         self._arrow(surf, start, end, colour, width)
         pg.draw.circle(surf, colour, start, max(4, self.height // 80) + int(6 * m.fade), 2)
         label = self._small.render(f"j = {m.j:.3f} N s", True, colour)
-        surf.blit(label, (end[0] + 6, end[1] - label.get_height() // 2))
+        at = (end[0] + 6, end[1] - label.get_height() // 2)
+        box = pg.Surface((label.get_width() + 4, label.get_height() + 2), pg.SRCALPHA)
+        box.fill((*COLOURS["panel"], int(PANEL_ALPHA * m.fade)))
+        surf.blit(box, (at[0] - 2, at[1] - 1))
+        surf.blit(label, at)
 
     def _vector(self, surf, v: Vector) -> None:
         start = self._px(v.x, v.y)
         end = self._px(v.x + VELOCITY_SCALE * v.vx, v.y + VELOCITY_SCALE * v.vy)
         self._arrow(surf, start, end, COLOURS[v.colour], 1 if v.outline else 3)
 
-    def _panel(self, surf, lines: list[str]) -> None:
+    def _panel(self, surf, lines: list[str]) -> int:
+        """The information panel: lines of text at the top left (in the band, if any; else on
+        a translucent box). Returns its width, pixels."""
         pg = self._pygame
         rendered = [self._small.render(line, True, COLOURS["text"]) for line in lines]
-        pad = 6
-        width = max(r.get_width() for r in rendered) + 2 * pad
-        height = sum(r.get_height() for r in rendered) + 2 * pad
-        box = pg.Surface((width, height), pg.SRCALPHA)
-        box.fill((*COLOURS["panel"], PANEL_ALPHA))
-        surf.blit(box, (6, 6))
-        y = 6 + pad
+        if not self.band:
+            width = max(r.get_width() for r in rendered) + 2 * PAD
+            height = sum(r.get_height() for r in rendered) + 2 * PAD
+            box = pg.Surface((width, height), pg.SRCALPHA)
+            box.fill((*COLOURS["panel"], PANEL_ALPHA))
+            surf.blit(box, (0, 0))
+        y = PAD
         for r in rendered:
-            surf.blit(r, (6 + pad, y))
+            surf.blit(r, (PAD, y))
             y += r.get_height()
+        return max(r.get_width() for r in rendered) + 2 * PAD
 
-    def _gauge(self, surf, g: Gauge) -> None:
-        """A bar along the bottom edge: the axis [low, high], the achieved value filled from
-        the axis' zero (or low end), the target as a tick."""
+    def _gauge(self, surf, g: Gauge, left: int) -> None:
+        """The achieved value as a bar on the axis [low, high] (filled from the axis' zero, or
+        its low end), the target as a tick: at the top right, under its label, right of
+        ``left`` (pixels; left out when that leaves it too little room)."""
         pg = self._pygame
-        x0, x1 = int(0.25 * self.width), int(0.75 * self.width)
-        h = max(8, self.height // 40)
-        y = self.height - 2 * h - 4
-        box = pg.Surface((x1 - x0 + 12, 2 * h + 8), pg.SRCALPHA)
-        box.fill((*COLOURS["panel"], PANEL_ALPHA))
-        surf.blit(box, (x0 - 6, y - h - 2))
+        label = self._small.render(g.label, True, COLOURS["text"])
+        x0, x1 = max(int(0.58 * self.width), left + 2 * PAD), self.width - 2 * PAD
+        if x1 - x0 < max(label.get_width(), self.width // 5):
+            return
+        y = PAD + label.get_height() + max(6, self.text_size // 2)
+        h = max(8, self.text_size // 2)
+        surf.blit(label, (x0, PAD))
 
         def at(value: float) -> int:
             f = (min(max(value, g.low), g.high) - g.low) / (g.high - g.low)
@@ -334,14 +364,13 @@ class Renderer:
         if g.target is not None:
             t = at(g.target)
             pg.draw.line(surf, COLOURS["target"], (t, y - h), (t, y + h), 3)
-        label = self._small.render(g.label, True, COLOURS["text"])
-        surf.blit(label, (x0, y - h - label.get_height()))
 
     def draw(self, frame: Frame) -> np.ndarray:
         """Draw a frame; return it as ``(height, width, 3)`` uint8."""
         pg = self._init()
         surf = self._surface
         surf.fill(COLOURS["cloth_edge"])
+        band = pg.Rect(0, 0, self.width, self.band)
         hw, hh = frame.half_size
         if math.isfinite(hw) and math.isfinite(hh):
             x0, y0 = self._px(-hw, hh)
@@ -351,6 +380,8 @@ class Renderer:
                 pg.draw.rect(surf, COLOURS["cushion"], pg.Rect(x0, y0, x1 - x0, y1 - y0), 5)
         else:
             surf.fill(COLOURS["table"])
+        if self.band:
+            surf.fill(COLOURS["band"], band)
         self._trails(surf, frame.trails)
         for ghosts in frame.ghosts:
             for g in ghosts:
@@ -364,10 +395,9 @@ class Renderer:
             self._marker(surf, m)
         if frame.text:
             surf.blit(self._font.render(frame.text, True, COLOURS["text"]), (8, 6))
-        if frame.panel:
-            self._panel(surf, frame.panel)
+        left = self._panel(surf, frame.panel) if frame.panel else 0
         if frame.gauge is not None:
-            self._gauge(surf, frame.gauge)
+            self._gauge(surf, frame.gauge, left)
         # a copy through a locked view of the pixels: 5x faster than array3d + transpose
         view = pg.surfarray.pixels3d(surf)
         try:

@@ -294,7 +294,7 @@ class _StrikeTask(Task):
             t = clip.times[f]
             trails = [[points[g][i][k] for g in range(max(0, f - TRAIL_FRAMES), f + 1)]
                       for i in range(len(points[f])) for k in range(len(points[f][i]))]
-            markers = [_marker(c, 1.0 - (f - frame_of[q]) / MARKER_FRAMES)
+            markers = [_marker(c, self.it, 1.0 - (f - frame_of[q]) / MARKER_FRAMES)
                        for q, c in enumerate(clip.contacts) if 0 <= f - frame_of[q] < MARKER_FRAMES]
             final = f == len(clip.states) - 1
             frames.append(self._video_frame(
@@ -303,7 +303,7 @@ class _StrikeTask(Task):
         last = frames[-1]
         step = max(1, len(clip.states) // 8)
         last.ghosts = [self._draw_bodies(0, S) for S in clip.states[::step]]
-        last.markers = [_marker(c, 1.0) for c in clip.contacts]
+        last.markers = [_marker(c, self.it, 1.0) for c in clip.contacts]
         return frames
 
     def _video_frame(self, b: int, S: np.ndarray | None, t: float, slow_motion: int,
@@ -353,8 +353,15 @@ TRAIL_FRAMES = 10
 MARKER_FRAMES = 12
 
 
-def _marker(c: np.ndarray, fade: float) -> Marker:
-    return Marker(c[fast.TC_PX], c[fast.TC_PY], c[fast.TC_NX], c[fast.TC_NY], c[fast.TC_J], fade)
+def _polar(vx: float, vy: float) -> str:
+    """A velocity as speed and heading (degrees CCW from +x)."""
+    return f"{math.hypot(vx, vy):.2f} m/s at {math.degrees(math.atan2(vy, vx)):+4.0f}\u00b0"
+
+
+def _marker(c: np.ndarray, target: int, fade: float) -> Marker:
+    """A traced contact's marker: the push on the target."""
+    return Marker.on(target, int(c[fast.TC_A]), int(c[fast.TC_B]), c[fast.TC_PX:fast.TC_PY + 1],
+                     c[fast.TC_NX:fast.TC_NY + 1], c[fast.TC_J], fade)
 
 
 @dataclass(frozen=True)
@@ -585,10 +592,8 @@ class PuckSpeedTask(_StrikeTask):
                 f"target ({self.goal[b, 0]:+.2f}, {self.goal[b, 1]:+.2f})")
 
     def _achieved(self, b: int, puck: BodyDraw) -> str:
-        v = (puck.vx, puck.vy)
         g = self.goal[b]
-        return (f"speed {math.hypot(*v):.2f} m/s  ({v[0]:+.2f}, {v[1]:+.2f})   "
-                f"target {math.hypot(*g):.2f} m/s  ({g[0]:+.2f}, {g[1]:+.2f})")
+        return (f"velocity {_polar(puck.vx, puck.vy)}   target {_polar(*g)}")
 
     def _gauge(self, b: int, puck: BodyDraw) -> Gauge:
         return Gauge("puck speed (m/s): achieved | target",
@@ -656,6 +661,19 @@ class RodSpinEnv(_StrikeEnv):
     ``first_contact_time`` (s), ``sim_time``, ``analytic_max_spin``, ``analytic_best_lever``,
     ``best_reward``, ``reward_spin``, ``fallback`` (the solver settled a resting contact).
 
+    ## Rendering
+    ``render_mode="rgb_array_list"``: ``render()`` returns the frames since its last call (the
+    reset's frame, then each strike): a strike's frames are sampled from the trajectory the
+    exact solver computed, slowed by the smallest whole factor that makes the strike last at
+    least 1 s at ``render_fps`` (30), with a frame at the very instant of each contact.
+    Overlays: the time and slow-motion factor, achieved and target spin (a gauge; the spin
+    arrow), the reward once the last contact is past, an impulse marker per contact, motion
+    trails. ``"rgb_array"``: the strike's last frame (ghost poses, every impulse); ``"human"``:
+    the frames in a window, at the slowed pace. Record them with
+    ``spinstrike.envs.recording.RecordEveryFrame`` (Gymnasium's ``RecordVideo`` keeps one frame
+    per step). Frames are ``render_size`` (720 x 480); pixel observations ``obs_size`` (480 x
+    320), without overlays.
+
     ## Version History
     * v0: initial version.
     """
@@ -696,6 +714,19 @@ class PuckSpeedEnv(_StrikeEnv):
     ## Info
     ``velocity``, ``speed``, ``spin``, ``target_velocity``, ``n_contacts``, ``impulse``,
     ``first_contact_point``, ``best_reward``, ``analytic_speed_gain``, ``reward_velocity``.
+
+    ## Rendering
+    ``render_mode="rgb_array_list"``: ``render()`` returns the frames since its last call (the
+    reset's frame, then each strike): a strike's frames are sampled from the trajectory the
+    exact solver computed, slowed by the smallest whole factor that makes the strike last at
+    least 1 s at ``render_fps`` (30), with a frame at the very instant of each contact.
+    Overlays: the time and slow-motion factor, achieved and target velocity (arrows and a speed
+    gauge), the reward once the last contact is past, an impulse marker per contact, motion
+    trails. ``"rgb_array"``: the strike's last frame (ghost poses, every impulse); ``"human"``:
+    the frames in a window, at the slowed pace. Record them with
+    ``spinstrike.envs.recording.RecordEveryFrame`` (Gymnasium's ``RecordVideo`` keeps one frame
+    per step). Frames are ``render_size`` (720 x 480); pixel observations ``obs_size`` (480 x
+    320), without overlays.
 
     ## Version History
     * v0: initial version.

@@ -22,7 +22,7 @@ from spinstrike.agents.cli import main
 from spinstrike.agents.oracle import oracle_for
 from spinstrike.envs import fast
 from spinstrike.envs.recording import RecordEveryFrame, VideoWriter, tile
-from spinstrike.envs.rendering import Renderer, strike_times
+from spinstrike.envs.rendering import Marker, Renderer, strike_times
 from spinstrike.envs.strike import CHUNK
 from spinstrike.physics.layout import ANGLE, OMEGA, VX, VY, X, Y
 
@@ -161,9 +161,15 @@ def test_a_frame_at_each_contact_with_the_bodies_touching(env_id, seed):
         assert clip.contacts[0, fast.TC_J] == info["first_impulse"]
         assert clip.contacts[:, fast.TC_J].sum() == pytest.approx(info["impulse"], rel=1e-12)
     tol = task.world.tolerance
-    for t in times:
+    drawn = task.step_frames()
+    for q, t in enumerate(times):
         (f,) = np.flatnonzero(clip.times == t)  # exactly one frame at the contact instant
         assert abs(_gap(task, clip.states[f])) <= tol
+        # its marker, at full strength, is the push on the target: away from the striker
+        (m,) = [m for m in drawn[f].markers if m.fade == 1.0 and
+                m.j == clip.contacts[q, fast.TC_J]]
+        striker = clip.states[f][task.js, X:Y + 1]
+        assert (m.x - striker[0]) * m.nx + (m.y - striker[1]) * m.ny > 0
     # and no frame shows the bodies overlapping
     assert min(_gap(task, S) for S in clip.states) >= -tol
 
@@ -472,6 +478,15 @@ def test_video_writer_and_tile(tmp_path):
     with pytest.raises(ValueError, match=r"must be \(height, width, 3\) uint8"):
         w.write(np.zeros((9, 15), np.uint8))
     w.close()
+
+
+def test_impulse_markers_show_the_push_on_the_target():
+    n = (0.6, 0.8)  # from body a to body b
+    assert (Marker.on(1, 0, 1, (0, 0), n, 0.5).nx, Marker.on(1, 0, 1, (0, 0), n, 0.5).ny) == n
+    m = Marker.on(0, 0, 1, (0, 0), n, 0.5)
+    assert (m.nx, m.ny) == (-0.6, -0.8)
+    m = Marker.on(1, 0, 4, (0.1, 0.2), n, 0.5)  # body 0 against a cushion: the push on body 0
+    assert (m.x, m.y, m.nx, m.ny, m.j) == (0.1, 0.2, -0.6, -0.8, 0.5)
 
 
 def test_strike_times_law():
