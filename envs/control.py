@@ -113,7 +113,7 @@ class _ControlTask(Task):
         buf = w.buffers
         fast.control_observe(buf.fbuf, buf.ibuf, self.tbuf, self.kcfg,
                              np.asarray(env, dtype=np.int64))
-        if 0 in env:
+        if self.record_trace and 0 in env:
             self._trail.clear()
             self._return = 0.0
             self._remember()

@@ -166,7 +166,7 @@ class _StrikeTask(Task):
             e.set_state(positions=pos, angles=angles, velocities=0.0, omegas=0.0)
         self._sample_goal(env, u[:, 3:])
         self._zero_result_rows(env)
-        if 0 in env:
+        if self.clip is not None and 0 in env:
             self._forget_clip()
         return self._reset_info(env)
 
@@ -310,8 +310,8 @@ class _StrikeTask(Task):
                      reward: float | None, trails=(), markers=()) -> Frame:
         bodies = self._draw_bodies(b, S)
         target = bodies[self.it]
-        when = (f"t = {1000 * t:6.1f} ms   slow motion x{slow_motion}" if slow_motion
-                else "before the strike")
+        pace = f"slow motion x{slow_motion}" if slow_motion > 1 else "real time (x1)"
+        when = f"t = {1000 * t:6.1f} ms   {pace}" if slow_motion else "before the strike"
         score = "reward: after the last contact" if reward is None else f"reward {reward:.3f}"
         return Frame(bodies, tuple(self.world.table_half_size[b]),
                      walls="walls" in self.world.effects, trails=list(trails),
@@ -661,20 +661,7 @@ class RodSpinEnv(_StrikeEnv):
     ``first_contact_time`` (s), ``sim_time``, ``analytic_max_spin``, ``analytic_best_lever``,
     ``best_reward``, ``reward_spin``, ``fallback`` (the solver settled a resting contact).
 
-    ## Rendering
-    ``render_mode="rgb_array_list"``: ``render()`` returns the frames since its last call (the
-    reset's frame, then each strike): a strike's frames are sampled from the trajectory the
-    exact solver computed, slowed by the smallest whole factor that makes the strike last at
-    least 1 s at ``render_fps`` (30), with a frame at the very instant of each contact.
-    Overlays: the time and slow-motion factor, achieved and target spin (a gauge; the spin
-    arrow), the reward once the last contact is past, an impulse marker per contact, motion
-    trails. ``"rgb_array"``: the strike's last frame (ghost poses, every impulse); ``"human"``:
-    the frames in a window, at the slowed pace. Record them with
-    ``spinstrike.envs.recording.RecordEveryFrame`` (Gymnasium's ``RecordVideo`` keeps one frame
-    per step). Frames are ``render_size`` (720 x 480); pixel observations ``obs_size`` (480 x
-    320), without overlays.
-
-    ## Version History
+{rendering}    ## Version History
     * v0: initial version.
     """
 
@@ -715,20 +702,7 @@ class PuckSpeedEnv(_StrikeEnv):
     ``velocity``, ``speed``, ``spin``, ``target_velocity``, ``n_contacts``, ``impulse``,
     ``first_contact_point``, ``best_reward``, ``analytic_speed_gain``, ``reward_velocity``.
 
-    ## Rendering
-    ``render_mode="rgb_array_list"``: ``render()`` returns the frames since its last call (the
-    reset's frame, then each strike): a strike's frames are sampled from the trajectory the
-    exact solver computed, slowed by the smallest whole factor that makes the strike last at
-    least 1 s at ``render_fps`` (30), with a frame at the very instant of each contact.
-    Overlays: the time and slow-motion factor, achieved and target velocity (arrows and a speed
-    gauge), the reward once the last contact is past, an impulse marker per contact, motion
-    trails. ``"rgb_array"``: the strike's last frame (ghost poses, every impulse); ``"human"``:
-    the frames in a window, at the slowed pace. Record them with
-    ``spinstrike.envs.recording.RecordEveryFrame`` (Gymnasium's ``RecordVideo`` keeps one frame
-    per step). Frames are ``render_size`` (720 x 480); pixel observations ``obs_size`` (480 x
-    320), without overlays.
-
-    ## Version History
+{rendering}    ## Version History
     * v0: initial version.
     """
 
@@ -749,5 +723,24 @@ class PuckSpeedVectorEnv(SpinStrikeVectorEnv):
     metadata = dict(SpinStrikeVectorEnv.metadata, render_fps=30)
 
 
-RodSpinEnv.__doc__ = RodSpinEnv.__doc__.format(layout=layout_table(RodSpinTask.LAYOUT))
-PuckSpeedEnv.__doc__ = PuckSpeedEnv.__doc__.format(layout=layout_table(PuckSpeedTask.LAYOUT))
+#: the one-strike envs' Rendering section
+_RENDERING = """    ## Rendering
+    ``render_mode="rgb_array_list"``: ``render()`` returns the frames since its last call (the
+    reset's frame, then each strike): a strike's frames are sampled from the trajectory the
+    exact solver computed, slowed by the smallest whole factor that makes the strike last at
+    least 1 s at ``render_fps`` (30), with a frame at the very instant of each contact.
+    Overlays: the time and slow-motion factor, achieved and target {what},
+    the reward once the last contact is past, an impulse marker per contact, motion trails.
+    ``"rgb_array"``: the strike's last frame (ghost poses, every impulse); ``"human"``: the
+    frames in a window, at the slowed pace. Record them with
+    ``spinstrike.envs.recording.RecordEveryFrame`` (Gymnasium's ``RecordVideo`` keeps one frame
+    per step). Frames are ``render_size`` (720 x 480); pixel observations ``obs_size``
+    (480 x 320), without overlays.
+
+"""
+RodSpinEnv.__doc__ = RodSpinEnv.__doc__.format(
+    layout=layout_table(RodSpinTask.LAYOUT),
+    rendering=_RENDERING.format(what="spin (a gauge; the spin arrow)"))
+PuckSpeedEnv.__doc__ = PuckSpeedEnv.__doc__.format(
+    layout=layout_table(PuckSpeedTask.LAYOUT),
+    rendering=_RENDERING.format(what="velocity (arrows, a speed gauge)"))
