@@ -113,6 +113,17 @@ CASES = [
      lambda t: ["record", "--oracle", "--env", ENV, "--episodes", "0", "--out",
                 str(t / "v.mp4")],
      ["--episodes: must be >= 1"]),
+    ("record-out-not-a-video",
+     lambda t: ["record", "--oracle", "--env", ENV, "--out", str(t / "v.avi")],
+     ["--out: must end in .mp4 or .gif", "v.avi"]),
+    ("record-size-not-w-x-h",
+     lambda t: ["record", "--oracle", "--env", ENV, "--size", "big", "--out",
+                str(t / "sub" / "v.mp4")],
+     ["--size: must be WIDTHxHEIGHT", "'big'"]),
+    ("record-size-too-small",
+     lambda t: ["record", "--oracle", "--env", ENV, "--size", "8x8", "--out",
+                str(t / "sub" / "v.gif")],
+     ["render_size", "[16, 4096]", "(got (8, 8))"]),
 ]
 
 
