@@ -16,13 +16,11 @@ The tasks' own packed rows are declared below as ``physics.layout.Table`` s, lik
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numba
 import numpy as np
 
 from spinstrike.envs.layout import CONTROL_LAYOUT
-from spinstrike.physics._cache import refresh_kernel_cache
 from spinstrike.physics.jit import jit, jit_inline, jit_parallel
 from spinstrike.physics.kernels import BLOCK as BLOCK
 from spinstrike.physics.kernels import (
@@ -60,10 +58,6 @@ from spinstrike.physics.layout import (
     X,
     Y,
 )
-
-# these kernels inline the physics kernels: recompile them when either changes (numba loads its
-# cache at a kernel's first call, so clearing it here, at import, is in time)
-refresh_kernel_cache(Path(__file__).resolve().parent, ("fast.py",))
 
 __all__ = ["CONTROL_OBS", "CONTROL_STEP", "OBS_SIZE", "STRIKE", "control_observe",
            "limit_force"]

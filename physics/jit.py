@@ -8,19 +8,37 @@
   +4 s cold compile).
 * ``jit_parallel``: the same, with ``numba.prange`` spread over threads (the batch kernels).
 
-Every module that uses them is a *kernel module*: ``physics._cache`` finds them by this import
-and drops the compiled cache when any of them changes (numba itself only notices a change of the
-compiled function's own file).
+Every function compiled through them is cached by ``physics.cache`` (a per-user directory, and a
+freshness stamp that covers every module the kernel's module imports); other numba code in the
+process keeps numba's own cache behaviour.
 """
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Callable
+from typing import Any
+
 import numba
+
+from spinstrike.physics.cache import KernelCache
 
 __all__ = ["jit", "jit_inline", "jit_parallel"]
 
-_OPTIONS = {"cache": True, "nogil": True, "error_model": "numpy"}
 
-jit = numba.njit(**_OPTIONS)
-jit_inline = numba.njit(inline="always", **_OPTIONS)
-jit_parallel = numba.njit(parallel=True, **_OPTIONS)
+def _compiler(**options: Any) -> Callable[[Callable[..., Any]], Any]:
+    def decorate(fn: Callable[..., Any]) -> Any:
+        dispatcher = numba.njit(nogil=True, error_model="numpy", **options)(fn)
+        try:
+            dispatcher._cache = KernelCache(fn)  # what numba's enable_caching() sets
+        except RuntimeError as exc:  # no writable cache directory at all
+            warnings.warn(f"spinstrike: kernels are not cached ({exc}); they compile in every "
+                          "process", RuntimeWarning, stacklevel=2)
+        return dispatcher
+
+    return decorate
+
+
+jit = _compiler()
+jit_inline = _compiler(inline="always")
+jit_parallel = _compiler(parallel=True)
