@@ -19,6 +19,7 @@ import math
 
 import numba
 import numpy as np
+from numba import literally
 
 from spinstrike.envs.layout import CONTROL_LAYOUT
 from spinstrike.physics.jit import jit, jit_inline, jit_parallel
@@ -204,53 +205,50 @@ def _post(b, S, HW, PA, PB, cpair, crec, stats, n_stored, tbuf, kcfg):
     _observe(Sb, HW[b], row, kcfg)
 
 
-@jit
-def _control_one(b, v, n_stored, tbuf, kcfg):
-    dt = v.fcfg[CF_DT]
-    _pre(b, v.S, v.Pm, v.F, dt, tbuf, kcfg)
-    step_element(v, b, dt)
-    _post(b, v.S, v.HW, v.PA, v.PB, v.cpair, v.crec, v.stats, n_stored, tbuf, kcfg)
-
-
-@jit
-def _control_range(fbuf, ibuf, tbuf, kcfg, start, stop):
-    v = unpack(fbuf, ibuf)
+@jit_inline
+def _finite_actions(tbuf, start, stop):
     for b in range(start, stop):
-        _control_one(b, v, ibuf[H_M], tbuf, kcfg)
-
-
-@jit
-def _finite_actions(tbuf):
-    for b in range(tbuf.shape[0]):
         if not (math.isfinite(tbuf[b, T_ACTION + FX]) and math.isfinite(tbuf[b, T_ACTION + FY])):
             return False
     return True
 
 
 @jit
-def control_step_serial(fbuf, ibuf, tbuf, kcfg):
-    """One control step of every element; False (and nothing done) if an action is not finite."""
-    if not _finite_actions(tbuf):
+def control_body(fbuf, ibuf, tbuf, kcfg, start, stop, fixed, rotation, cf, tf, jam):
+    """One control step of elements ``start..stop-1``; False (and nothing done) if one of their
+    actions is not finite. The last five arguments are the world's compile-time flags
+    (``kernels.FLAGS``)."""
+    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam)
+    if not _finite_actions(tbuf, start, stop):
         return False
-    _control_range(fbuf, ibuf, tbuf, kcfg, 0, ibuf[H_B])
+    v = unpack(fbuf, ibuf)
+    n_stored = ibuf[H_M]
+    dt = v.fcfg[CF_DT]
+    for b in range(start, stop):
+        _pre(b, v.S, v.Pm, v.F, dt, tbuf, kcfg)
+        step_element(v, b, dt, fixed, rotation, cf, tf, jam)
+        _post(b, v.S, v.HW, v.PA, v.PB, v.cpair, v.crec, v.stats, n_stored, tbuf, kcfg)
     return True
 
 
 @jit_parallel
-def control_step_parallel(fbuf, ibuf, tbuf, kcfg):
-    """:func:`control_step_serial` in parallel threads (blocks of ``BLOCK`` elements)."""
-    if not _finite_actions(tbuf):
-        return False
+def control_step_parallel(fbuf, ibuf, tbuf, kcfg, fixed, rotation, cf, tf, jam):
+    """:func:`control_body` over the whole batch in parallel threads (blocks of ``BLOCK``
+    elements); nothing is done if any action is not finite."""
+    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam)
     n = ibuf[H_B]
+    if not _finite_actions(tbuf, 0, n):
+        return False
     for k in numba.prange(n_blocks(n)):
-        _control_range(fbuf, ibuf, tbuf, kcfg, k * BLOCK, min(n, (k + 1) * BLOCK))
+        control_body(fbuf, ibuf, tbuf, kcfg, k * BLOCK, min(n, (k + 1) * BLOCK), fixed,
+                     rotation, cf, tf, jam)
     return True
 
 
 @jit
 def control_pre(fbuf, ibuf, tbuf, kcfg):
     """The step's first stage alone (for a backend that steps outside numba: pymunk)."""
-    if not _finite_actions(tbuf):
+    if not _finite_actions(tbuf, 0, ibuf[H_B]):
         return False
     v = unpack(fbuf, ibuf)
     for b in range(ibuf[H_B]):
@@ -286,7 +284,7 @@ def _control_stepwise(world, tbuf, kcfg) -> bool:
 
 #: one control step of every element: ``world.run(CONTROL_STEP, tbuf, kcfg, dt=dt)`` returns
 #: False, having done nothing, if an action is not finite
-CONTROL_STEP = BatchKernel("control step", control_step_serial, control_step_parallel,
+CONTROL_STEP = BatchKernel("control step", control_body, control_step_parallel,
                            _control_stepwise)
 
 
@@ -434,44 +432,41 @@ def _trace_contacts(cpair, crec, stats, n_stored, ctrace, tcount):
 
 
 @jit
-def _strike_one(b, v, n_stored, sbuf, scfg, trace, ctrace, tcount):
-    row = sbuf[b]
-    _strike_start(row)
-    if not _launch(v.S[b], v.Pm[b], v.HW[b], v.PA, v.PB, row, int(scfg[SC_STRIKER]),
-                   v.fcfg[CF_OVERLAP_TOL]):
-        return
-    record = scfg[SC_RECORD] != 0.0 and b == 0
-    if record:
-        _trace_pose(v.S, trace, tcount)
-    for k in range(int(scfg[SC_CHUNKS])):
-        step_element(v, b, scfg[SC_CHUNK])
-        if record:
-            _trace_contacts(v.cpair, v.crec, v.stats, n_stored, ctrace, tcount)
-            _trace_pose(v.S, trace, tcount)
-        if _strike_post(b, k, v.S, v.Pm, v.cpair, v.crec, v.stats, n_stored, sbuf, scfg):
-            break
-
-
-@jit
-def _strike_range(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount, start, stop):
+def strike_body(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount, start, stop, fixed, rotation, cf,
+                tf, jam):
+    """Simulate the strikes of elements ``start..stop-1`` to their ends (see the section
+    comment). The last five arguments are the world's compile-time flags (``kernels.FLAGS``)."""
+    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam)
     v = unpack(fbuf, ibuf)
+    n_stored = ibuf[H_M]
     for b in range(start, stop):
-        _strike_one(b, v, ibuf[H_M], sbuf, scfg, trace, ctrace, tcount)
-
-
-@jit
-def strike_serial(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount):
-    """Simulate every element's strike to its end (see the section comment)."""
-    _strike_range(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount, 0, ibuf[H_B])
+        row = sbuf[b]
+        _strike_start(row)
+        if not _launch(v.S[b], v.Pm[b], v.HW[b], v.PA, v.PB, row, int(scfg[SC_STRIKER]),
+                       v.fcfg[CF_OVERLAP_TOL]):
+            continue
+        record = scfg[SC_RECORD] != 0.0 and b == 0
+        if record:
+            _trace_pose(v.S, trace, tcount)
+        for k in range(int(scfg[SC_CHUNKS])):
+            step_element(v, b, scfg[SC_CHUNK], fixed, rotation, cf, tf, jam)
+            if record:
+                _trace_contacts(v.cpair, v.crec, v.stats, n_stored, ctrace, tcount)
+                _trace_pose(v.S, trace, tcount)
+            if _strike_post(b, k, v.S, v.Pm, v.cpair, v.crec, v.stats, n_stored, sbuf, scfg):
+                break
 
 
 @jit_parallel
-def strike_parallel(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount):
-    """:func:`strike_serial` in parallel threads (blocks of ``BLOCK`` elements)."""
+def strike_parallel(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount, fixed, rotation, cf, tf,
+                    jam):
+    """:func:`strike_body` over the whole batch in parallel threads (blocks of ``BLOCK``
+    elements)."""
+    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam)
     n = ibuf[H_B]
     for k in numba.prange(n_blocks(n)):
-        _strike_range(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount, k * BLOCK,
-                      min(n, (k + 1) * BLOCK))
+        strike_body(fbuf, ibuf, sbuf, scfg, trace, ctrace, tcount, k * BLOCK,
+                    min(n, (k + 1) * BLOCK), fixed, rotation, cf, tf, jam)
 
 
 @jit
@@ -532,4 +527,4 @@ def _strike_stepwise(world, sbuf, scfg, trace, ctrace, tcount) -> None:
 
 #: every element's whole strike, from its launch (``sbuf``'s launch columns):
 #: ``world.run(STRIKE, sbuf, scfg, trace, ctrace, tcount)``
-STRIKE = BatchKernel("strike", strike_serial, strike_parallel, _strike_stepwise)
+STRIKE = BatchKernel("strike", strike_body, strike_parallel, _strike_stepwise)

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from spinstrike.physics.events import far_apart, pair_bodies, pair_geometry, time_of_impact
@@ -42,7 +43,7 @@ from spinstrike.physics.jam import (
     MAX_JAM_PAIRS,
     jam_impulses,
 )
-from spinstrike.physics.jit import jit, jit_inline
+from spinstrike.physics.jit import jit, jit_inline, static_if
 from spinstrike.physics.layout import (
     ANGLE,
     CHECKPOINT,
@@ -179,11 +180,18 @@ def _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, crec, stats)
             changed[b] = 1
 
 
+#: the block solve, compiled only for scenes whose contacts can jam (``kernels.FLAGS``)
+_jam_if = static_if(_jam)
+
+
 @jit
 def _sweeps(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_friction, changed,
             cpair, crec, stats, sweeps, jam):
     """Up to ``sweeps`` contact passes until none hits; then, if ``jam`` and the last pass still
-    hit, the block solve of the jam. Returns the number of resting bounces seen."""
+    hit, the block solve of the jam. Returns the number of resting bounces seen.
+
+    ``jam`` is a compile-time flag (``kernels.FLAGS``): a world whose contacts cannot jam (one
+    contact pair, no contact friction) never compiles the block solve."""
     resting = 0
     hit = False
     for _ in range(sweeps):
@@ -192,8 +200,8 @@ def _sweeps(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_frict
         resting += r
         if not hit:
             break
-    if hit and jam:
-        _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, crec, stats)
+    if hit:
+        _jam_if(jam, S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, crec, stats)
     return resting
 
 
@@ -293,25 +301,32 @@ def _kick(S, Pm, F, h, rotation, table_friction):
 @jit
 def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, rotation,
                   contact_friction, table_friction, cpair, crec, stats, changed,
-                  separate_sweeps=1):
+                  separate_sweeps, jam):
     """Advance one element by T seconds in ``substeps`` fixed substeps.
 
     ``separate_sweeps``: positional-correction sweeps per substep, repeated while one still
     corrects an overlap deeper than ``slop``. The plain fixed solver uses 1 (its documented,
     cheap behaviour); the exact solver's settling uses ``MAX_SWEEPS`` so that a chain of
-    contacts (mallet -> puck -> cushion) is not left overlapping.
+    contacts (mallet -> puck -> cushion) is not left overlapping. ``jam``: the sweeps end in the
+    block solve of a jam (settling only, and only where contacts can jam).
     """
     h = T / substeps
     for k in range(substeps):
         _kick(S, Pm, F, h, rotation, table_friction)
         t = t0 + (k + 1) * h
-        # settling (several separation sweeps) also takes the block solve of a jam
         _sweeps(S, Pm, hw, PA, PB, MAT, slop, 0.0, t, rotation, contact_friction, changed,
-                cpair, crec, stats, iterations, separate_sweeps > 1)
+                cpair, crec, stats, iterations, jam)
         for sweep in range(separate_sweeps):
             if _separate(S, Pm, hw, PA, PB, sweep == 0, rotation and separate_sweeps > 1) <= slop:
                 break
     stats[STAT_SUBSTEPS] += substeps
+
+
+@jit_inline
+def _int(value):
+    """``value`` as a plain int64: a constant passed on would make numba compile the callee once
+    more for its literal type."""
+    return numba.int64(value)
 
 
 @jit_inline
@@ -348,11 +363,14 @@ def _settle_substeps(S, Pm, F, PA, PB, T, settle_substep):
 @jit
 def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
                   zeno_impacts, settle_substep, rotation, contact_friction, table_friction,
-                  cpair, crec, stats, toi, kind, changed):
+                  jam, cpair, crec, stats, toi, kind, changed):
     """Advance one element by dt seconds, event by event.
 
-    ``toi``, ``kind`` (per pair) and ``changed`` (per body) are the element's scratch rows.
+    ``toi``, ``kind`` (per pair) and ``changed`` (per body) are the element's scratch rows;
+    ``rotation``, ``contact_friction``, ``table_friction`` and ``jam`` are compile-time flags
+    (``kernels.FLAGS``).
     """
+    sweeps = _int(MAX_SWEEPS)
     n_pairs = PA.shape[0]
     iterations = 0
     for p in range(n_pairs):
@@ -387,8 +405,7 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
                 resting += 1
         else:
             resting += _sweeps(S, Pm, hw, PA, PB, MAT, tol, zeno_speed, t_now, rotation,
-                               contact_friction, changed, cpair, crec, stats,
-                               MAX_SWEEPS, True)
+                               contact_friction, changed, cpair, crec, stats, sweeps, jam)
         horizon = dt - t_now
         for p in range(n_pairs):
             if p == best or changed[PA[p]] or (PB[p] < S.shape[0] and changed[PB[p]]):
@@ -400,9 +417,9 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
         if events >= max_events or resting >= zeno_impacts:
             if t_now < dt:
                 substeps = _settle_substeps(S, Pm, F, PA, PB, dt - t_now, settle_substep)
-                fixed_element(S, Pm, F, hw, PA, PB, MAT, dt - t_now, substeps, MAX_SWEEPS, tol,
+                fixed_element(S, Pm, F, hw, PA, PB, MAT, dt - t_now, substeps, sweeps, tol,
                               t_now, rotation, contact_friction, table_friction, cpair, crec,
-                              stats, changed, MAX_SWEEPS)
+                              stats, changed, sweeps, jam)
                 stats[STAT_FALLBACK] = 1
             break
     stats[STAT_EVENTS] += events
