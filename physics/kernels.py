@@ -231,27 +231,22 @@ class BatchKernel:
                  flags: tuple[bool, ...]) -> Any:
         """Run the parallel version, or the body over the whole batch, with literal ``flags``.
 
-        The first call per flag combination goes through numba's dispatcher (which compiles,
-        or loads from the cache, the specialisation for those literals); later calls go
-        straight to that specialisation's entry point: a dispatcher called with plain booleans
-        for ``literally`` arguments would re-run numba's front end on every call (4 ms).
+        The specialisation for the argument types and these literal flags is compiled (or
+        loaded from the cache) on first use and its entry point kept: a dispatcher called with
+        plain booleans for ``literally`` arguments would re-run numba's front end on every call
+        (4 ms), and its first, non-literal attempt would count as a cache miss.
         """
         if not parallel:
             args = (*args, 0, int(ibuf[H_B]))
         entry = self._entries.get((parallel, flags))
-        if entry is not None:
-            return entry(fbuf, ibuf, *args, *flags)
-        dispatcher = self.parallel if parallel else self.body
-        result = dispatcher(fbuf, ibuf, *args, *flags)
-        types = tuple(numba.typeof(a) for a in (fbuf, ibuf, *args))
-        for sig, compiled in getattr(dispatcher, "overloads", {}).items():  # none: no JIT
-            head, tail = sig[:len(types)], sig[len(types):]
-            if (head == types and len(tail) == len(flags)
-                    and all(getattr(t, "literal_value", None) is f
-                            for t, f in zip(tail, flags, strict=True))):
-                self._entries[parallel, flags] = compiled.entry_point
-                break
-        return result
+        if entry is None:
+            dispatcher = self.parallel if parallel else self.body
+            if not hasattr(dispatcher, "compile"):  # NUMBA_DISABLE_JIT: a plain function
+                return dispatcher(fbuf, ibuf, *args, *flags)
+            sig = (*(numba.typeof(a) for a in (fbuf, ibuf, *args)),
+                   *(numba.types.literal(f) for f in flags))
+            entry = self._entries[parallel, flags] = dispatcher.compile(sig)
+        return entry(fbuf, ibuf, *args, *flags)
 
 
 def _backend_step(world) -> None:

@@ -112,3 +112,27 @@ def test_default_location_is_the_user_cache(monkeypatch, value):
     path = cache_dir()
     assert path.name == "kernels" and "spinstrike" in path.parts
     assert not path.is_relative_to(Path(spinstrike.__file__).parent.parent)
+
+
+def test_warm_up_compiles_an_envs_kernels_for_the_next_process(tmp_path):
+    """``spinstrike.envs.warm`` (what ``spinstrike train`` starts while PyTorch imports) leaves
+    the env's kernels in the cache: the next process's strike is a cache hit, not a compile."""
+    cache = tmp_path / "cache"
+    env = dict(os.environ, SPINSTRIKE_CACHE_DIR=str(cache), SPINSTRIKE_QUIET="1")
+    code = ("import os; from spinstrike.envs.warm import warm_up; "
+            "assert warm_up('SpinStrike/PuckSpeed-v0', 2, {'restitution': 0.8}).wait()")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                         cwd=tmp_path, timeout=600)
+    assert out.returncode == 0, out.stderr
+    check = ("import gymnasium as gym, numpy as np, spinstrike\n"
+             "from spinstrike.envs import fast\n"
+             "v = gym.make_vec('SpinStrike/PuckSpeed-v0', num_envs=2, restitution=0.8,\n"
+             "                 vectorization_mode='vector_entry_point')\n"
+             "v.reset(seed=1); v.step(np.zeros((2, 3), np.float32))\n"
+             "s = fast.strike_body.stats\n"
+             "print(sum(s.cache_hits.values()), sum(s.cache_misses.values()))\n")
+    out = subprocess.run([sys.executable, "-c", check], env=env, capture_output=True, text=True,
+                         cwd=tmp_path, timeout=600)
+    assert out.returncode == 0, out.stderr
+    hits, misses = map(int, out.stdout.split())
+    assert hits >= 1 and misses == 0
