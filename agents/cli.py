@@ -4,6 +4,7 @@
     spinstrike evaluate RUN_DIR | --oracle/--random --env ID   [--episodes 50]
     spinstrike record   RUN_DIR | --oracle --env ID            [--out rollout.mp4|.gif] [--grid]
     spinstrike envs
+    spinstrike cache    [--clear]
     spinstrike bench    accuracy|speed [--quick]
     spinstrike baselines [--quick]
 
@@ -157,6 +158,22 @@ def cmd_envs(args) -> int:
     return 0
 
 
+def cmd_cache(args) -> int:
+    from spinstrike.physics.cache import ENV_VAR, cache_info, clear_cache
+
+    if args.clear:
+        removed = clear_cache()
+        print(f"removed {removed} cached kernel files; the next run recompiles (about half a "
+              "minute)")
+        return 0
+    info = cache_info()
+    print(f"compiled kernels: {info['path']} ({info['files']} files, "
+          f"{info['bytes'] / 1e6:.1f} MB; set {ENV_VAR} to move it)")
+    if info["fallback"]:
+        print(f"fallback (the directory above was not writable): {info['fallback']}")
+    return 0
+
+
 def cmd_bench(args) -> int:
     import importlib
 
@@ -223,6 +240,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("envs", help="list the environments")
     s.set_defaults(func=cmd_envs)
+
+    c = sub.add_parser("cache", help="where the compiled physics kernels are cached; --clear "
+                       "empties the cache")
+    c.add_argument("--clear", action="store_true", help="remove every cached kernel")
+    c.set_defaults(func=cmd_cache)
 
     b = sub.add_parser("bench", help="benchmarks: accuracy vs time, speed")
     b.add_argument("which", choices=("accuracy", "speed"))

@@ -169,6 +169,10 @@ def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, epis
 def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, eval_freq,
            eval_episodes_during, command, torch_threads) -> tuple[Any, float]:
     """Build (or resume) the model and train it to the budget; save it into ``work``."""
+    from spinstrike.envs.warm import warm_up
+
+    # compile the env's kernels on the other core while PyTorch and SB3 import
+    warm = warm_up(cfg.env_id, cfg.n_envs, cfg.env_kwargs)
     import torch
     from stable_baselines3.common.logger import Logger, make_output_format
 
@@ -176,6 +180,7 @@ def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, 
         torch.set_num_threads(torch_threads)
 
     cls = algo_class(algo)
+    warm.wait()
     # everything is validated: build the env before touching the disk, so a bad env kwarg
     # (raised by the env's own validation) leaves nothing behind either
     env = _make_env(cfg, seed, cfg.n_envs)

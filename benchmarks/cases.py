@@ -9,11 +9,11 @@ never come from the solver under test:
   into a small resting disk on the line through its tip's cap).
 * ``rod_wall``: a translating rod strikes a cushion with its tip — the seed's wall formula
   ``physics.analytic.rod_wall`` (lever ``r cos theta``).
-* ``offline_disk_rod``, ``disk_disk``, ``spinning_rod``, ``tunnel``: the impulse law (DESIGN §1)
-  applied at the contact geometry found here by an independent root finder: the gap of the two
-  bodies as an analytic function of time (free flight: straight lines and uniform spin), sampled
-  densely in float64 to bracket its first zero, which is then bisected in mpmath at 40 digits.
-  The impulse is evaluated in mpmath too.
+* ``offline_disk_rod``, ``disk_disk``, ``spinning_rod``, ``tunnel``: the impulse law
+  (docs/design.md §2) applied at the contact geometry found here by an independent root finder: the
+  gap of the two bodies as an analytic function of time (free flight: straight lines and uniform
+  spin), sampled densely in float64 to bracket its first zero, which is then bisected in mpmath at
+  40 digits. The impulse is evaluated in mpmath too.
 
 For every variant, the same root finder also checks that no second contact (any pair, cushions
 included) happens before ``duration``, and the window after the impact is cut to half the time

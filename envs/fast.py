@@ -17,13 +17,12 @@ from __future__ import annotations
 
 import math
 from collections import namedtuple
-from pathlib import Path
 
 import numba
 import numpy as np
+from numba import literally
 
 from spinstrike.envs.layout import CONTROL_LAYOUT
-from spinstrike.physics._cache import refresh_kernel_cache
 from spinstrike.physics.jit import jit, jit_inline, jit_parallel
 from spinstrike.physics.kernels import BLOCK as BLOCK
 from spinstrike.physics.kernels import (
@@ -65,11 +64,13 @@ from spinstrike.physics.layout import (
     Y,
 )
 from spinstrike.physics.motion import flight
-from spinstrike.physics.solvers import TRACE_COUNT, TRACE_DROPPED, TRACE_ENTRIES, Trace, trace_state
-
-# these kernels inline the physics kernels: recompile them when either changes (numba loads its
-# cache at a kernel's first call, so clearing it here, at import, is in time)
-refresh_kernel_cache(Path(__file__).resolve().parent, ("fast.py",))
+from spinstrike.physics.solvers import (
+    TRACE_COUNT,
+    TRACE_DROPPED,
+    TRACE_ENTRIES,
+    Trace,
+    trace_state,
+)
 
 __all__ = ["CONTROL_OBS", "CONTROL_STEP", "OBS_SIZE", "STRIKE", "STRIKE_TRACED", "StrikeTrace",
            "control_observe", "limit_force", "sample_trace", "strike_trace"]
@@ -216,53 +217,50 @@ def _post(b, S, HW, PA, PB, cpair, crec, stats, n_stored, tbuf, kcfg):
     _observe(Sb, HW[b], row, kcfg)
 
 
-@jit
-def _control_one(b, v, n_stored, tbuf, kcfg):
-    dt = v.fcfg[CF_DT]
-    _pre(b, v.S, v.Pm, v.F, dt, tbuf, kcfg)
-    step_element(v, b, dt)
-    _post(b, v.S, v.HW, v.PA, v.PB, v.cpair, v.crec, v.stats, n_stored, tbuf, kcfg)
-
-
-@jit
-def _control_range(fbuf, ibuf, tbuf, kcfg, start, stop):
-    v = unpack(fbuf, ibuf)
+@jit_inline
+def _finite_actions(tbuf, start, stop):
     for b in range(start, stop):
-        _control_one(b, v, ibuf[H_M], tbuf, kcfg)
-
-
-@jit
-def _finite_actions(tbuf):
-    for b in range(tbuf.shape[0]):
         if not (math.isfinite(tbuf[b, T_ACTION + FX]) and math.isfinite(tbuf[b, T_ACTION + FY])):
             return False
     return True
 
 
 @jit
-def control_step_serial(fbuf, ibuf, tbuf, kcfg):
-    """One control step of every element; False (and nothing done) if an action is not finite."""
-    if not _finite_actions(tbuf):
+def control_body(fbuf, ibuf, tbuf, kcfg, start, stop, fixed, rotation, cf, tf, jam):
+    """One control step of elements ``start..stop-1``; False (and nothing done) if one of their
+    actions is not finite. The last five arguments are the world's compile-time flags
+    (``kernels.FLAGS``)."""
+    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam)
+    if not _finite_actions(tbuf, start, stop):
         return False
-    _control_range(fbuf, ibuf, tbuf, kcfg, 0, ibuf[H_B])
+    v = unpack(fbuf, ibuf)
+    n_stored = ibuf[H_M]
+    dt = v.fcfg[CF_DT]
+    for b in range(start, stop):
+        _pre(b, v.S, v.Pm, v.F, dt, tbuf, kcfg)
+        step_element(v, b, dt, fixed, rotation, cf, tf, jam)
+        _post(b, v.S, v.HW, v.PA, v.PB, v.cpair, v.crec, v.stats, n_stored, tbuf, kcfg)
     return True
 
 
 @jit_parallel
-def control_step_parallel(fbuf, ibuf, tbuf, kcfg):
-    """:func:`control_step_serial` in parallel threads (blocks of ``BLOCK`` elements)."""
-    if not _finite_actions(tbuf):
-        return False
+def control_step_parallel(fbuf, ibuf, tbuf, kcfg, fixed, rotation, cf, tf, jam):
+    """:func:`control_body` over the whole batch in parallel threads (blocks of ``BLOCK``
+    elements); nothing is done if any action is not finite."""
+    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam)
     n = ibuf[H_B]
+    if not _finite_actions(tbuf, 0, n):
+        return False
     for k in numba.prange(n_blocks(n)):
-        _control_range(fbuf, ibuf, tbuf, kcfg, k * BLOCK, min(n, (k + 1) * BLOCK))
+        control_body(fbuf, ibuf, tbuf, kcfg, k * BLOCK, min(n, (k + 1) * BLOCK), fixed,
+                     rotation, cf, tf, jam)
     return True
 
 
 @jit
 def control_pre(fbuf, ibuf, tbuf, kcfg):
     """The step's first stage alone (for a backend that steps outside numba: pymunk)."""
-    if not _finite_actions(tbuf):
+    if not _finite_actions(tbuf, 0, ibuf[H_B]):
         return False
     v = unpack(fbuf, ibuf)
     for b in range(ibuf[H_B]):
@@ -298,7 +296,7 @@ def _control_stepwise(world, tbuf, kcfg) -> bool:
 
 #: one control step of every element: ``world.run(CONTROL_STEP, tbuf, kcfg, dt=dt)`` returns
 #: False, having done nothing, if an action is not finite
-CONTROL_STEP = BatchKernel("control step", control_step_serial, control_step_parallel,
+CONTROL_STEP = BatchKernel("control step", control_body, control_step_parallel,
                            _control_stepwise)
 
 
@@ -354,7 +352,6 @@ def strike_trace(n_chunks: int, n_bodies: int, events: int = 4096,
     return StrikeTrace(trace(events), trace(n_chunks + 1),
                        np.zeros((contacts, len(TRACE_CONTACT))),
                        np.zeros(len(TRACE_COUNT), dtype=np.int64))
-
 
 @jit
 def _strike_start(row):
@@ -458,76 +455,60 @@ def _trace_contacts(b, t0, PA, PB, cpair, crec, stats, n_stored, contacts, count
 
 
 @jit
-def _strike_chunks(b, v, n_stored, sbuf, scfg, trace):
-    """Element b's chunks until its strike is over; with a ``StrikeTrace`` (not None), traced."""
+def _traced_chunk(v, b, k, n_stored, scfg, trace, fixed, rotation, cf, tf, jam):
+    """Chunk k of element b's strike in a traced strike: element 0's is recorded (the solver's
+    states after its events, the state at the chunk's end, its contacts), the others' not."""
     chunk = scfg[SC_CHUNK]
-    for k in range(int(scfg[SC_CHUNKS])):
-        if trace is None:
-            step_element(v, b, chunk)
-        else:
-            t0 = k * chunk
-            events = trace.events
-            first = events.count[TRACE_ENTRIES]
-            step_element(v, b, chunk, events)
-            for q in range(first, events.count[TRACE_ENTRIES]):
-                events.time[q] = t0 + events.time[q]  # the hook records times within the step
-            trace_state(trace.chunks, (k + 1) * chunk, v.S[b])
-            _trace_contacts(b, t0, v.PA, v.PB, v.cpair, v.crec, v.stats, n_stored,
-                            trace.contacts, trace.contact_count)
-        if _strike_post(b, k, v.S, v.Pm, v.cpair, v.crec, v.stats, n_stored, sbuf, scfg):
-            break
-
-
-@jit
-def _strike_one(b, v, n_stored, sbuf, scfg, trace):
-    row = sbuf[b]
-    _strike_start(row)
-    if not _launch(v.S[b], v.Pm[b], v.HW[b], v.PA, v.PB, row, int(scfg[SC_STRIKER]),
-                   v.fcfg[CF_OVERLAP_TOL]):
+    if b != 0:
+        step_element(v, b, chunk, fixed, rotation, cf, tf, jam)
         return
-    if trace is None:
-        _strike_chunks(b, v, n_stored, sbuf, scfg, None)
-    elif b != 0:
-        _strike_chunks(b, v, n_stored, sbuf, scfg, None)
-    else:
-        trace_state(trace.chunks, 0.0, v.S[b])
-        _strike_chunks(b, v, n_stored, sbuf, scfg, trace)
+    t0 = k * chunk
+    events = trace.events
+    first = events.count[TRACE_ENTRIES]
+    step_element(v, b, chunk, fixed, rotation, cf, tf, jam, events)
+    for q in range(first, events.count[TRACE_ENTRIES]):
+        events.time[q] = t0 + events.time[q]  # the hook records times within the step
+    trace_state(trace.chunks, (k + 1) * chunk, v.S[b])
+    _trace_contacts(b, t0, v.PA, v.PB, v.cpair, v.crec, v.stats, n_stored, trace.contacts,
+                    trace.contact_count)
 
 
 @jit
-def _strike_range(fbuf, ibuf, sbuf, scfg, trace, start, stop):
+def strike_body(fbuf, ibuf, sbuf, scfg, trace, start, stop, fixed, rotation, cf, tf, jam):
+    """Simulate the strikes of elements ``start..stop-1`` to their ends (see the section
+    comment); ``trace``: None, or a :data:`StrikeTrace` that records element 0 (a separate
+    specialisation: with None the tracing code is not compiled). The last five arguments are
+    the world's compile-time flags (``kernels.FLAGS``)."""
+    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam)
     v = unpack(fbuf, ibuf)
+    n_stored = ibuf[H_M]
     for b in range(start, stop):
-        _strike_one(b, v, ibuf[H_M], sbuf, scfg, trace)
-
-
-@jit
-def strike_serial(fbuf, ibuf, sbuf, scfg):
-    """Simulate every element's strike to its end (see the section comment)."""
-    _strike_range(fbuf, ibuf, sbuf, scfg, None, 0, ibuf[H_B])
-
-
-@jit_parallel
-def strike_parallel(fbuf, ibuf, sbuf, scfg):
-    """:func:`strike_serial` in parallel threads (blocks of ``BLOCK`` elements)."""
-    n = ibuf[H_B]
-    for k in numba.prange(n_blocks(n)):
-        _strike_range(fbuf, ibuf, sbuf, scfg, None, k * BLOCK, min(n, (k + 1) * BLOCK))
-
-
-@jit
-def strike_traced_serial(fbuf, ibuf, sbuf, scfg, trace):
-    """:func:`strike_serial`, tracing element 0 into a :data:`StrikeTrace` (compiled apart, so
-    that the untraced strike neither pays for the hook nor waits for its compilation)."""
-    _strike_range(fbuf, ibuf, sbuf, scfg, trace, 0, ibuf[H_B])
+        row = sbuf[b]
+        _strike_start(row)
+        if not _launch(v.S[b], v.Pm[b], v.HW[b], v.PA, v.PB, row, int(scfg[SC_STRIKER]),
+                       v.fcfg[CF_OVERLAP_TOL]):
+            continue
+        if trace is not None:
+            if b == 0:
+                trace_state(trace.chunks, 0.0, v.S[b])
+        for k in range(int(scfg[SC_CHUNKS])):
+            if trace is None:
+                step_element(v, b, scfg[SC_CHUNK], fixed, rotation, cf, tf, jam)
+            else:
+                _traced_chunk(v, b, k, n_stored, scfg, trace, fixed, rotation, cf, tf, jam)
+            if _strike_post(b, k, v.S, v.Pm, v.cpair, v.crec, v.stats, n_stored, sbuf, scfg):
+                break
 
 
 @jit_parallel
-def strike_traced_parallel(fbuf, ibuf, sbuf, scfg, trace):
-    """:func:`strike_traced_serial` in parallel threads (element 0 is traced in the first)."""
+def strike_parallel(fbuf, ibuf, sbuf, scfg, trace, fixed, rotation, cf, tf, jam):
+    """:func:`strike_body` over the whole batch in parallel threads (blocks of ``BLOCK``
+    elements)."""
+    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam)
     n = ibuf[H_B]
     for k in numba.prange(n_blocks(n)):
-        _strike_range(fbuf, ibuf, sbuf, scfg, trace, k * BLOCK, min(n, (k + 1) * BLOCK))
+        strike_body(fbuf, ibuf, sbuf, scfg, trace, k * BLOCK, min(n, (k + 1) * BLOCK), fixed,
+                    rotation, cf, tf, jam)
 
 
 @jit
@@ -557,7 +538,7 @@ def trace_chunk_batch(k, fbuf, ibuf, sbuf, scfg, trace):
                     trace.contacts, trace.contact_count)
 
 
-def _strike_stepwise(world, sbuf, scfg, trace=None) -> None:
+def _strike_stepwise(world, sbuf, scfg, trace) -> None:
     """The strike for a world on the pymunk backend: the launch by a validated edit, then world
     steps of one chunk from Python, each booked (and traced) by the same compiled code."""
     buf = world.buffers
@@ -613,9 +594,9 @@ def sample_trace(fbuf, ibuf, b, key_time, key_state, times, out):
 
 
 #: every element's whole strike, from its launch (``sbuf``'s launch columns):
-#: ``world.run(STRIKE, sbuf, scfg)``
-STRIKE = BatchKernel("strike", strike_serial, strike_parallel, _strike_stepwise)
+#: ``world.run(STRIKE, sbuf, scfg, None)``
+STRIKE = BatchKernel("strike", strike_body, strike_parallel, _strike_stepwise)
 #: the same, tracing element 0 for its video: ``world.run(STRIKE_TRACED, sbuf, scfg, trace)``
-#: with a :data:`StrikeTrace` (counts zeroed)
-STRIKE_TRACED = BatchKernel("traced strike", strike_traced_serial, strike_traced_parallel,
-                            _strike_stepwise)
+#: with a :data:`StrikeTrace` (counts zeroed); its own kernel object, so that each keeps the
+#: entry point compiled for its argument types
+STRIKE_TRACED = BatchKernel("traced strike", strike_body, strike_parallel, _strike_stepwise)

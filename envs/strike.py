@@ -206,7 +206,7 @@ class _StrikeTask(Task):
                 counts[:] = 0
             w.run(fast.STRIKE_TRACED, sb, self._scfg, self._strace)
         else:
-            w.run(fast.STRIKE, sb, self._scfg)
+            w.run(fast.STRIKE, sb, self._scfg, None)
         refused = np.flatnonzero(sb[:, fast.S_OVERLAP_PAIR] != -1)
         if len(refused):
             b = refused[0]

@@ -14,13 +14,9 @@ Compiled env kernels run the world's own element step through ``physics.kernels`
 ``world.run`` (see ``docs/design.md``).
 """
 
-from spinstrike.physics._cache import refresh_kernel_cache
-
-refresh_kernel_cache()  # before the numba kernels load (see physics/_cache.py)
-
-from spinstrike.physics.edit import WorldEdit  # noqa: E402
-from spinstrike.physics.effects import EFFECTS, Effect  # noqa: E402
-from spinstrike.physics.scene import (  # noqa: E402
+from spinstrike.physics.edit import WorldEdit
+from spinstrike.physics.effects import EFFECTS, Effect
+from spinstrike.physics.scene import (
     SOLVERS,
     WALL_NAMES,
     Body,
@@ -31,7 +27,7 @@ from spinstrike.physics.scene import (  # noqa: E402
     SceneError,
     load_scene,
 )
-from spinstrike.physics.world import Buffers, Contacts, State, StepStats, World  # noqa: E402
+from spinstrike.physics.world import Buffers, Contacts, State, StepStats, World
 
 __all__ = [
     "EFFECTS",

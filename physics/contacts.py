@@ -3,9 +3,9 @@
 Every body is a capsule (a core segment swept by a disk of radius ``rho``; a disk has a segment of
 length 0). The *gap* between two bodies is the distance between their core segments minus the two
 radii; it is negative when they overlap. The contact normal is the unit vector from body a's
-closest core point to body b's (from a to b, DESIGN §1), the contact point lies midway between the
-two surfaces along it. Lever arms are kept as (core offset, distance along n) so that ``r x n``
-is exactly the core offset's, i.e. exactly 0 for a disk.
+closest core point to body b's (from a to b, docs/design.md §2), the contact point lies midway
+between the two surfaces along it. Lever arms are kept as (core offset, distance along n) so that
+``r x n`` is exactly the core offset's, i.e. exactly 0 for a disk.
 
 Flat contacts: when two segments are parallel (sin^2 of the angle between them below
 ``PARALLEL``) and their projections overlap, or a rod lies parallel to a cushion, the contact point

@@ -336,7 +336,7 @@ class WorldEdit:
         pm = params if params is not None else w._params[sel]
         half = self._copy("_half") if "_half" in self._changed else w._half[sel]
         tol = w.tolerance
-        e, p, g = first_overlap(state, pm, half, w.pair_a, w.pair_b, tol)
+        e, p, g = first_overlap(state, pm, half, w._pair_a, w._pair_b, tol)
         if e < 0:
             return
         if not self._placed_all:  # only overlap the change creates or deepens is an error

@@ -1,4 +1,4 @@
-"""Time of impact: conservative advancement, then bracketing (DESIGN §5).
+"""Time of impact: conservative advancement, then bracketing (docs/design.md §4).
 
 For one pair over ``[0, horizon]`` (times relative to the current state):
 

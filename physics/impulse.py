@@ -1,7 +1,7 @@
 """The impulse law of the seed note (§2.2), in inverse-mass form.
 
-Sign convention (DESIGN §1): the normal ``n`` points **from body a to body b**; lever arms are
-``r_a = p - x_a``, ``r_b = p - x_b``; point velocities ``v_ip = v_i + omega_i x r_i``. For an
+Sign convention (docs/design.md §2): the normal ``n`` points **from body a to body b**; lever arms
+are ``r_a = p - x_a``, ``r_b = p - x_b``; point velocities ``v_ip = v_i + omega_i x r_i``. For an
 approaching pair (``(v_bp - v_ap) . n < 0``)::
 
     j = -(1 + e) (v_bp - v_ap) . n / (1/m_a + 1/m_b + (r_a x n)^2 / I_a + (r_b x n)^2 / I_b)

@@ -8,19 +8,67 @@
   +4 s cold compile).
 * ``jit_parallel``: the same, with ``numba.prange`` spread over threads (the batch kernels).
 
-Every module that uses them is a *kernel module*: ``physics._cache`` finds them by this import
-and drops the compiled cache when any of them changes (numba itself only notices a change of the
-compiled function's own file).
+Every function compiled through them is cached by ``physics.cache`` (a per-user directory, and a
+freshness stamp that covers every module the kernel's module imports); other numba code in the
+process keeps numba's own cache behaviour.
 """
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Callable
+from typing import Any
+
 import numba
+from numba import types
+from numba.extending import overload
 
-__all__ = ["jit", "jit_inline", "jit_parallel"]
+from spinstrike.physics.cache import KernelCache
 
-_OPTIONS = {"cache": True, "nogil": True, "error_model": "numpy"}
+__all__ = ["jit", "jit_inline", "jit_parallel", "static_if"]
 
-jit = numba.njit(**_OPTIONS)
-jit_inline = numba.njit(inline="always", **_OPTIONS)
-jit_parallel = numba.njit(parallel=True, **_OPTIONS)
+
+def _compiler(**options: Any) -> Callable[[Callable[..., Any]], Any]:
+    def decorate(fn: Callable[..., Any]) -> Any:
+        dispatcher = numba.njit(nogil=True, error_model="numpy", **options)(fn)
+        try:
+            dispatcher._cache = KernelCache(fn)  # what numba's enable_caching() sets
+        except RuntimeError as exc:  # no writable cache directory at all
+            warnings.warn(f"spinstrike: kernels are not cached ({exc}); they compile in every "
+                          "process", RuntimeWarning, stacklevel=2)
+        return dispatcher
+
+    return decorate
+
+
+jit = _compiler()
+jit_inline = _compiler(inline="always")
+jit_parallel = _compiler(parallel=True)
+
+
+
+def static_if(fn: Any, negate: bool = False) -> Callable[..., Any]:
+    """A kernel-callable ``g(flag, *args)`` that calls ``fn(*args)`` if ``flag`` (if not
+    ``flag`` with ``negate``): a *static* if when ``flag`` is a compile-time literal
+    (``kernels.FLAGS``), for then a call ruled out is never typed or compiled. numba's own
+    branch pruning does not act on literal booleans, so ``if flag: fn(...)`` would compile
+    ``fn`` for every scene; for a non-literal flag ``g`` is an ordinary run-time ``if``.
+
+    ``g`` is an ``overload`` inlined into its caller (no compiled layer of its own: each layer
+    above the solver costs a compile of its own), which needs ``fn``'s exact parameter list, so
+    ``g`` and its implementations are generated for that arity.
+    """
+    py_func = getattr(fn, "py_func", fn)  # a plain function under NUMBA_DISABLE_JIT
+    params = ", ".join(f"a{i}" for i in range(py_func.__code__.co_argcount))
+    test = "not flag" if negate else "flag"
+    scope: dict[str, Any] = {"fn": fn, "negate": negate, "types": types}
+    exec(f"def g(flag, {params}):\n    if {test}:\n        fn({params})\n"  # noqa: S102
+         f"def skip(flag, {params}):\n    return None\n"
+         f"def typed(flag, {params}):\n"
+         f"    if isinstance(flag, types.BooleanLiteral) and flag.literal_value == negate:\n"
+         f"        return skip\n"
+         f"    return g\n", scope)
+    g = scope["g"]
+    overload(g, prefer_literal=True, inline="always")(scope["typed"])
+    g.__name__ = g.__qualname__ = f"{'unless' if negate else 'if'}_{fn.__name__}"
+    return g

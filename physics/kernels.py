@@ -2,38 +2,44 @@
 step and strike, ``envs/fast.py``) needs to run the world's own solver inside its own loop.
 
 A world keeps every array the kernels touch in two packed buffers (``World.buffers``, laid out
-by ``physics.layout``). A *batch kernel* takes those two buffers first, then its own arrays; it
-calls :func:`unpack` once per block of elements and :func:`step_element` for each element it
-steps, so an env kernel and ``world.step`` run the very same element kernel and agree bit for
-bit. :class:`BatchKernel` bundles a kernel's serial and parallel versions (and, for the pymunk
-backend, which steps outside numba, a Python version); ``World.run`` is the one place that picks
-among them and books the step.
+by ``physics.layout``). A *batch kernel* takes those two buffers first, then its own arrays,
+then the world's compile-time flags (:data:`FLAGS`); it calls :func:`unpack` once per block of
+elements and :func:`step_element` for each element it steps, so an env kernel and
+``world.step`` run the very same element kernel and agree bit for bit. :class:`BatchKernel`
+bundles a kernel's serial and parallel versions (and, for the pymunk backend, which steps
+outside numba, a Python version); ``World.run`` is the one place that picks among them, appends
+the flags and books the step.
+
+**Compile-time flags.** The solver kind, the effects that have code paths of their own and
+whether the scene's contacts can jam are passed as numba *literal* arguments
+(``numba.literally`` in each batch kernel): numba prunes the branches a flag rules out before it
+types them, so code for what a scene does not use is never compiled (the jam block solve alone is
+a quarter of the strike kernel's compile time) and never runs. Each combination is compiled (and
+cached) once.
 """
 
 from __future__ import annotations
 
 from collections import namedtuple
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numba
+import numpy as np
+from numba import literally
 
 from spinstrike.physics.events import pair_bodies, pair_geometry
-from spinstrike.physics.jit import jit, jit_inline, jit_parallel
+from spinstrike.physics.jit import jit, jit_inline, jit_parallel, static_if
 from spinstrike.physics.layout import (
     CF_DT,
     CF_SETTLE,
     CF_TOL,
     CF_ZENO_SPEED,
-    CI_CONTACT_FRICTION,
-    CI_FIXED,
     CI_ITERATIONS,
     CI_MAX_EVENTS,
     CI_MAX_ITERATIONS,
-    CI_ROTATION,
     CI_SUBSTEPS,
-    CI_TABLE_FRICTION,
     CI_ZENO_IMPACTS,
     F_CREC,
     F_FCFG,
@@ -71,7 +77,7 @@ from spinstrike.physics.layout import (
 )
 from spinstrike.physics.solvers import exact_element, fixed_element
 
-__all__ = ["BLOCK", "STEP", "BatchKernel", "Views", "element_overlap", "n_blocks",
+__all__ = ["BLOCK", "FLAGS", "STEP", "BatchKernel", "Views", "element_overlap", "n_blocks",
            "step_element", "unpack"]
 
 #: elements per block of the parallel kernels (each block unpacks the buffers once)
@@ -126,26 +132,34 @@ def unpack(fbuf, ibuf):
                  clock)
 
 
+#: the compile-time flags every batch kernel takes last, in this order (``World.flags``): the
+#: solver is ``fixed`` (else exact); the ``rotation``, ``contact_friction`` and
+#: ``table_friction`` effects; the scene's contacts can ``jam`` (two or more contact pairs, or
+#: contact friction: otherwise sequential impulses always converge in one sweep)
+FLAGS = ("fixed", "rotation", "contact_friction", "table_friction", "jam")
+
+
+#: one solver or the other, by the world's literal ``fixed`` flag: the other is never compiled
+_fixed_if = static_if(fixed_element)
+_exact_unless = static_if(exact_element, negate=True)
+
+
 @jit
-def step_element(v, b, dt, trace=None):
-    """Advance element b of a world's views by dt seconds with the world's solver (``fixed``
-    or ``exact``, from its int config), from statistics zeroed here; the clock advances too.
-    ``trace``: the solvers' optional trace hook (``solvers.Trace``), passed through."""
+def step_element(v, b, dt, fixed, rotation, contact_friction, table_friction, jam, trace=None):
+    """Advance element b of a world's views by dt seconds with the world's solver, from
+    statistics zeroed here; the clock advances too. ``fixed`` to ``jam`` are the world's
+    compile-time flags (:data:`FLAGS`); ``trace``: the solvers' trace hook (``solvers.Trace``),
+    passed through (None: nothing recorded, the hook compiled away)."""
     v.stats[b, :] = 0
     v.clock[b] += dt
-    rotation = v.icfg[CI_ROTATION] != 0
-    cf = v.icfg[CI_CONTACT_FRICTION] != 0
-    tf = v.icfg[CI_TABLE_FRICTION] != 0
-    if v.icfg[CI_FIXED] != 0:
-        fixed_element(v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,
-                      v.icfg[CI_SUBSTEPS], v.icfg[CI_ITERATIONS], 0.0, 0.0, rotation, cf, tf,
-                      v.cpair[b], v.crec[b], v.stats[b], v.changed[b], 1, trace)
-    else:
-        exact_element(v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,
-                      v.fcfg[CF_TOL], v.icfg[CI_MAX_EVENTS], v.icfg[CI_MAX_ITERATIONS],
-                      v.fcfg[CF_ZENO_SPEED], v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE],
-                      rotation, cf, tf, v.cpair[b], v.crec[b], v.stats[b], v.toi[b], v.kind[b],
-                      v.changed[b], trace)
+    _fixed_if(fixed, v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,
+              v.icfg[CI_SUBSTEPS], v.icfg[CI_ITERATIONS], 0.0, 0.0, rotation, contact_friction,
+              table_friction, v.cpair[b], v.crec[b], v.stats[b], v.changed[b], 1, False, trace)
+    _exact_unless(fixed, v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,
+                  v.fcfg[CF_TOL], v.icfg[CI_MAX_EVENTS], v.icfg[CI_MAX_ITERATIONS],
+                  v.fcfg[CF_ZENO_SPEED], v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE], rotation,
+                  contact_friction, table_friction, jam, v.cpair[b], v.crec[b], v.stats[b],
+                  v.toi[b], v.kind[b], v.changed[b], trace)
 
 
 @jit
@@ -167,31 +181,31 @@ def n_blocks(n):
     return (n + BLOCK - 1) // BLOCK
 
 
-# The world's own step. Batch kernels unpack the buffers once per block of elements, not per
-# element (unpacking makes sixteen views, each with reference-count traffic: 0.7 us an element
-# when done inside the loop); the parallel one spreads blocks over the threads.
+# The world's own step. A batch kernel's body steps a range of elements and unpacks the buffers
+# once for it, not per element (unpacking makes sixteen views, each with reference-count
+# traffic: 0.7 us an element when done inside the loop); the serial version is the body over the
+# whole batch, called directly (every compiled layer above the solver costs its own compile, as
+# numba links and optimises a function's callees again), and the parallel version spreads blocks
+# of elements over the threads.
 
 
 @jit
-def _step_range(fbuf, ibuf, start, stop):
+def step_body(fbuf, ibuf, start, stop, fixed, rotation, cf, tf, jam):
+    """Step elements ``start..stop-1`` of a world by its ``dt`` (``fcfg``)."""
+    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam)
     v = unpack(fbuf, ibuf)
     dt = v.fcfg[CF_DT]
     for b in range(start, stop):
-        step_element(v, b, dt)
-
-
-@jit
-def step_serial(fbuf, ibuf):
-    """Step every element of a world by its ``dt`` (``fcfg``), in this thread."""
-    _step_range(fbuf, ibuf, 0, ibuf[H_B])
+        step_element(v, b, dt, fixed, rotation, cf, tf, jam)
 
 
 @jit_parallel
-def step_parallel(fbuf, ibuf):
-    """:func:`step_serial` in parallel threads, a block of elements per task."""
+def step_parallel(fbuf, ibuf, fixed, rotation, cf, tf, jam):
+    """:func:`step_body` over the whole batch in parallel threads, a block of elements a task."""
+    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam)
     n = ibuf[H_B]
     for k in numba.prange(n_blocks(n)):
-        _step_range(fbuf, ibuf, k * BLOCK, min(n, (k + 1) * BLOCK))
+        step_body(fbuf, ibuf, k * BLOCK, min(n, (k + 1) * BLOCK), fixed, rotation, cf, tf, jam)
 
 
 @dataclass(frozen=True)
@@ -200,16 +214,40 @@ class BatchKernel:
 
     Attributes:
         name: what it does (for error messages).
-        serial: ``serial(fbuf, ibuf, *args)``, compiled, in this thread.
+        body: ``body(fbuf, ibuf, *args, start, stop, *flags)``, compiled: elements
+            ``start..stop-1``, in this thread (``flags``: the world's :data:`FLAGS`, literal
+            arguments); the serial version is the body over the whole batch.
         parallel: the same in parallel threads (used from ``world.PARALLEL_BATCH`` elements).
         stepwise: ``stepwise(world, *args)`` in Python for a world on the pymunk backend, which
             steps outside numba (``None``: not available there).
     """
 
     name: str
-    serial: Callable[..., Any]
+    body: Callable[..., Any]
     parallel: Callable[..., Any]
     stepwise: Callable[..., Any] | None = None
+    _entries: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def __call__(self, parallel: bool, fbuf: np.ndarray, ibuf: np.ndarray, args: tuple,
+                 flags: tuple[bool, ...]) -> Any:
+        """Run the parallel version, or the body over the whole batch, with literal ``flags``.
+
+        The specialisation for the argument types and these literal flags is compiled (or
+        loaded from the cache) on first use and its entry point kept: a dispatcher called with
+        plain booleans for ``literally`` arguments would re-run numba's front end on every call
+        (4 ms), and its first, non-literal attempt would count as a cache miss.
+        """
+        if not parallel:
+            args = (*args, 0, int(ibuf[H_B]))
+        entry = self._entries.get((parallel, flags))
+        if entry is None:
+            dispatcher = self.parallel if parallel else self.body
+            if not hasattr(dispatcher, "compile"):  # NUMBA_DISABLE_JIT: a plain function
+                return dispatcher(fbuf, ibuf, *args, *flags)
+            sig = (*(numba.typeof(a) for a in (fbuf, ibuf, *args)),
+                   *(numba.types.literal(f) for f in flags))
+            entry = self._entries[parallel, flags] = dispatcher.compile(sig)
+        return entry(fbuf, ibuf, *args, *flags)
 
 
 def _backend_step(world) -> None:
@@ -217,4 +255,4 @@ def _backend_step(world) -> None:
 
 
 #: the world's own step (``World.step``)
-STEP = BatchKernel("step", step_serial, step_parallel, _backend_step)
+STEP = BatchKernel("step", step_body, step_parallel, _backend_step)

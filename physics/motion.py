@@ -1,6 +1,6 @@
 """Free flight in closed form, and the conservative-advancement bound built on it.
 
-Between contacts each body moves in closed form (DESIGN §5):
+Between contacts each body moves in closed form (docs/design.md §4):
 
 * a free body without table friction: straight line at constant velocity;
 * a driven body under a constant applied force F: parabola ``x + v t + F t^2 / (2 m)``

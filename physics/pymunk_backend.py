@@ -1,4 +1,4 @@
-"""The ``pymunk`` solver: the same scene on Chipmunk2D through pymunk (DESIGN §5).
+"""The ``pymunk`` solver: the same scene on Chipmunk2D through pymunk (docs/design.md §4).
 
 This is the peer most users would pick instead of the exact solver, kept here so that the
 accuracy benchmark can price both on the same scenes. ``physics.World`` builds a

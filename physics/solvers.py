@@ -22,8 +22,9 @@ guards keep a step finite:
 ``slop``) and approach get impulses from that (overlapped) pose, ``iterations`` sweeps, then
 overlaps are pushed apart along the normal in proportion to the inverse masses.
 
-Both take an optional :data:`Trace` (the *trace hook*, below): a renderer's record of one
-element's trajectory. Without it (the default) the hook's branches are compiled away.
+Both take a :data:`Trace` or None (the *trace hook*, below): a renderer's record of one
+element's trajectory. With None (every step but a filmed strike's) the hook's branches are
+compiled away.
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from __future__ import annotations
 import math
 from collections import namedtuple
 
+import numba
 import numpy as np
 
 from spinstrike.physics.events import far_apart, pair_bodies, pair_geometry, time_of_impact
@@ -46,7 +48,7 @@ from spinstrike.physics.jam import (
     MAX_JAM_PAIRS,
     jam_impulses,
 )
-from spinstrike.physics.jit import jit, jit_inline
+from spinstrike.physics.jit import jit, jit_inline, static_if
 from spinstrike.physics.layout import (
     ANGLE,
     CHECKPOINT,
@@ -99,9 +101,9 @@ MAX_SETTLE_SUBSTEPS = 1_000_000
 # Between two entries every body is in closed-form free flight (``motion.flight``, what
 # ``_advance`` computes), so the state at any time t is the last entry at or before t flown by
 # the remaining time: frames sampled that way lie on the very trajectory the solver computed.
-# Calls without a trace (``trace`` omitted: None) compile the hook's branches away, so the
-# physics and its cost are unchanged. Carried over by any rewrite of the event loop: call
-# ``trace_state`` wherever the state has just changed other than by free flight.
+# With ``trace`` None, numba prunes the hook's branches (an ``is None`` test of an argument),
+# so the physics and its cost are unchanged. Carried over by any rewrite of the event loop:
+# call ``trace_state`` wherever the state has just changed other than by free flight.
 # ---------------------------------------------------------------------------------------------
 
 #: a trajectory trace: ``time [K]`` (s, from the start of the step), ``state [K, N, 6]`` (the
@@ -219,11 +221,18 @@ def _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, crec, stats)
             changed[b] = 1
 
 
+#: the block solve, compiled only for scenes whose contacts can jam (``kernels.FLAGS``)
+_jam_if = static_if(_jam)
+
+
 @jit
 def _sweeps(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_friction, changed,
             cpair, crec, stats, sweeps, jam):
     """Up to ``sweeps`` contact passes until none hits; then, if ``jam`` and the last pass still
-    hit, the block solve of the jam. Returns the number of resting bounces seen."""
+    hit, the block solve of the jam. Returns the number of resting bounces seen.
+
+    ``jam`` is a compile-time flag (``kernels.FLAGS``): a world whose contacts cannot jam (one
+    contact pair, no contact friction) never compiles the block solve."""
     resting = 0
     hit = False
     for _ in range(sweeps):
@@ -232,8 +241,8 @@ def _sweeps(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_frict
         resting += r
         if not hit:
             break
-    if hit and jam:
-        _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, crec, stats)
+    if hit:
+        _jam_if(jam, S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, crec, stats)
     return resting
 
 
@@ -333,28 +342,35 @@ def _kick(S, Pm, F, h, rotation, table_friction):
 @jit
 def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, rotation,
                   contact_friction, table_friction, cpair, crec, stats, changed,
-                  separate_sweeps=1, trace=None):
+                  separate_sweeps, jam, trace):
     """Advance one element by T seconds in ``substeps`` fixed substeps.
 
     ``separate_sweeps``: positional-correction sweeps per substep, repeated while one still
     corrects an overlap deeper than ``slop``. The plain fixed solver uses 1 (its documented,
     cheap behaviour); the exact solver's settling uses ``MAX_SWEEPS`` so that a chain of
-    contacts (mallet -> puck -> cushion) is not left overlapping. ``trace``: the trace hook
-    (records the state after every substep).
+    contacts (mallet -> puck -> cushion) is not left overlapping. ``jam``: the sweeps end in the
+    block solve of a jam (settling only, and only where contacts can jam). ``trace``: the trace
+    hook (a ``Trace``: the state after every substep), or None.
     """
     h = T / substeps
     for k in range(substeps):
         _kick(S, Pm, F, h, rotation, table_friction)
         t = t0 + (k + 1) * h
-        # settling (several separation sweeps) also takes the block solve of a jam
         _sweeps(S, Pm, hw, PA, PB, MAT, slop, 0.0, t, rotation, contact_friction, changed,
-                cpair, crec, stats, iterations, separate_sweeps > 1)
+                cpair, crec, stats, iterations, jam)
         for sweep in range(separate_sweeps):
             if _separate(S, Pm, hw, PA, PB, sweep == 0, rotation and separate_sweeps > 1) <= slop:
                 break
         if trace is not None:  # the trace hook
             trace_state(trace, t, S)
     stats[STAT_SUBSTEPS] += substeps
+
+
+@jit_inline
+def _int(value):
+    """``value`` as a plain int64: a constant passed on would make numba compile the callee once
+    more for its literal type."""
+    return numba.int64(value)
 
 
 @jit_inline
@@ -391,12 +407,15 @@ def _settle_substeps(S, Pm, F, PA, PB, T, settle_substep):
 @jit
 def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
                   zeno_impacts, settle_substep, rotation, contact_friction, table_friction,
-                  cpair, crec, stats, toi, kind, changed, trace=None):
+                  jam, cpair, crec, stats, toi, kind, changed, trace):
     """Advance one element by dt seconds, event by event.
 
     ``toi``, ``kind`` (per pair) and ``changed`` (per body) are the element's scratch rows;
-    ``trace``: the trace hook (records the state after every event that resolved contacts).
+    ``rotation``, ``contact_friction``, ``table_friction`` and ``jam`` are compile-time flags
+    (``kernels.FLAGS``); ``trace``: the trace hook (a ``Trace``: the state after every event
+    that resolved contacts), or None.
     """
+    sweeps = _int(MAX_SWEEPS)
     n_pairs = PA.shape[0]
     iterations = 0
     for p in range(n_pairs):
@@ -431,8 +450,7 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
                 resting += 1
         else:
             resting += _sweeps(S, Pm, hw, PA, PB, MAT, tol, zeno_speed, t_now, rotation,
-                               contact_friction, changed, cpair, crec, stats,
-                               MAX_SWEEPS, True)
+                               contact_friction, changed, cpair, crec, stats, sweeps, jam)
             if trace is not None:  # the trace hook
                 trace_state(trace, t_now, S)
         horizon = dt - t_now
@@ -446,9 +464,9 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
         if events >= max_events or resting >= zeno_impacts:
             if t_now < dt:
                 substeps = _settle_substeps(S, Pm, F, PA, PB, dt - t_now, settle_substep)
-                fixed_element(S, Pm, F, hw, PA, PB, MAT, dt - t_now, substeps, MAX_SWEEPS, tol,
+                fixed_element(S, Pm, F, hw, PA, PB, MAT, dt - t_now, substeps, sweeps, tol,
                               t_now, rotation, contact_friction, table_friction, cpair, crec,
-                              stats, changed, MAX_SWEEPS, trace)
+                              stats, changed, sweeps, jam, trace)
                 stats[STAT_FALLBACK] = 1
             break
     stats[STAT_EVENTS] += events

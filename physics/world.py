@@ -252,6 +252,9 @@ class World:
         self._make_views()
         self._backend = None
         self._parallel = B >= PARALLEL_BATCH
+        #: compile-time flags of the kernels (kernels.FLAGS)
+        self.flags = (isinstance(self.solver, FixedSolver), self.rotation, self.contact_friction,
+                      self.table_friction, len(self._pair_a) >= 2 or self.contact_friction)
         self._dt = 0.0
         self._last_step: StepStats | None = None
         self._last_contacts: Contacts | None = None
@@ -632,7 +635,8 @@ class World:
         """Run a compiled batch kernel over this world (the one place that dispatches a step).
 
         Sets the step length ``dt`` (s) if given, runs the kernel's parallel version from
-        ``PARALLEL_BATCH`` elements and its serial one below, or its Python version on the
+        ``PARALLEL_BATCH`` elements and its serial one below (the world's compile-time
+        ``flags`` appended to ``args``, see ``kernels.FLAGS``), or its Python version on the
         pymunk backend, then books the step (``last_step``, ``last_contacts``). Returns what
         the kernel returns.
         """
@@ -642,10 +646,8 @@ class World:
             if kernel.stepwise is None:
                 raise SceneError(f"{kernel.name}: not available on the pymunk backend")
             result = kernel.stepwise(self, *args)
-        elif self._parallel:
-            result = kernel.parallel(self._fbuf, self._ibuf, *args)
         else:
-            result = kernel.serial(self._fbuf, self._ibuf, *args)
+            result = kernel(self._parallel, self._fbuf, self._ibuf, args, self.flags)
         # the statistics and contact records stay in the buffers until the next step: last_step
         # and last_contacts copy them out on first use
         self._last_step = None

@@ -6,20 +6,32 @@ world's end state), and the exact solver records one state per contact instant."
 
 import numpy as np
 import pytest
+from numba import literally
 
 from spinstrike import physics
 from spinstrike.envs.fast import sample_trace
-from spinstrike.physics.kernels import step_element, unpack
+from spinstrike.physics.jit import jit
+from spinstrike.physics.kernels import BatchKernel, step_element, unpack
 from spinstrike.physics.solvers import TRACE_COUNT, TRACE_DROPPED, TRACE_ENTRIES, Trace
 from tests.physics import golden
 from tests.stability.catalogue import _pressed_scenes
 
 STEPS = 40
+SIZE = 4096
 
 
-def _trace(n_bodies: int, size: int = 4096) -> Trace:
-    return Trace(np.zeros(size), np.zeros((size, n_bodies, 6)),
-                 np.zeros(len(TRACE_COUNT), dtype=np.int64))
+@jit
+def _traced_step(fbuf, ibuf, dt, times, states, counts, start, stop, fixed, rotation, cf, tf,
+                 jam):
+    """The world's step, element b traced into row b of ``times``, ``states``, ``counts``."""
+    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam)
+    v = unpack(fbuf, ibuf)
+    for b in range(start, stop):
+        step_element(v, b, dt, fixed, rotation, cf, tf, jam,
+                     Trace(times[b], states[b], counts[b]))
+
+
+TRACED_STEP = BatchKernel("traced step", _traced_step, _traced_step)
 
 
 def _scenarios():
@@ -54,15 +66,16 @@ def test_a_traced_step_is_the_same_step(name):
         start = traced.get_state()["state"].copy()
         c = plain.step(golden.DT)
         settled += int(plain.last_step.fallback.sum())
+        times_all = np.zeros((batch, SIZE))
+        states_all = np.zeros((batch, SIZE, n, 6))
+        counts = np.zeros((batch, len(TRACE_COUNT)), dtype=np.int64)
+        traced.run(TRACED_STEP, golden.DT, times_all, states_all, counts, dt=golden.DT)
         buf = traced.buffers
-        v = unpack(buf.fbuf, buf.ibuf)
         for b in range(batch):
-            tr = _trace(n)
-            step_element(v, b, golden.DT, tr)
-            k = int(tr.count[TRACE_ENTRIES])
-            assert tr.count[TRACE_DROPPED] == 0
+            k = int(counts[b, TRACE_ENTRIES])
+            assert counts[b, TRACE_DROPPED] == 0
             recorded += k
-            times = tr.time[:k]
+            times = times_all[b, :k]
             mine = c.time[c.batch == b]
             if fixed:  # one state per substep
                 assert k == 8
@@ -71,7 +84,7 @@ def test_a_traced_step_is_the_same_step(name):
             assert (np.diff(times) >= 0).all()
             # the start of the step and the recorded states, flown to its end: its end state
             key_time = np.concatenate([[0.0], times])
-            key_state = np.concatenate([start[b][None], tr.state[:k]])
+            key_state = np.concatenate([start[b][None], states_all[b, :k]])
             end = np.empty((1, n, 6))
             sample_trace(buf.fbuf, buf.ibuf, b, key_time, key_state, np.array([golden.DT]),
                          end)

@@ -108,8 +108,8 @@ def _seed_scene(theta, m1, m2, r=0.2, V=1.0, gap=0.05, thickness=1e-3, radius=0.
 
 
 def _seed_closed_form(m1, m2, r, theta, V):
-    """Seed §1 (e = 1), written out directly from DESIGN §1 so that no term cancels: (V1, V2,
-    omega1 signed CCW for the set-up of :func:`_seed_scene`)."""
+    """Seed §1 (e = 1), written out directly from docs/design.md §2 so that no term cancels:
+    (V1, V2, omega1 signed CCW for the set-up of :func:`_seed_scene`)."""
     c = math.cos(theta)
     den = m1 + (3 * c * c + 1) * m2
     return ((m1 + (3 * c * c - 1) * m2) / den * V, 2 * m1 / den * V, 6 * m2 * c * V / (den * r))

@@ -1,0 +1,138 @@
+"""The compiled-kernel cache: its own directory, and freshness over a kernel's import closure.
+
+Runs a copy of the package (so its sources can be edited) in fresh processes with its own
+``SPINSTRIKE_CACHE_DIR``, and reads numba's cache hits and misses of three small kernels:
+``contacts.capsule_capsule``, ``motion.slide`` (neither imports the other) and
+``events.geometry`` (imports both). An edit of ``contacts.py`` must recompile the two kernels
+that depend on it and reuse the third — numba alone would reuse ``events.geometry`` stale.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import spinstrike
+
+PROBE = """
+import json
+from spinstrike.physics import contacts, events, motion
+contacts.capsule_capsule(0.0, 0.0, 0.0, 0.1, 0.02, 0.5, 0.0, 0.0, 0.1, 0.02)
+motion.slide(0.0, 0.0, 1.0, 0.0, 0.5, 0.1)
+events.geometry(0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.1, 0.02, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.1,
+                0.02, -1, 1.0, 1.0)
+print(json.dumps({f.__name__: [sum(f.stats.cache_hits.values()),
+                               sum(f.stats.cache_misses.values()), f.stats.cache_path]
+                  for f in (contacts.capsule_capsule, motion.slide, events.geometry)}))
+"""
+
+
+def _copy_package(dest: Path) -> Path:
+    """A runnable copy of the installed package tree: ``dest/spinstrike/{physics,envs,...}``."""
+    root = dest / "spinstrike"
+    root.mkdir(parents=True)
+    shutil.copy(spinstrike.__file__, root / "__init__.py")
+    for name in ("physics", "envs", "agents", "benchmarks", "configs"):
+        src = Path(importlib.import_module(f"spinstrike.{name}").__path__[0])
+        shutil.copytree(src, root / name, ignore=shutil.ignore_patterns("__pycache__"))
+    return root
+
+
+def _probe(tree: Path, cache: Path) -> dict:
+    env = dict(os.environ, PYTHONPATH=str(tree), SPINSTRIKE_CACHE_DIR=str(cache),
+               SPINSTRIKE_QUIET="1")
+    out = subprocess.run([sys.executable, "-c", PROBE], env=env, cwd=tree, capture_output=True,
+                         text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_cache_lives_in_its_own_directory_and_follows_the_import_closure(tmp_path):
+    tree = tmp_path / "tree"
+    root = _copy_package(tree)
+    cache = tmp_path / "cache"
+
+    first = _probe(tree, cache)
+    assert all(misses > 0 for _, misses, _ in first.values()), first
+    for _, _, path in first.values():
+        assert Path(path).is_relative_to(cache), path
+    # nothing was written beside the sources
+    assert not list(root.rglob("*.nbi")) and not list(root.rglob("*.nbc"))
+
+    again = _probe(tree, cache)
+    assert all(hits > 0 and misses == 0 for hits, misses, _ in again.values()), again
+
+    contacts = root / "physics" / "contacts.py"
+    contacts.write_text(contacts.read_text() + "\n# an edit\n")
+    edited = _probe(tree, cache)
+    assert edited["capsule_capsule"][1] > 0, "its own file changed"
+    assert edited["geometry"][1] > 0, "events.py imports contacts.py: its kernel is stale"
+    assert edited["slide"][0] > 0 and edited["slide"][1] == 0, "motion.py does not depend on it"
+
+
+def test_cache_command_reports_and_clears(tmp_path):
+    cache = tmp_path / "cache"
+    (cache / "physics_x").mkdir(parents=True)
+    (cache / "physics_x" / "k.nbi").write_bytes(b"x" * 10)
+    env = dict(os.environ, SPINSTRIKE_CACHE_DIR=str(cache))
+    script = Path(sys.executable).with_name("spinstrike")
+    out = subprocess.run([str(script), "cache"], env=env, capture_output=True, text=True,
+                         cwd=tmp_path, timeout=300)
+    assert out.returncode == 0 and str(cache) in out.stdout and "1 files" in out.stdout
+    out = subprocess.run([str(script), "cache", "--clear"], env=env, capture_output=True,
+                         text=True, cwd=tmp_path, timeout=300)
+    assert out.returncode == 0 and "removed 1" in out.stdout
+    assert not cache.exists()
+
+
+def test_importing_creates_no_cache_directory(tmp_path):
+    cache = tmp_path / "never"
+    env = dict(os.environ, SPINSTRIKE_CACHE_DIR=str(cache))
+    out = subprocess.run([sys.executable, "-c", "import spinstrike.envs.fast"], env=env,
+                         capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert not cache.exists()
+
+
+@pytest.mark.parametrize("value", ["", None])
+def test_default_location_is_the_user_cache(monkeypatch, value):
+    from spinstrike.physics.cache import cache_dir
+
+    if value is None:
+        monkeypatch.delenv("SPINSTRIKE_CACHE_DIR", raising=False)
+    else:
+        monkeypatch.setenv("SPINSTRIKE_CACHE_DIR", value)
+    path = cache_dir()
+    assert path.name == "kernels" and "spinstrike" in path.parts
+    assert not path.is_relative_to(Path(spinstrike.__file__).parent.parent)
+
+
+def test_warm_up_compiles_an_envs_kernels_for_the_next_process(tmp_path):
+    """``spinstrike.envs.warm`` (what ``spinstrike train`` starts while PyTorch imports) leaves
+    the env's kernels in the cache: the next process's strike is a cache hit, not a compile."""
+    cache = tmp_path / "cache"
+    env = dict(os.environ, SPINSTRIKE_CACHE_DIR=str(cache), SPINSTRIKE_QUIET="1")
+    code = ("import os; from spinstrike.envs.warm import warm_up; "
+            "assert warm_up('SpinStrike/PuckSpeed-v0', 2, {'restitution': 0.8}).wait()")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                         cwd=tmp_path, timeout=600)
+    assert out.returncode == 0, out.stderr
+    check = ("import gymnasium as gym, numpy as np, spinstrike\n"
+             "from spinstrike.envs import fast\n"
+             "v = gym.make_vec('SpinStrike/PuckSpeed-v0', num_envs=2, restitution=0.8,\n"
+             "                 vectorization_mode='vector_entry_point')\n"
+             "v.reset(seed=1); v.step(np.zeros((2, 3), np.float32))\n"
+             "s = fast.strike_body.stats\n"
+             "print(sum(s.cache_hits.values()), sum(s.cache_misses.values()))\n")
+    out = subprocess.run([sys.executable, "-c", check], env=env, capture_output=True, text=True,
+                         cwd=tmp_path, timeout=600)
+    assert out.returncode == 0, out.stderr
+    hits, misses = map(int, out.stdout.split())
+    assert hits >= 1 and misses == 0
