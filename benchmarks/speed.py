@@ -187,33 +187,41 @@ def _ppo_env_share(steps: int) -> float:
 
 
 _STARTUP = """
-import time
+import sys, time
 t = time.perf_counter()
-import gymnasium as gym, numpy as np, envs
-env = gym.make("SpinStrike/RodSpinControl-v0")
+import gymnasium as gym, numpy as np
+import spinstrike
+env = gym.make(sys.argv[1])
 env.reset(seed=0)
-env.step(np.zeros(2, np.float32))
-vec = gym.make_vec("SpinStrike/RodSpin-v0", num_envs=2)
-vec.reset(seed=0)
-vec.step(np.zeros((2, 3), np.float32))
-print(time.perf_counter() - t)
+for k in range(1000):
+    _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+    if k == 0:
+        first = time.perf_counter() - t
+    if terminated or truncated:
+        env.reset()
+print(first, time.perf_counter() - t)
 """
 
 
-def _startup_times() -> tuple[float, float]:
-    """(cold, warm) seconds from ``import`` to the first steps of a control and a one-strike
-    env: cold with an empty numba cache (every kernel compiles), warm with it filled."""
+def _startup_times(env_ids: list[str]) -> dict[str, tuple[float, float, float, float]]:
+    """Per env id, seconds from a fresh interpreter's ``import`` to the first and the 1000th
+    step of a single env: (cold first, cold 1000th, warm first, warm 1000th); cold with an empty
+    kernel cache of its own (every kernel the env needs compiles), warm with it filled."""
     import subprocess
     import tempfile
 
-    with tempfile.TemporaryDirectory() as cache:
-        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
-        times = []
-        for _ in range(2):
-            out = subprocess.run([sys.executable, "-c", _STARTUP], env=env, check=True,
-                                 capture_output=True, text=True)
-            times.append(float(out.stdout.strip().splitlines()[-1]))
-    return times[0], times[1]
+    times = {}
+    for env_id in env_ids:
+        with tempfile.TemporaryDirectory() as cache:
+            env = dict(os.environ, SPINSTRIKE_CACHE_DIR=cache, SPINSTRIKE_QUIET="1")
+            row = []
+            for _ in range(2):
+                out = subprocess.run([sys.executable, "-c", _STARTUP, env_id], env=env,
+                                     check=True, capture_output=True, text=True,
+                                     cwd=tempfile.gettempdir())
+                row += [float(x) for x in out.stdout.strip().splitlines()[-1].split()]
+        times[env_id] = tuple(row)
+    return times
 
 
 def _many_pucks_scene(n_pucks: int) -> dict:
@@ -316,11 +324,9 @@ def main(argv: list[str] | None = None) -> int:
     row("RodSpin-v0 native vector env, 1024 envs, random strikes", strike_vec, c5, "strikes/s")
     puck_vec, c6 = _vector_rate("SpinStrike/PuckSpeed-v0", 1024, 10, reps)
     row("PuckSpeed-v0 native vector env, 1024 envs, random strikes", puck_vec, c6, "strikes/s")
-    cold, warm = _startup_times()
-    rows.append(("start-up to the first steps, numba cache empty (every kernel compiles)", cold,
-                 "-", "s", ""))
-    rows.append(("start-up to the first steps, numba cache filled", warm, "-", "s", ""))
-    print(f"start-up: cold {cold:.1f} s, warm {warm:.1f} s")
+    startup = _startup_times(list(envs.ENV_IDS))
+    for env_id, (c1, c1000, w1, w1000) in startup.items():
+        print(f"start-up {env_id}: cold {c1:.1f} / {c1000:.1f} s, warm {w1:.1f} / {w1000:.1f} s")
     share = _ppo_env_share(8192 if quick else 32768)
     rows.append(("share of SB3 PPO wall time spent in the env (16 envs, native adapter)", share,
                  "-", "fraction", ""))
@@ -356,6 +362,15 @@ def main(argv: list[str] | None = None) -> int:
         value = f"{rate:.3f}" if unit == "fraction" else (
             f"{rate:.1f}" if unit == "s" else f"{rate:,.0f}")
         lines.append(f"| {what} | {value} | {unit} | {c} |")
+    lines += ["", "## Start-up", "",
+              "Seconds from a fresh interpreter's `import` to a single env's first and 1000th "
+              "step (`gym.make`, random actions), with an empty kernel cache of its own (every "
+              "kernel the env needs compiles; one line on stderr says so) and with it filled. "
+              "Each env compiles only what its scene uses (`docs/design.md` §5).", "",
+              "| env | first step, cache empty | 1000th step, cache empty | first step, "
+              "cache filled | 1000th step, cache filled |", "|---|---|---|---|---|"]
+    lines += [f"| `{env_id}` | {c1:.1f} | {c1000:.1f} | {w1:.1f} | {w1000:.1f} |"
+              for env_id, (c1, c1000, w1, w1000) in startup.items()]
     lines += ["", "Ratios in this run:", "",
               "* native vector env (random) / SyncVectorEnv on pymunk: "
               f"**{vec_rand / sync_rate:.1f}x**",

@@ -12,6 +12,7 @@ import ast
 import os
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
@@ -96,6 +97,8 @@ def test_console_script_and_benchmark_modules(tmp_path):
 
 
 def _imported_modules(path: Path):
+    """Modules a source file imports, including in code it carries as strings (snippets run in
+    subprocesses: ``python -c``)."""
     tree = ast.parse(path.read_text(), str(path))
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
@@ -103,6 +106,18 @@ def _imported_modules(path: Path):
                 yield node.lineno, alias.name
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
             yield node.lineno, node.module
+        elif (isinstance(node, ast.Constant) and isinstance(node.value, str)
+              and "import" in node.value):
+            try:
+                snippet = ast.parse(textwrap.dedent(node.value))
+            except SyntaxError:
+                continue
+            for inner in ast.walk(snippet):
+                if isinstance(inner, ast.Import):
+                    for alias in inner.names:
+                        yield node.lineno, alias.name
+                elif isinstance(inner, ast.ImportFrom) and inner.level == 0 and inner.module:
+                    yield node.lineno, inner.module
 
 
 def _sources():
@@ -113,8 +128,8 @@ def _sources():
 
 
 def test_no_source_imports_a_bare_name():
-    """The same rule as ruff's ``banned-api`` (pyproject), checked without ruff installed (the
-    snippets run in subprocesses above are strings: those tests check them)."""
+    """The same rule as ruff's ``banned-api`` (pyproject), checked without ruff installed, and
+    also inside code carried as strings (which ruff does not read)."""
     bad = [f"{path.relative_to(REPO)}:{line}: {mod}" for path in _sources()
            for line, mod in _imported_modules(path) if mod.split(".")[0] in BARE]
     assert not bad, "bare imports (use spinstrike.<name>):\n" + "\n".join(bad)
