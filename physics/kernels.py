@@ -228,26 +228,28 @@ class BatchKernel:
     stepwise: Callable[..., Any] | None = None
     _entries: dict = field(default_factory=dict, compare=False, repr=False)
 
-    def __call__(self, parallel: bool, fbuf: np.ndarray, ibuf: np.ndarray, args: tuple,
-                 flags: tuple[bool, ...]) -> Any:
-        """Run the parallel version, or the body over the whole batch, with literal ``flags``.
+    def entry(self, parallel: bool, fbuf: np.ndarray, ibuf: np.ndarray, args: tuple,
+              tail: tuple) -> Callable[..., Any]:
+        """The compiled callable to run as ``entry(fbuf, ibuf, *args, *tail)``: the parallel
+        version (``tail``: the literal ``flags``) or the body (``tail``: ``0, B, *flags``).
 
-        The specialisation for the argument types and these literal flags is compiled (or
-        loaded from the cache) on first use and its entry point kept: a dispatcher called with
-        plain booleans for ``literally`` arguments would re-run numba's front end on every call
+        The specialisation for the argument types and the literal flags is compiled (or loaded
+        from the cache) once and its entry point returned: a dispatcher called with plain
+        booleans for ``literally`` arguments would re-run numba's front end on every call
         (4 ms), and its first, non-literal attempt would count as a cache miss.
         """
-        if not parallel:
-            args = (*args, 0, int(ibuf[H_B]))
-        entry = self._entries.get((parallel, flags))
+        dispatcher = self.parallel if parallel else self.body
+        if not hasattr(dispatcher, "compile"):  # NUMBA_DISABLE_JIT: a plain function
+            return dispatcher
+        n_flags = len(FLAGS)
+        key = (parallel, tail[-n_flags:])
+        entry = self._entries.get(key)
         if entry is None:
-            dispatcher = self.parallel if parallel else self.body
-            if not hasattr(dispatcher, "compile"):  # NUMBA_DISABLE_JIT: a plain function
-                return dispatcher(fbuf, ibuf, *args, *flags)
-            sig = (*(numba.typeof(a) for a in (fbuf, ibuf, *args)),
-                   *(numba.types.literal(f) for f in flags))
-            entry = self._entries[parallel, flags] = dispatcher.compile(sig)
-        return entry(fbuf, ibuf, *args, *flags)
+            plain = (fbuf, ibuf, *args, *tail[:-n_flags])
+            sig = (*(numba.typeof(a) for a in plain),
+                   *(numba.types.literal(f) for f in tail[-n_flags:]))
+            entry = self._entries[key] = dispatcher.compile(sig)
+        return entry
 
 
 def _backend_step(world) -> None:

@@ -255,6 +255,10 @@ class World:
         #: compile-time flags of the kernels (kernels.FLAGS)
         self.flags = (isinstance(self.solver, FixedSolver), self.rotation, self.contact_friction,
                       self.table_friction, len(self._pair_a) >= 2 or self.contact_friction)
+        #: what follows a batch kernel's own arguments: the flags (parallel), or the range of
+        #: elements then the flags (the serial body); and the kernels' compiled entry points
+        self._tail = self.flags if self._parallel else (0, B, *self.flags)
+        self._entries: dict = {}
         self._dt = 0.0
         self._last_step: StepStats | None = None
         self._last_contacts: Contacts | None = None
@@ -428,12 +432,13 @@ class World:
 
     def __getstate__(self) -> dict:
         fields = {"_" + n for n in (*FLOAT_FIELDS.names, *INT_FIELDS.names)}
-        drop = fields | set(self._PUBLIC_VIEWS) | {"_backend", "_last_step", "_last_contacts"}
+        drop = fields | set(self._PUBLIC_VIEWS) | {"_backend", "_last_step", "_last_contacts",
+                                                   "_entries"}
         return {k: v for k, v in self.__dict__.items() if k not in drop}
 
     def __setstate__(self, d: dict) -> None:
         self.__dict__.update(d)
-        self.__dict__.update(_backend=None, _last_step=None, _last_contacts=None)
+        self.__dict__.update(_backend=None, _last_step=None, _last_contacts=None, _entries={})
         self._make_buffer_views()
         self._make_views()
         if isinstance(self.solver, PymunkSolver):
@@ -647,7 +652,11 @@ class World:
                 raise SceneError(f"{kernel.name}: not available on the pymunk backend")
             result = kernel.stepwise(self, *args)
         else:
-            result = kernel(self._parallel, self._fbuf, self._ibuf, args, self.flags)
+            entry = self._entries.get(kernel)
+            if entry is None:
+                entry = self._entries[kernel] = kernel.entry(self._parallel, self._fbuf,
+                                                             self._ibuf, args, self._tail)
+            result = entry(self._fbuf, self._ibuf, *args, *self._tail)
         # the statistics and contact records stay in the buffers until the next step: last_step
         # and last_contacts copy them out on first use
         self._last_step = None
