@@ -89,7 +89,8 @@ def test_console_script_and_benchmark_modules(tmp_path):
                          timeout=300)
     assert out.returncode == 0, out.stderr
     assert "SpinStrike/PuckSpeed-v0" in out.stdout
-    for module in ("spinstrike.benchmarks.speed", "spinstrike.benchmarks.accuracy"):
+    for module in ("spinstrike.benchmarks.speed", "spinstrike.benchmarks.accuracy",
+                   "spinstrike.benchmarks.startup"):
         out = subprocess.run([sys.executable, "-m", module, "--help"], cwd=tmp_path,
                              capture_output=True, text=True, timeout=300)
         assert out.returncode == 0, (module, out.stderr)
