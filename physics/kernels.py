@@ -208,7 +208,7 @@ def step_parallel(fbuf, ibuf, fixed, rotation, cf, tf, jam):
         step_body(fbuf, ibuf, k * BLOCK, min(n, (k + 1) * BLOCK), fixed, rotation, cf, tf, jam)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # compared and hashed by identity: World.run looks it up
 class BatchKernel:
     """A batch kernel in the versions ``World.run`` picks from.
 

@@ -659,8 +659,8 @@ class World:
             result = entry(self._fbuf, self._ibuf, *args, *self._tail)
         # the statistics and contact records stay in the buffers until the next step: last_step
         # and last_contacts copy them out on first use
-        self._last_step = None
-        self._last_contacts = None
+        d = self.__dict__  # the per-step bookkeeping bypasses __setattr__'s check (hot path)
+        d["_last_step"] = d["_last_contacts"] = None
         return result
 
     def _set_dt(self, dt: Any) -> None:
@@ -691,16 +691,18 @@ class World:
         """Cost accounting of the last step, per element (see :class:`StepStats`)."""
         if self._last_step is None:
             st = self._stats.copy()
-            self._last_step = StepStats(*(_read_only(st[:, c]) for c in (
-                STAT_EVENTS, STAT_ITERATIONS, STAT_SUBSTEPS, STAT_CONTACTS)),
-                _read_only(st[:, STAT_FALLBACK].astype(bool)))
+            fallback = st[:, STAT_FALLBACK].astype(bool)
+            st.flags.writeable = fallback.flags.writeable = False  # and so their columns
+            self.__dict__["_last_step"] = StepStats(
+                st[:, STAT_EVENTS], st[:, STAT_ITERATIONS], st[:, STAT_SUBSTEPS],
+                st[:, STAT_CONTACTS], fallback)
         return self._last_step
 
     @property
     def last_contacts(self) -> Contacts:
         """The contacts the last step resolved (what ``step`` returned)."""
         if self._last_contacts is None:
-            self._last_contacts = self._collect()
+            self.__dict__["_last_contacts"] = self._collect()
         return self._last_contacts
 
     def _collect(self) -> Contacts:
