@@ -99,6 +99,32 @@ def measure(label: str, tree: str | None, variables: dict[str, str]) -> dict:
     return dict(label=label, cpu=cpu, wall=wall, strikes=strikes, steps=steps)
 
 
+# Variants tried while working on issue 11 that live only in discarded code (measured by hand,
+# CPU seconds to the 1000th RodSpin step on an empty cache, the same way as the table's rows).
+TRIED_BY_HAND = [
+    "Variants tried by hand (discarded code; CPU s to the 1000th RodSpin step, empty cache, "
+    "measured as above on 2026-11-22):",
+    "",
+    "* all effects as runtime flags (the first row): 28.6 s then; compile-time flags, so a "
+    "scene compiles only its solver and effects: 17.8 s; one compiled layer per batch kernel "
+    "instead of nested dispatchers: 13.8 s; static ifs as inlined overloads: 13.0 s. Step "
+    "speed unchanged at each (golden trajectories bit for bit).",
+    "* inlining the whole solver chain at numba's IR level (`inline='always'` on every "
+    "function): 30.9 s, slower to compile and no faster to run; dropping `inline='always'` "
+    "from the static ifs: no gain; inlining the element step into the batch kernels: no "
+    "gain.",
+    "* numba's optimisation level (the NUMBA_OPT rows): compile time barely moves, while "
+    "level 0 runs the control step 2.6x slower; the default (3) stays.",
+    "* with the exact solver's element kernel cached, the rest of a RodSpin start costs "
+    "6.8 s: compiling the two halves in two processes would bring the wall time to about "
+    "12 s on 2 cores (estimated, not built). `spinstrike train` already overlaps the compile "
+    "with PyTorch's import in a second process (envs/warm.py).",
+    "",
+    "The 10 s goal for the 1000th step on an empty cache is not met; with a filled cache the "
+    "start takes about a second (the Start-up table above).",
+]
+
+
 def table(results: list[dict], note: str) -> str:
     lines = [MARK_BEGIN, "## First run: compile time against step speed", "", note, "",
              "| choice | cold: CPU s to 1000th RodSpin step | cold: wall s | warm: RodSpin "
@@ -106,7 +132,7 @@ def table(results: list[dict], note: str) -> str:
              "|---|---|---|---|---|"]
     lines += [f"| {r['label']} | {r['cpu']:.1f} | {r['wall']:.1f} | {r['strikes']:,.0f} | "
               f"{r['steps']:,.0f} |" for r in results]
-    return "\n".join(lines + ["", MARK_END])
+    return "\n".join(lines + [""] + TRIED_BY_HAND + ["", MARK_END])
 
 
 def write_section(path: Path, section: str) -> None:
