@@ -221,6 +221,8 @@ def test_a_killed_env_runner_is_replaced_and_training_goes_on(local_ray):
         algo.stop()
 
 
+# importing RLlib's algorithm registry builds DreamerV3's debug CartPole, which warns
+@pytest.mark.filterwarnings("ignore::UserWarning")
 def test_tune_sweep_over_two_seeds(local_ray, tmp_path):
     from ray import tune
 

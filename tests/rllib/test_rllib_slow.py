@@ -1,4 +1,6 @@
-"""Real training through RLlib (markers ``rllib`` and ``slow``: ``pytest -m "rllib and slow"``).
+"""Real training through RLlib (marker ``slow``, in a venv with the ``rllib`` extra:
+``pytest -m slow tests/rllib/test_rllib_slow.py``; not marked ``rllib``, so ``pytest -m rllib``
+stays quick).
 
 PPO through RLlib (``spinstrike train --backend rllib``'s code, the packaged PPO entry: 150k
 env steps, 2 env runners) on ``RodSpin-v0`` reaches at least 0.9 of the oracle's mean return
@@ -11,7 +13,7 @@ import pytest
 
 ray = pytest.importorskip("ray")
 
-pytestmark = [pytest.mark.rllib, pytest.mark.slow]
+pytestmark = pytest.mark.slow
 
 
 def test_ppo_through_rllib_reaches_090_of_the_oracle_on_rodspin(tmp_path):
