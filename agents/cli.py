@@ -69,6 +69,13 @@ def _policy(args):
         from spinstrike.agents.evaluate import load_model_policy
 
         run = Path(args.run_dir)
+        if (run / "checkpoint").is_dir() and (run / "config.yml").is_file() and \
+                not (run / "model.zip").exists():  # spinstrike train --backend rllib
+            from spinstrike.agents.rllib_train import load_rllib_policy
+
+            policy, meta = load_rllib_policy(run)
+            env_kwargs = meta["hyperparameters"][meta["env"]].get("env_kwargs", {})
+            return policy, meta["env"], env_kwargs, "agent"
         if not (run / "model.zip").is_file() or not (run / "config.yml").is_file():
             raise AgentConfigError(f"run_dir: {run} has no model.zip/config.yml (not a run)")
         policy, meta = load_model_policy(run)

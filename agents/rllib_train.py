@@ -33,7 +33,7 @@ import yaml
 from spinstrike.agents.config import AgentConfigError, RunConfig, load_agent_config
 from spinstrike.agents.train import TrainResult, _work_dir, plot_learning_curve
 
-__all__ = ["module_policy", "ppo_config", "train_rllib"]
+__all__ = ["load_rllib_policy", "module_policy", "ppo_config", "train_rllib"]
 
 
 def ppo_config(cfg: RunConfig, seed: int, num_env_runners: int):
@@ -81,6 +81,24 @@ def module_policy(module):
         return np.clip(action[0].numpy(), -1.0, 1.0)
 
     return policy
+
+
+def load_rllib_policy(run_dir: str | Path):
+    """(policy, config.yml) of an RLlib run folder: its checkpoint's RLModule, deterministic
+    (what ``spinstrike evaluate``/``record RUN_DIR`` use)."""
+    from spinstrike.agents.evaluate import read_run_config
+
+    run_dir = Path(run_dir)
+    meta = read_run_config(run_dir)
+    path = run_dir / "checkpoint" / "learner_group" / "learner" / "rl_module" / "default_policy"
+    try:
+        from ray.rllib.core.rl_module.rl_module import RLModule
+    except ImportError:
+        raise AgentConfigError("run_dir: an RLlib run needs Ray RLlib: pip install "
+                               "'spinstrike[rllib]'") from None
+    if not path.is_dir():
+        raise AgentConfigError(f"checkpoint: {path} is missing (not an RLlib run folder)")
+    return module_policy(RLModule.from_checkpoint(str(path.resolve()))), meta
 
 
 def _versions() -> dict[str, str]:

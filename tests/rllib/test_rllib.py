@@ -256,6 +256,17 @@ def test_cli_train_backend_rllib_writes_the_run_folder(tmp_path):
         assert f"| {policy} |" in summary
     assert "agent:" in done.stdout and "oracle:" in done.stdout
     assert not Path(str(out) + ".partial").exists()
+    # the run folder evaluates like an SB3 run's: the checkpoint's module gives the summary's
+    # agent return on the same episodes
+    evaluated = subprocess.run([sys.executable, "-m", "spinstrike.agents.cli", "evaluate",
+                                str(out), "--episodes", "5", "--no-save"],
+                               capture_output=True, text=True, env=env, timeout=300)
+    assert evaluated.returncode == 0, evaluated.stderr[-3000:]
+    import json
+
+    agent = next(r for r in json.loads((out / "summary.json").read_text())
+                 if r["policy"] == "agent")
+    assert f"{agent['mean']:.4f}" in evaluated.stdout
 
 
 def test_cli_backend_rllib_bad_input_exits_2_before_writing(tmp_path):
