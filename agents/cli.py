@@ -1,6 +1,7 @@
 """The ``spinstrike`` command line.
 
     spinstrike train    --algo ppo --env SpinStrike/RodSpin-v0 [--seed 0] [--timesteps N]
+    spinstrike train    --backend rllib --env ID [--num-env-runners N] [--address ADDR]
     spinstrike evaluate RUN_DIR | --oracle/--random --env ID   [--episodes 50]
     spinstrike record   RUN_DIR | --oracle --env ID            [--out rollout.mp4|.gif] [--grid]
     spinstrike envs
@@ -68,6 +69,13 @@ def _policy(args):
         from spinstrike.agents.evaluate import load_model_policy
 
         run = Path(args.run_dir)
+        if (run / "checkpoint").is_dir() and (run / "config.yml").is_file() and \
+                not (run / "model.zip").exists():  # spinstrike train --backend rllib
+            from spinstrike.agents.rllib_train import load_rllib_policy
+
+            policy, meta = load_rllib_policy(run)
+            env_kwargs = meta["hyperparameters"][meta["env"]].get("env_kwargs", {})
+            return policy, meta["env"], env_kwargs, "agent"
         if not (run / "model.zip").is_file() or not (run / "config.yml").is_file():
             raise AgentConfigError(f"run_dir: {run} has no model.zip/config.yml (not a run)")
         policy, meta = load_model_policy(run)
@@ -92,19 +100,43 @@ def cmd_train(args) -> int:
     _check_env_id(args.env)
     if not args.no_eval:
         _check_episodes("--eval-episodes", args.eval_episodes)
-    result = train(args.algo, args.env, config=args.config, seed=args.seed,
-                   timesteps=args.timesteps, out=args.out, n_envs=args.n_envs, device=args.device,
-                   resume=args.resume, force=args.force, progress=not args.no_progress,
-                   evaluate=not args.no_eval, eval_episodes=args.eval_episodes,
-                   video=not args.no_video, env_kwargs=_kwargs(args.env_kwargs),
-                   torch_threads=args.torch_threads or None,
-                   command="spinstrike " + shlex.join(sys.argv[1:]))
+    if args.backend == "rllib":
+        result = _train_rllib(args)
+    else:
+        result = train(args.algo, args.env, config=args.config, seed=args.seed,
+                       timesteps=args.timesteps, out=args.out, n_envs=args.n_envs,
+                       device=args.device, resume=args.resume, force=args.force,
+                       progress=not args.no_progress, evaluate=not args.no_eval,
+                       eval_episodes=args.eval_episodes, video=not args.no_video,
+                       env_kwargs=_kwargs(args.env_kwargs),
+                       torch_threads=args.torch_threads or None,
+                       command="spinstrike " + shlex.join(sys.argv[1:]))
     print(f"run: {result['run_dir']}  ({result['timesteps']} steps, {result['wall_time']:.1f} s)")
     for name, (mean, std) in result.get("evaluations", {}).items():
         print(f"  {name:>7s}: {mean:.4f} +/- {std:.4f}")
     if "video" in result:
         print(f"video: {result['video']}")
     return 0
+
+
+def _train_rllib(args) -> dict:
+    """``spinstrike train --backend rllib``: PPO with Ray RLlib (``agents.rllib_train``)."""
+    from spinstrike.agents.config import AgentConfigError
+
+    if args.algo != "ppo":
+        raise AgentConfigError(f"--algo: --backend rllib trains ppo only (got {args.algo!r})")
+    if args.resume:
+        raise AgentConfigError("--resume: not supported with --backend rllib")
+    if args.num_env_runners < 0:
+        raise AgentConfigError(f"--num-env-runners: must be >= 0 (got {args.num_env_runners})")
+    from spinstrike.agents.rllib_train import train_rllib
+
+    return train_rllib(args.env, config=args.config, seed=args.seed, timesteps=args.timesteps,
+                       out=args.out, n_envs=args.n_envs, num_env_runners=args.num_env_runners,
+                       address=args.address, force=args.force, evaluate=not args.no_eval,
+                       eval_episodes=args.eval_episodes, video=not args.no_video,
+                       env_kwargs=_kwargs(args.env_kwargs),
+                       command="spinstrike " + shlex.join(sys.argv[1:]))
 
 
 def cmd_evaluate(args) -> int:
@@ -213,6 +245,13 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--no-eval", action="store_true")
     t.add_argument("--no-video", action="store_true")
     t.add_argument("--no-progress", action="store_true")
+    t.add_argument("--backend", choices=("sb3", "rllib"), default="sb3",
+                   help="sb3 (default) or rllib: PPO with Ray RLlib (the rllib extra; "
+                        "docs/rllib.md)")
+    t.add_argument("--num-env-runners", type=int, default=2,
+                   help="rllib: env runner processes (default 2)")
+    t.add_argument("--address", help="rllib: a running Ray cluster's address (default: a "
+                                     "local Ray)")
     t.set_defaults(func=cmd_train)
 
     for name, func, helptext in (("evaluate", cmd_evaluate, "mean +/- std return vs random and "

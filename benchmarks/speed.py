@@ -77,7 +77,9 @@ def chase_and_hit_batch(task, max_speed: float) -> np.ndarray:
 
 def _vector_rate(env_id: str, n: int, steps: int, repeats: int, policy: str = "random",
                  **kwargs) -> tuple[float, float]:
-    """(env-steps/s, contacts per env-step) of the native vector env."""
+    """(env-steps/s, contacts per env-step) of the native vector env (SAME_STEP autoreset: one
+    physics call per step, so the figures compare with earlier ones and with SB3's loop)."""
+    kwargs.setdefault("autoreset_mode", gym.vector.AutoresetMode.SAME_STEP)
     vec = gym.make_vec(env_id, num_envs=n, **kwargs)
     vec.reset(seed=0)
     rng = np.random.default_rng(0)

@@ -36,7 +36,8 @@ from spinstrike.envs.rendering import Frame, Renderer
 from spinstrike.envs.rng import UniformStream
 from spinstrike.physics import WorldEdit
 
-__all__ = ["SpinStrikeEnv", "SpinStrikeVectorEnv", "Task", "action_error", "check_actions"]
+__all__ = ["SpinStrikeEnv", "SpinStrikeVectorEnv", "Task", "action_error", "check_actions",
+           "parse_autoreset_mode"]
 
 #: lines of the video frames' information panel (a band along their top)
 PANEL_LINES = 3
@@ -373,26 +374,78 @@ class SpinStrikeEnv(gym.Env):
         self.task.close()
 
 
-class SpinStrikeVectorEnv(VectorEnv):
-    """Native vector env: N elements in one batched world (``AutoresetMode.SAME_STEP``).
+#: the accepted spellings of each autoreset mode (case and ``_``/``-`` ignored)
+_MODE_NAMES = {"nextstep": AutoresetMode.NEXT_STEP, "samestep": AutoresetMode.SAME_STEP,
+               "disabled": AutoresetMode.DISABLED}
 
-    A finished element is reset within the same ``step``; its last observation and info are in
-    ``info["final_obs"]`` / ``info["final_info"]`` (with ``_final_obs`` masks), as Gymnasium's
-    ``SyncVectorEnv`` does in SAME_STEP mode. ``max_episode_steps`` truncates by itself.
+
+def parse_autoreset_mode(value: Any) -> AutoresetMode:
+    """Gymnasium's ``AutoresetMode`` from an enum member or a string (its name or value, any
+    case: ``"next_step"``, ``"NextStep"``, ``"SAME_STEP"``, ``"disabled"``)."""
+    if isinstance(value, AutoresetMode):
+        return value
+    if isinstance(value, str):
+        mode = _MODE_NAMES.get(value.replace("_", "").replace("-", "").lower())
+        if mode is not None:
+            return mode
+    raise ValueError(f"autoreset_mode: must be a gymnasium.vector.AutoresetMode or one of "
+                     f"'next_step', 'same_step', 'disabled' (got {value!r})")
+
+
+def _reset_mask(options: dict | None, n: int) -> np.ndarray | None:
+    """``options["reset_mask"]`` checked as Gymnasium's vector envs check it, or None."""
+    if options is None or "reset_mask" not in options:
+        return None
+    mask = options["reset_mask"]
+    if not isinstance(mask, np.ndarray):
+        raise TypeError(f"options['reset_mask']: must be a numpy array, got {type(mask)}")
+    if mask.shape != (n,):
+        raise ValueError(f"options['reset_mask']: must have shape ({n},), got {mask.shape}")
+    if mask.dtype != np.bool_:
+        raise TypeError(f"options['reset_mask']: must have dtype bool, got {mask.dtype}")
+    if not mask.any():
+        raise ValueError("options['reset_mask']: must hold at least one True value")
+    return mask
+
+
+class SpinStrikeVectorEnv(VectorEnv):
+    """Native vector env: N elements in one batched world, in one of Gymnasium's autoreset modes.
+
+    ``autoreset_mode`` (``gym.make_vec(id, n, autoreset_mode=...)``: a
+    ``gymnasium.vector.AutoresetMode`` or its name as a string; reported as the enum in
+    ``metadata["autoreset_mode"]``), each exactly as Gymnasium's ``SyncVectorEnv`` of single
+    envs in that mode:
+
+    * ``NEXT_STEP`` (the default, as in Gymnasium): the step that ends an episode returns its
+      last observation; the element's next ``step`` ignores its action and resets it, returning
+      the new episode's first observation with reward 0, ``terminated = truncated = False`` and
+      the reset's info.
+    * ``SAME_STEP``: a finished element is reset within the same ``step``; its last observation
+      and info are in ``info["final_obs"]`` / ``info["final_info"]`` (with ``_final_obs``
+      masks). One call of the physics per step (the SB3 adapter and the speed benchmark use it).
+    * ``DISABLED``: no autoreset; reset finished elements with
+      ``reset(options={"reset_mask": mask})`` before the next ``step`` (else ``ResetNeeded``).
+
+    ``max_episode_steps`` truncates by itself.
     """
 
     TASK: ClassVar[type[Task]]
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 50,
-                                          "autoreset_mode": AutoresetMode.SAME_STEP}
+                                          "autoreset_mode": AutoresetMode.NEXT_STEP}
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None,
                  render_mode: str | None = None, config: dict | None = None,
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
                  **kwargs: Any) -> None:
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode: must be one of {self.metadata['render_modes']} or "
                              f"None (got {render_mode!r})")
         if int(num_envs) < 1:
             raise ValueError(f"num_envs: must be >= 1 (got {num_envs})")
+        self.autoreset_mode = parse_autoreset_mode(autoreset_mode)
+        # per instance: the class-level dict is shared by every instance of the class
+        self.metadata = dict(self.metadata, autoreset_mode=self.autoreset_mode)
+        self._same_step = self.autoreset_mode is AutoresetMode.SAME_STEP
         self.num_envs = int(num_envs)
         self.render_mode = render_mode
         self.max_episode_steps = max_episode_steps
@@ -404,6 +457,9 @@ class SpinStrikeVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self._stream = UniformStream(self.num_envs, self.TASK.UNIFORMS)
         self._steps = np.zeros(self.num_envs, dtype=np.int64)
+        #: elements whose episode ended at the last step (NEXT_STEP: reset at the next one)
+        self._done = np.zeros(self.num_envs, dtype=bool)
+        self._everyone = np.ones(self.num_envs, dtype=bool)
         self._started = False
 
     @property
@@ -411,20 +467,30 @@ class SpinStrikeVectorEnv(VectorEnv):
         return self.task.world
 
     def reset(self, *, seed: int | list | None = None, options: dict | None = None):
+        n = self.num_envs
+        mask = _reset_mask(options, n)
+        if mask is not None and not self._started:
+            raise gym.error.ResetNeeded("options['reset_mask']: call reset() on every element "
+                                        "first")
         if seed is not None:
-            seeds = ([seed + i for i in range(self.num_envs)] if isinstance(seed, int)
-                     else list(seed))
-            if len(seeds) != self.num_envs:
-                raise ValueError(f"seed: expected {self.num_envs} seeds, got {len(seeds)}")
-            self._stream.seed(seeds)
+            seeds = [seed + i for i in range(n)] if isinstance(seed, int) else list(seed)
+            if len(seeds) != n:
+                raise ValueError(f"seed: expected {n} seeds, got {len(seeds)}")
+            chosen = [i for i in range(n) if seeds[i] is not None
+                      and (mask is None or mask[i])]
+            self._stream.seed([seeds[i] for i in chosen], np.asarray(chosen, dtype=np.int64))
         self._np_random = self._stream.generators[0]
-        env = np.arange(self.num_envs)
+        env = np.arange(n) if mask is None else np.flatnonzero(mask)
         info = self.task.reset(env, self._stream.draw(env))
-        self._steps[:] = 0
+        self._steps[env] = 0
+        self._done[env] = False
         self._started = True
-        return self.task.observations(), info
+        return self.task.observations(), _masked(info, env, n)
 
     def step(self, actions):
+        if not self._same_step:
+            return self._step_next(actions) if self.autoreset_mode is AutoresetMode.NEXT_STEP \
+                else self._step_disabled(actions)
         if not self._started:
             raise gym.error.ResetNeeded("call reset() before step()")
         reward, terminated, info = self.task.step(actions)
@@ -451,10 +517,21 @@ class SpinStrikeVectorEnv(VectorEnv):
             reset_info = self.task.reset(env, self._stream.draw(env))
             self._steps[env] = 0
             obs = self.task.observations()
+            # as SyncVectorEnv: a reset element's info is its reset's (the step's is final_info)
+            out = {}
+            if len(env) < self.num_envs:
+                live = ~done
+                for k, v in info.items():
+                    out[k] = v
+                    out[f"_{k}"] = live
             for k, v in reset_info.items():
                 v = np.asarray(v)
-                if k in out:
+                if len(env) == self.num_envs:
+                    full = v
+                    out[f"_{k}"] = done
+                elif k in out:
                     full = out[k].copy()
+                    out[f"_{k}"] = everyone
                 else:
                     full = np.zeros((self.num_envs, *v.shape[1:]), dtype=v.dtype)
                     out[f"_{k}"] = done
@@ -465,6 +542,75 @@ class SpinStrikeVectorEnv(VectorEnv):
         info = out
         return obs, reward.astype(np.float64), terminated, truncated, info
 
+    def _physics_step(self, actions):
+        """Step every element: (reward, terminated, truncated, info with ``_key`` masks)."""
+        reward, terminated, info = self.task.step(actions)
+        self._steps += 1
+        truncated = np.zeros(self.num_envs, dtype=bool)
+        if self.max_episode_steps is not None:
+            truncated = (self._steps >= self.max_episode_steps) & ~terminated
+        out = {}
+        for k, v in info.items():
+            out[k] = v
+            out[f"_{k}"] = self._everyone
+        return reward.astype(np.float64), terminated, truncated, out
+
+    def _step_disabled(self, actions):
+        if not self._started:
+            raise gym.error.ResetNeeded("call reset() before step()")
+        if self._done.any():
+            raise gym.error.ResetNeeded(
+                f"autoreset_mode DISABLED: elements {np.flatnonzero(self._done).tolist()} ended "
+                "their episodes; reset them with reset(options={'reset_mask': mask}) first")
+        reward, terminated, truncated, info = self._physics_step(actions)
+        self._done = terminated | truncated
+        return self.task.observations(), reward, terminated, truncated, info
+
+    def _step_next(self, actions):
+        if not self._started:
+            raise gym.error.ResetNeeded("call reset() before step()")
+        pending = self._done
+        n = self.num_envs
+        if not pending.any():
+            reward, terminated, truncated, info = self._physics_step(actions)
+        elif pending.all():  # every element starts a new episode (e.g. after a one-strike step)
+            env = np.arange(n)
+            info = _masked(self.task.reset(env, self._stream.draw(env)), env, n)
+            self._steps[:] = 0
+            reward = np.zeros(n)
+            terminated = np.zeros(n, dtype=bool)
+            truncated = np.zeros(n, dtype=bool)
+        else:
+            # the batch steps every element: the ones being reset step from their new first
+            # state (an action of zeros), then are put back to it (the same uniforms)
+            env = np.flatnonzero(pending)
+            u = self._stream.draw(env)
+            a = np.asarray(actions)
+            if a.shape == self.task.action_shape:
+                a = a.copy()
+                a[env] = 0
+            self.task.reset(env, u)
+            reward, terminated, truncated, info = self._physics_step(a)
+            reset_info = self.task.reset(env, u)
+            self._steps[env] = 0
+            reward[env] = 0.0
+            terminated[env] = False
+            truncated[env] = False
+            stepped = ~pending
+            for k in [k for k in info if not k.startswith("_")]:
+                info[f"_{k}"] = stepped
+            for k, v in _masked(reset_info, env, n).items():
+                if k.startswith("_"):
+                    continue
+                if k in info:
+                    full = info[k].copy()
+                    full[env] = v[env]
+                    info[k], info[f"_{k}"] = full, self._everyone
+                else:
+                    info[k], info[f"_{k}"] = v, pending
+        self._done = terminated | truncated
+        return self.task.observations(), reward, terminated, truncated, info
+
     def render(self):
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode")
@@ -472,4 +618,23 @@ class SpinStrikeVectorEnv(VectorEnv):
         return tuple(self.task.render(b) for b in range(self.num_envs))
 
     def close_extras(self, **kwargs: Any) -> None:
-        self.task.close()
+        task = self.__dict__.get("task")  # absent when __init__ raised (VectorEnv.__del__)
+        if task is not None:
+            task.close()
+
+
+def _masked(info: dict[str, np.ndarray], env: np.ndarray, n: int) -> dict[str, np.ndarray]:
+    """Arrays over elements ``env`` as Gymnasium vector infos: ``[n, ...]`` values (zeros
+    elsewhere) with ``_key`` masks."""
+    mask = np.zeros(n, dtype=bool)
+    mask[env] = True
+    out = {}
+    for k, v in info.items():
+        v = np.asarray(v)
+        if len(env) == n:
+            full = v
+        else:
+            full = np.zeros((n, *v.shape[1:]), dtype=v.dtype)
+            full[env] = v
+        out[k], out[f"_{k}"] = full, mask
+    return out

@@ -20,9 +20,15 @@ __all__ = ["SB3VecEnv", "make_sb3_vec_env"]
 
 
 class SB3VecEnv(VecEnv):
-    """An SB3 ``VecEnv`` backed by a :class:`envs.core.SpinStrikeVectorEnv`."""
+    """An SB3 ``VecEnv`` backed by a :class:`envs.core.SpinStrikeVectorEnv` in ``SAME_STEP``
+    autoreset mode (SB3's own convention: the step that ends an episode returns the next
+    episode's first observation)."""
 
     def __init__(self, venv: gym.vector.VectorEnv) -> None:
+        mode = venv.metadata.get("autoreset_mode")
+        if mode is not gym.vector.AutoresetMode.SAME_STEP:
+            raise ValueError(f"SB3VecEnv: the vector env must autoreset in SAME_STEP mode "
+                             f"(gym.make_vec(..., autoreset_mode='same_step')), got {mode}")
         self.venv = venv
         super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
         self.render_mode = venv.render_mode
@@ -105,8 +111,10 @@ def make_sb3_vec_env(env_id: str, n_envs: int, seed: int | None = None,
     """Native batched vector env of ``env_id`` (``gym.make_vec``) wrapped for SB3."""
     from spinstrike import envs  # noqa: F401  (registers the ids)
 
+    kwargs = dict(env_kwargs or {})
+    kwargs["autoreset_mode"] = gym.vector.AutoresetMode.SAME_STEP  # SB3's convention
     venv = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point",
-                        **(env_kwargs or {}))
+                        **kwargs)
     vec = SB3VecEnv(venv)
     if seed is not None:
         vec.seed(seed)

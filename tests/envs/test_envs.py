@@ -86,7 +86,8 @@ def test_same_seed_same_trajectory(env_id):
 def test_vector_env_matches_single_envs_in_lock_step(env_id):
     n, seed, steps, limit = 3, 11, 14, 5
     kwargs = {"max_episode_steps": limit} if "Control" in env_id else {}
-    vec = gym.make_vec(env_id, num_envs=n, **kwargs)
+    # SAME_STEP against single envs by hand; every mode against SyncVectorEnv: test_autoreset
+    vec = gym.make_vec(env_id, num_envs=n, autoreset_mode="same_step", **kwargs)
     assert vec.metadata["autoreset_mode"] == gym.vector.AutoresetMode.SAME_STEP
     acts = _actions(vec.single_action_space, steps * n, seed=2).reshape(steps, n, -1)
     singles = [gym.make(env_id, **kwargs) for _ in range(n)]

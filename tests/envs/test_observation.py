@@ -130,38 +130,67 @@ def test_goal_conditioned_observation_splits_the_flat_layout(env_id):
     np.testing.assert_array_equal(d["observation"], flat[k:])
 
 
+MODES = list(gym.vector.AutoresetMode)
+
+
+@pytest.mark.parametrize("mode", MODES, ids=lambda m: m.name)
 @pytest.mark.parametrize("env_id", ENV_IDS)
-def test_vector_env_observations_match_the_layout_across_autoresets(env_id):
+def test_vector_env_observations_match_the_layout_across_autoresets(env_id, mode):
     """Every element's observation after reset and after every step equals the reference,
-    elements reset inside ``step`` included (their episode's first observation)."""
+    in every autoreset mode: elements reset inside ``step`` (SAME_STEP: their episode's first
+    observation; NEXT_STEP: the step after the last one), or by ``reset(options=reset_mask)``
+    (DISABLED)."""
     n = 4
     short = {} if env_id in STRIKE_IDS else {"max_episode_steps": 3}
-    vec = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **short)
+    vec = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point",
+                       autoreset_mode=mode, **short)
+    assert vec.metadata["autoreset_mode"] is mode
     obs, info = vec.reset(seed=[7, 8, 9, 10])
     assert np.all(np.any(obs != 0, axis=1)), "a first observation is all zeros"
     goal = _goal(env_id, info)
     _check(env_id, vec.world, vec.single_observation_space, obs, goal)
-    resets = 0
-    for _ in range(7):
+    resets, pending = 0, np.zeros(n, bool)
+    for _ in range(8):
         obs, _, term, trunc, info = vec.step(vec.action_space.sample())
         done = term | trunc
-        resets += int(done.sum())
+        if mode is gym.vector.AutoresetMode.NEXT_STEP:
+            resets += int(pending.sum())
+            assert not done[pending].any()  # a reset step ends nothing
+            pending = done
+        else:
+            resets += int(done.sum())
         if env_id in STRIKE_IDS:
-            goal = _goal(env_id, info)  # every element starts a new episode (one strike)
-            assert done.all()
+            goal = _goal(env_id, info)  # the target of the episode the observation belongs to
         _check(env_id, vec.world, vec.single_observation_space, obs, goal)
-        if done.any():  # the finished episodes' last observations are not the new ones
+        if mode is gym.vector.AutoresetMode.SAME_STEP and done.any():
+            # the finished episodes' last observations are not the new ones
             final = np.stack([info["final_obs"][i] for i in np.flatnonzero(done)])
             assert not np.array_equal(final, obs[done])
+        if mode is gym.vector.AutoresetMode.DISABLED and done.any():
+            new, info = vec.reset(options={"reset_mask": done})
+            assert not np.array_equal(new[done], obs[done])
+            np.testing.assert_array_equal(new[~done], obs[~done])
+            if env_id in STRIKE_IDS:
+                goal = _goal(env_id, info)
+            _check(env_id, vec.world, vec.single_observation_space, new, goal)
     assert resets >= n
 
 
+@pytest.mark.parametrize("mode", MODES, ids=lambda m: m.name)
 @pytest.mark.parametrize("env_id", ENV_IDS)
-def test_vector_element_matches_a_single_env_seeded_alike_after_reset(env_id):
-    vec = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point")
+def test_vector_element_matches_a_single_env_seeded_alike_after_reset(env_id, mode):
+    vec = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point",
+                       autoreset_mode=mode)
     obs, _ = vec.reset(seed=20)
     for i in range(3):
         single, _ = gym.make(env_id).reset(seed=20 + i)
+        np.testing.assert_array_equal(obs[i], single)
+    # a seeded reset of some elements gives what fresh single envs seeded alike give
+    vec.step(vec.action_space.sample())
+    mask = np.array([False, True, True])
+    obs, _ = vec.reset(seed=[None, 31, 32], options={"reset_mask": mask})
+    for i in (1, 2):
+        single, _ = gym.make(env_id).reset(seed=30 + i)
         np.testing.assert_array_equal(obs[i], single)
 
 

@@ -1,0 +1,245 @@
+"""Train PPO with Ray RLlib (``spinstrike train --backend rllib``), into the same run folder as
+SB3 runs::
+
+    runs/<name>/
+        config.yml  command.txt  progress.csv    resolved entry, metadata; RLlib's per-iteration log
+        checkpoint/             RLlib's checkpoint (``Algorithm.from_checkpoint``)
+        evaluations.npz         periodic evaluations      learning_curve.png
+        summary.md/.json        final evaluation vs random and oracle      rollout.mp4
+
+The hyperparameters come from the same rl-zoo3 file as SB3's (``configs/agents/ppo.yml``),
+translated: ``n_envs`` envs in all (split over the env runners, one native vector env each),
+``n_steps * n_envs`` steps per update, ``batch_size`` minibatches, ``n_epochs``,
+``learning_rate``, ``gamma``, ``gae_lambda``, ``clip_range``, ``ent_coef``, ``net_arch``.
+Evaluation, summary, learning curve and video are SB3 runs' own code
+(``agents.evaluate``, ``agents.record``, ``agents.train.plot_learning_curve``), run on the
+trained RLModule's deterministic action. Needs the ``rllib`` extra.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import shlex
+import shutil
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from spinstrike.agents.config import AgentConfigError, RunConfig, load_agent_config
+from spinstrike.agents.train import TrainResult, _work_dir, plot_learning_curve
+
+__all__ = ["load_rllib_policy", "module_policy", "ppo_config", "train_rllib"]
+
+
+def ppo_config(cfg: RunConfig, seed: int, num_env_runners: int):
+    """RLlib's ``PPOConfig`` for an rl-zoo3 PPO entry, on the native vector env."""
+    from ray.rllib.algorithms.ppo import PPOConfig
+    from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
+
+    from spinstrike.envs.rllib import configure
+
+    h = dict(cfg.model_kwargs)
+    runners = max(int(num_env_runners), 1)
+    per_runner = max(1, math.ceil(cfg.n_envs / runners))
+    n_steps = int(h.get("n_steps", 2048))
+    batch = n_steps * per_runner * runners
+    net = (h.get("policy_kwargs") or {}).get("net_arch", [64, 64])
+    if isinstance(net, dict):  # SB3's {pi: [...], vf: [...]}
+        net = net.get("pi", [64, 64])
+    config = (PPOConfig()
+              .env_runners(num_env_runners=int(num_env_runners), rollout_fragment_length=n_steps)
+              .training(train_batch_size_per_learner=batch,
+                        minibatch_size=int(h.get("batch_size", 64)),
+                        num_epochs=int(h.get("n_epochs", 10)),
+                        lr=float(h.get("learning_rate", 3e-4)), gamma=float(h.get("gamma", 0.99)),
+                        lambda_=float(h.get("gae_lambda", 0.95)),
+                        clip_param=float(h.get("clip_range", 0.2)),
+                        entropy_coeff=float(h.get("ent_coef", 0.0)),
+                        vf_loss_coeff=float(h.get("vf_coef", 0.5)))
+              .rl_module(model_config=DefaultModelConfig(fcnet_hiddens=list(net),
+                                                         fcnet_activation="tanh"))
+              .debugging(seed=seed))
+    return configure(config, cfg.env_id, cfg.env_kwargs, num_envs_per_env_runner=per_runner)
+
+
+def module_policy(module):
+    """``policy(env, obs)``: the RLModule's deterministic action (the mean), for one env."""
+    import torch
+
+    dist_cls = module.get_inference_action_dist_cls()
+
+    def policy(env, obs):
+        with torch.no_grad():
+            out = module.forward_inference(
+                {"obs": torch.as_tensor(np.asarray(obs, dtype=np.float32)[None])})
+        action = dist_cls.from_logits(out["action_dist_inputs"]).to_deterministic().sample()
+        return np.clip(action[0].numpy(), -1.0, 1.0)
+
+    return policy
+
+
+def load_rllib_policy(run_dir: str | Path):
+    """(policy, config.yml) of an RLlib run folder: its checkpoint's RLModule, deterministic
+    (what ``spinstrike evaluate``/``record RUN_DIR`` use)."""
+    from spinstrike.agents.evaluate import read_run_config
+
+    run_dir = Path(run_dir)
+    meta = read_run_config(run_dir)
+    path = run_dir / "checkpoint" / "learner_group" / "learner" / "rl_module" / "default_policy"
+    try:
+        from ray.rllib.core.rl_module.rl_module import RLModule
+    except ImportError:
+        raise AgentConfigError("run_dir: an RLlib run needs Ray RLlib: pip install "
+                               "'spinstrike[rllib]'") from None
+    if not path.is_dir():
+        raise AgentConfigError(f"checkpoint: {path} is missing (not an RLlib run folder)")
+    return module_policy(RLModule.from_checkpoint(str(path.resolve()))), meta
+
+
+def _versions() -> dict[str, str]:
+    import gymnasium
+    import ray
+    import torch
+
+    versions = {"python": sys.version.split()[0], "numpy": np.__version__,
+                "ray": ray.__version__, "gymnasium": gymnasium.__version__,
+                "torch": torch.__version__}
+    return {k: str(v) for k, v in versions.items()}
+
+
+def _steps(result: dict) -> int:
+    runners = result.get("env_runners", {})
+    return int(runners.get("num_env_steps_sampled_lifetime", 0))
+
+
+def train_rllib(env_id: str, *, config: str | Path | None = None, seed: int = 0,
+                timesteps: int | None = None, out: str | Path | None = None,
+                n_envs: int | None = None, num_env_runners: int = 2,
+                address: str | None = None, force: bool = False, evaluate: bool = True,
+                eval_episodes: int = 50, video: bool = True, env_kwargs: dict | None = None,
+                eval_every: int | None = None, eval_episodes_during: int = 10,
+                command: str | None = None) -> TrainResult:
+    """Train PPO on ``env_id`` with RLlib; return the run directory and what was measured.
+
+    Args:
+        num_env_runners: RLlib env runner processes (each one native vector env).
+        address: a running Ray cluster (``ray start --head`` prints it; ``"auto"``); default
+            a local Ray started (and stopped) here, or the one already initialised.
+        eval_every: training iterations between the learning curve's evaluations (default:
+            about 10 over the run).
+        The rest as :func:`spinstrike.agents.train.train`.
+    """
+    overrides: dict[str, Any] = {}
+    if timesteps is not None:
+        overrides["n_timesteps"] = timesteps
+    if n_envs is not None:
+        overrides["n_envs"] = n_envs
+    cfg = load_agent_config("ppo", env_id, config, overrides)
+    if env_kwargs:
+        cfg.env_kwargs = {**cfg.env_kwargs, **env_kwargs}
+    if cfg.normalize:
+        raise AgentConfigError("normalize: not supported with --backend rllib")
+    if not isinstance(seed, int) or seed < 0:
+        raise AgentConfigError(f"seed: must be an integer >= 0 (got {seed!r})")
+    if not isinstance(num_env_runners, int) or num_env_runners < 0:
+        raise AgentConfigError(f"num_env_runners: must be an integer >= 0 "
+                               f"(got {num_env_runners!r})")
+    try:
+        import ray
+    except ImportError:
+        raise AgentConfigError("backend: rllib needs Ray RLlib: pip install "
+                               "'spinstrike[rllib]'") from None
+    # the env's config is checked here, before Ray starts or the disk is touched
+    algo_config = ppo_config(cfg, seed, num_env_runners)
+    name = f"ppo-rllib-{env_id.split('/')[-1]}-s{seed}"
+    run_dir = Path(out) if out is not None else Path("runs") / name
+    work = _work_dir(run_dir, False, force)
+    started = False
+    if not ray.is_initialized():
+        ray.init(address=address, include_dashboard=False, log_to_driver=False)
+        started = True
+    try:
+        policy, steps, wall = _learn(algo_config, cfg, work, seed=seed, address=address,
+                                     num_env_runners=num_env_runners, eval_every=eval_every,
+                                     eval_episodes_during=eval_episodes_during,
+                                     command=command)
+        if run_dir.exists():
+            shutil.rmtree(run_dir)
+        work.rename(run_dir)
+    except BaseException:
+        shutil.rmtree(work, ignore_errors=True)
+        raise
+    finally:
+        if started:
+            ray.shutdown()
+    result = TrainResult(run_dir=str(run_dir), timesteps=steps, wall_time=wall)
+    if evaluate:
+        from spinstrike.agents.evaluate import evaluate as run_eval
+        from spinstrike.agents.evaluate import summarise
+
+        results = run_eval(env_id, policy, episodes=eval_episodes, env_kwargs=cfg.env_kwargs)
+        summarise(results, run_dir, f"## PPO (RLlib) on {env_id} (seed {seed}, {steps} steps, "
+                                    f"{wall:.0f} s)")
+        result["evaluations"] = {r.policy: (r.mean, r.std) for r in results}
+    if video:
+        from spinstrike.agents.record import record
+
+        result["video"] = record(policy, env_id, run_dir / "rollout.mp4", episodes=3,
+                                 env_kwargs=cfg.env_kwargs)["path"]
+    return result
+
+
+def _learn(algo_config, cfg: RunConfig, work: Path, *, seed, address, num_env_runners,
+           eval_every, eval_episodes_during, command):
+    """Build the algorithm, train to the budget with periodic evaluations; save into ``work``.
+    Returns (policy, env steps, wall time)."""
+    from spinstrike.agents.evaluate import run_episodes
+
+    algo = algo_config.build_algo()
+    work.mkdir(parents=True, exist_ok=True)
+    meta = {"algo": "ppo", "backend": "rllib", "env": cfg.env_id, "seed": seed,
+            "source": cfg.source, "num_env_runners": num_env_runners,
+            "num_envs_per_env_runner": algo_config.num_envs_per_env_runner,
+            "address": address, "versions": _versions(),
+            "hyperparameters": cfg.as_yaml_dict()}
+    (work / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
+    (work / "command.txt").write_text((command or shlex.join(sys.argv)) + "\n")
+    per_iter = algo_config.train_batch_size_per_learner
+    iterations = max(1, math.ceil(cfg.n_timesteps / per_iter))
+    every = eval_every or max(1, iterations // 10)
+    evals_t, evals_r, evals_l = [], [], []
+    start = time.time()
+    steps = 0
+    try:
+        with open(work / "progress.csv", "w", newline="") as f:
+            log = csv.writer(f)
+            log.writerow(["iteration", "timesteps", "episode_return_mean", "time_s"])
+            for it in range(1, iterations + 1):
+                result = algo.train()
+                steps = _steps(result)
+                ret = result.get("env_runners", {}).get("episode_return_mean", float("nan"))
+                log.writerow([it, steps, ret, round(time.time() - start, 3)])
+                f.flush()
+                if it % every == 0 or it == iterations:
+                    ev = run_episodes(module_policy(algo.get_module()), cfg.env_id,
+                                      eval_episodes_during, seed=seed + 10_000,
+                                      env_kwargs=cfg.env_kwargs)
+                    evals_t.append(steps)
+                    evals_r.append(ev.returns)
+                    evals_l.append([ev.mean_length] * len(ev.returns))
+                    np.savez(work / "evaluations.npz", timesteps=np.array(evals_t),
+                             results=np.array(evals_r), ep_lengths=np.array(evals_l))
+        wall = time.time() - start
+        algo.save_to_path(str((work / "checkpoint").resolve()))
+        policy = module_policy(algo.get_module())
+    finally:
+        algo.stop()
+    plot_learning_curve(work, f"PPO (RLlib) on {cfg.env_id}")
+    meta["runs"] = [{"timesteps": steps, "wall_time_s": round(wall, 2)}]
+    (work / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
+    return policy, steps, wall

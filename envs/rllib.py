@@ -1,0 +1,107 @@
+"""Ray RLlib: every SpinStrike id registered with ``ray.tune.registry.register_env``.
+
+    from ray.rllib.algorithms.ppo import PPOConfig
+    from spinstrike.envs.rllib import configure
+
+    config = configure(PPOConfig(), "SpinStrike/RodSpinControl-v0", {"max_force": 8.0},
+                       num_envs_per_env_runner=64)
+    algo = config.env_runners(num_env_runners=2).build_algo()
+
+What it takes care of (each a way the plain ``register_env`` line goes wrong):
+
+* **Runner processes**: the creator is a function of this module (pickled by reference): a runner
+  process that unpickles it imports ``spinstrike`` itself, which registers the ids there too.
+* **env_config**: passed to the env as its config; :func:`configure` (and :func:`check_env_config`)
+  parses it in the driver first, so a bad key raises the env's ``ConfigError`` before any runner
+  starts. ``max_episode_steps`` is taken out and given to Gymnasium.
+* **Vector envs**: with ``gym_env_vectorize_mode="vector_entry_point"`` (what :func:`configure`
+  sets unless ``vectorize=False``) RLlib calls the creator with ``env_config | {"num_envs": N}``;
+  the creator then returns the native vector env (one batched world) in ``NEXT_STEP`` autoreset
+  mode, the mode RLlib's ``SingleAgentEnvRunner`` assumes (in SAME_STEP it would take every
+  episode's first step for a reset).
+
+The RLlib names are the Gymnasium ids (``"SpinStrike/RodSpin-v0"``, ...). Importing this module
+does not import Ray; :func:`register_envs` and :func:`configure` do.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib
+from typing import Any
+
+import gymnasium as gym
+from gymnasium.vector import AutoresetMode
+
+from spinstrike.envs import ENV_IDS
+from spinstrike.envs.config import EnvConfig, parse_config
+
+__all__ = ["check_env_config", "configure", "make_env", "register_envs"]
+
+
+def _split(env_config: Any) -> tuple[dict, int | None, int | None]:
+    """(the env's own config, num_envs, max_episode_steps) from an RLlib env_config."""
+    cfg = dict(env_config or {})
+    num_envs = cfg.pop("num_envs", None)
+    steps = cfg.pop("max_episode_steps", None)
+    return cfg, num_envs, steps
+
+
+def make_env(env_id: str, env_config: Any = None) -> gym.Env | gym.vector.VectorEnv:
+    """The env RLlib's creator returns: a single env, or (``num_envs`` in ``env_config``) the
+    native vector env in ``NEXT_STEP`` autoreset mode."""
+    import spinstrike.envs  # noqa: F401  (a runner process: registers the ids there)
+
+    cfg, num_envs, steps = _split(env_config)
+    limit = {} if steps is None else {"max_episode_steps": int(steps)}
+    if num_envs is None:
+        return gym.make(env_id, config=cfg, **limit)
+    return gym.make_vec(env_id, num_envs=int(num_envs), vectorization_mode="vector_entry_point",
+                        autoreset_mode=AutoresetMode.NEXT_STEP, config=cfg, **limit)
+
+
+def _config_class(env_id: str) -> type[EnvConfig]:
+    if env_id not in ENV_IDS:
+        raise ValueError(f"env: must be one of {sorted(ENV_IDS)} (got {env_id!r})")
+    module, name = gym.spec(env_id).entry_point.split(":")
+    return getattr(importlib.import_module(module), name).TASK.CONFIG
+
+
+def check_env_config(env_id: str, env_config: Any = None) -> EnvConfig:
+    """Parse ``env_config`` as the env ``env_id`` would (in this process): raises the env's
+    ``ConfigError`` naming a bad key or value. Returns the parsed config."""
+    cfg, num_envs, steps = _split(env_config)
+    for key, value in (("num_envs", num_envs), ("max_episode_steps", steps)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int)
+                                  or value < 1):
+            raise ValueError(f"env_config[{key!r}]: must be an int >= 1 (got {value!r})")
+    return parse_config(_config_class(env_id), cfg, {})
+
+
+def register_envs() -> list[str]:
+    """Register every SpinStrike id with RLlib (``ray.tune.registry.register_env``) under its
+    Gymnasium id; returns the names."""
+    from ray.tune.registry import register_env
+
+    for env_id in ENV_IDS:
+        register_env(env_id, functools.partial(make_env, env_id))
+    return list(ENV_IDS)
+
+
+def configure(config, env_id: str, env_config: dict | None = None, *,
+              num_envs_per_env_runner: int | None = None, vectorize: bool = True):
+    """Point an RLlib ``AlgorithmConfig`` at a SpinStrike env: checks ``env_config`` here (a bad
+    key raises ``ConfigError`` now, not in the runners), registers the ids, and sets
+    ``environment(env_id, env_config)`` and the runners' vectorisation (``vectorize``: the
+    native vector env, one batched world per runner; else Gymnasium's ``SyncVectorEnv`` of
+    single envs). Returns ``config``."""
+    env_config = dict(env_config or {})
+    check_env_config(env_id, env_config)
+    register_envs()
+    config.environment(env_id, env_config=env_config)
+    runners: dict[str, Any] = {"gym_env_vectorize_mode": ("vector_entry_point" if vectorize
+                                                          else "sync")}
+    if num_envs_per_env_runner is not None:
+        runners["num_envs_per_env_runner"] = int(num_envs_per_env_runner)
+    config.env_runners(**runners)
+    return config

@@ -1,0 +1,278 @@
+"""Ray RLlib, from the user's side: ``spinstrike.envs.rllib`` and ``spinstrike train --backend
+rllib`` (marker ``rllib``: run with ``pytest -m rllib`` in a venv with the ``rllib`` extra; Ray
+pins its own gymnasium). Iterations are tiny: the point is the plumbing (runner processes, data
+integrity, fault tolerance, a cluster of two nodes, Tune), not learning.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+ray = pytest.importorskip("ray")
+
+from ray.rllib.algorithms.ppo import PPOConfig  # noqa: E402
+
+import spinstrike  # noqa: E402, F401  (registers the ids)
+from spinstrike.envs import ConfigError  # noqa: E402
+from spinstrike.envs.rllib import configure, make_env, register_envs  # noqa: E402
+
+pytestmark = pytest.mark.rllib
+
+STRIKE, CONTROL = "SpinStrike/RodSpin-v0", "SpinStrike/RodSpinControl-v0"
+
+
+@pytest.fixture
+def local_ray():
+    """A local Ray of 2 CPUs (the machine's), shut down after the test."""
+    if ray.is_initialized():
+        ray.shutdown()
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        yield
+    finally:
+        ray.shutdown()
+
+
+def tiny(config, runners: int = 2, envs: int = 4, fragment: int = 16):
+    """A PPO config small enough for a 2-core machine."""
+    return (config.env_runners(num_env_runners=runners, num_envs_per_env_runner=envs,
+                               rollout_fragment_length=fragment)
+            .training(train_batch_size_per_learner=runners * envs * fragment or envs * fragment,
+                      minibatch_size=32, num_epochs=1)
+            .rl_module(model_config={"fcnet_hiddens": [16]}))
+
+
+def _sampled(result: dict) -> int:
+    return int(result["env_runners"]["num_env_steps_sampled_lifetime"])
+
+
+@pytest.mark.parametrize("env_id", [STRIKE, CONTROL])
+def test_ppo_trains_two_iterations_with_two_env_runners(local_ray, env_id):
+    config = tiny(configure(PPOConfig(), env_id, {"max_episode_steps": 20}
+                            if env_id == CONTROL else {}))
+    assert config.gym_env_vectorize_mode == "vector_entry_point"
+    algo = config.build_algo()
+    try:
+        r1 = algo.train()
+        r2 = algo.train()
+        assert _sampled(r2) > _sampled(r1) > 0
+        assert np.isfinite(r2["env_runners"]["episode_return_mean"])
+        # each runner holds one native vector env (one batched world) in NEXT_STEP mode
+        modes = algo.env_runner_group.foreach_env_runner(
+            lambda r: (type(r.env.unwrapped).__name__, r.env.unwrapped.num_envs,
+                       r.env.unwrapped.metadata["autoreset_mode"].name), local_env_runner=False)
+        assert len(modes) == 2
+        assert all(m[1] == 4 and m[2] == "NEXT_STEP" and m[0].endswith("VectorEnv")
+                   for m in modes)
+    finally:
+        algo.stop()
+
+
+def test_bad_env_config_raises_in_the_driver_before_runners_start():
+    assert not ray.is_initialized()
+    with pytest.raises(ConfigError, match="no_such_key"):
+        configure(PPOConfig(), STRIKE, {"no_such_key": 1})
+    with pytest.raises(ConfigError, match="restitution"):
+        configure(PPOConfig(), STRIKE, {"restitution": 7.0})
+    with pytest.raises(ValueError, match="env: must be one of"):
+        configure(PPOConfig(), "SpinStrike/Nope-v0")
+    assert not ray.is_initialized()  # nothing started
+
+
+def test_creator_returns_a_single_env_or_the_native_vector_env():
+    register_envs()
+    single = make_env(CONTROL, {"max_force": 5.0})
+    assert isinstance(single, gym.Env) and single.unwrapped.cfg.max_force == 5.0
+    vec = make_env(CONTROL, {"max_force": 5.0, "num_envs": 3})
+    assert vec.num_envs == 3 and vec.cfg.max_force == 5.0
+    assert vec.metadata["autoreset_mode"] is gym.vector.AutoresetMode.NEXT_STEP
+    assert vec.max_episode_steps == 250
+
+
+def _counting_creator(env_id):
+    """A creator whose vector env counts, per element, the env steps (not NEXT_STEP's reset
+    steps) and rewards it produced (defined in a function: Ray pickles it by value)."""
+
+    class Counting(gym.vector.VectorWrapper):
+        def __init__(self, env):
+            super().__init__(env)
+            self.steps = 0
+            self.reward = 0.0
+            self.episodes_done = 0
+            self._pending = np.zeros(env.num_envs, bool)
+
+        def reset(self, **kwargs):
+            self._pending[:] = False
+            return self.env.reset(**kwargs)
+
+        def step(self, actions):
+            obs, r, term, trunc, info = self.env.step(actions)
+            next_step = self.env.metadata["autoreset_mode"] is gym.vector.AutoresetMode.NEXT_STEP
+            real = ~self._pending if next_step else np.ones_like(term)
+            self.steps += int(real.sum())
+            self.reward += float(r[real].sum())
+            self.episodes_done += int((term | trunc)[real].sum())
+            self._pending = term | trunc
+            return obs, r, term, trunc, info
+
+    def create(cfg):
+        from spinstrike.envs.rllib import make_env as make
+
+        return Counting(make(env_id, cfg))
+
+    return create
+
+
+@pytest.mark.parametrize("random_actions", [True, False], ids=["random", "module"])
+@pytest.mark.parametrize("env_id", [STRIKE, CONTROL])
+def test_every_env_step_and_reward_reaches_rllibs_episodes(env_id, random_actions):
+    """Sampled by an env runner (random actions, or the module's): the steps and rewards in
+    RLlib's episodes are exactly those the env produced, and control episodes have their full
+    length. (One kind of action per runner: switching ``random_actions`` between calls with
+    episodes under way fails RLlib's own episode check, on CartPole-v1 too.)"""
+    from ray.rllib.env.single_agent_env_runner import SingleAgentEnvRunner
+    from ray.tune.registry import register_env
+
+    name = f"counting-{env_id}"
+    register_env(name, _counting_creator(env_id))
+    limit = 7
+    config = (PPOConfig().environment(name, env_config={"max_episode_steps": limit}
+                                      if env_id == CONTROL else {})
+              .env_runners(num_envs_per_env_runner=5, gym_env_vectorize_mode="vector_entry_point"))
+    runner = SingleAgentEnvRunner(config=config)
+    try:
+        counter = runner.env.env
+        steps, reward, lengths = 0, 0.0, []
+        for _ in range(3):
+            for ep in runner.sample(num_timesteps=60, random_actions=random_actions):
+                steps += len(ep)
+                reward += float(ep.get_return())
+                if ep.is_done:
+                    lengths.append(len(ep))
+        assert steps == counter.steps >= 180
+        assert reward == pytest.approx(counter.reward, rel=1e-9, abs=1e-12)
+        if env_id == STRIKE:
+            assert set(lengths) == {1} and len(lengths) == counter.episodes_done
+        else:
+            assert lengths and all(n <= limit for n in lengths)
+            assert limit in lengths  # a truncated episode keeps its first step
+    finally:
+        runner.stop()
+
+
+def test_training_on_a_simulated_two_node_cluster():
+    from ray.cluster_utils import Cluster
+
+    if ray.is_initialized():
+        ray.shutdown()
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1,
+                                                            "include_dashboard": False})
+    try:
+        cluster.add_node(num_cpus=1)
+        cluster.wait_for_nodes()
+        ray.init(address=cluster.address, log_to_driver=False)
+        assert len([n for n in ray.nodes() if n["Alive"]]) == 2
+        algo = tiny(configure(PPOConfig(), STRIKE)).build_algo()
+        try:
+            result = algo.train()
+            assert _sampled(result) > 0
+            nodes = algo.env_runner_group.foreach_env_runner(
+                lambda r: ray.get_runtime_context().get_node_id(), local_env_runner=False)
+            assert len(set(nodes)) == 2  # one runner on each node (1 CPU each)
+        finally:
+            algo.stop()
+    finally:
+        ray.shutdown()
+        cluster.shutdown()
+
+
+def test_a_killed_env_runner_is_replaced_and_training_goes_on(local_ray):
+    config = tiny(configure(PPOConfig(), STRIKE)).fault_tolerance(
+        restart_failed_env_runners=True)
+    algo = config.build_algo()
+    try:
+        before = _sampled(algo.train())
+        group = algo.env_runner_group
+        victim = group.healthy_env_runner_ids()[0]
+        group.foreach_env_runner(lambda r: os._exit(1), remote_worker_ids=[victim],
+                                 local_env_runner=False)
+        after = before
+        for _ in range(4):
+            after = _sampled(algo.train())
+            if group.num_remote_worker_restarts() >= 1 and \
+                    group.num_healthy_remote_env_runners() == 2:
+                break
+        assert group.num_remote_worker_restarts() >= 1
+        assert group.num_healthy_remote_env_runners() == 2
+        assert after > before
+        # the replacement samples: a further iteration uses both runners
+        steps = group.foreach_env_runner(lambda r: r.env.unwrapped.num_envs,
+                                         local_env_runner=False)
+        assert steps == [4, 4]
+        assert _sampled(algo.train()) > after
+    finally:
+        algo.stop()
+
+
+# importing RLlib's algorithm registry builds DreamerV3's debug CartPole, which warns
+@pytest.mark.filterwarnings("ignore::UserWarning")
+def test_tune_sweep_over_two_seeds(local_ray, tmp_path):
+    from ray import tune
+
+    config = tiny(configure(PPOConfig(), STRIKE), runners=1)
+    config = config.debugging(seed=tune.grid_search([0, 1]))
+    tuner = tune.Tuner("PPO", param_space=config,
+                       run_config=tune.RunConfig(stop={"training_iteration": 1},
+                                                 storage_path=str(tmp_path), verbose=0))
+    results = tuner.fit()
+    assert len(results) == 2 and not results.errors
+    seeds = sorted(r.config["seed"] for r in results)
+    assert seeds == [0, 1]
+    for r in results:
+        assert r.metrics["env_runners"]["num_env_steps_sampled_lifetime"] > 0
+
+
+def test_cli_train_backend_rllib_writes_the_run_folder(tmp_path):
+    out = tmp_path / "run"
+    env = dict(os.environ, SDL_VIDEODRIVER="dummy", SDL_AUDIODRIVER="dummy", MPLBACKEND="Agg")
+    cmd = [sys.executable, "-m", "spinstrike.agents.cli", "train", "--backend", "rllib",
+           "--env", STRIKE, "--num-env-runners", "2", "--timesteps", "256", "--n-envs", "4",
+           "--eval-episodes", "5", "--out", str(out)]
+    done = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=900)
+    assert done.returncode == 0, done.stderr[-3000:]
+    for name in ("config.yml", "command.txt", "progress.csv", "evaluations.npz",
+                 "learning_curve.png", "summary.md", "summary.json", "rollout.mp4"):
+        assert (out / name).is_file(), name
+    assert (out / "checkpoint").is_dir() and any((out / "checkpoint").iterdir())
+    summary = (out / "summary.md").read_text()
+    for policy in ("agent", "random", "oracle"):
+        assert f"| {policy} |" in summary
+    assert "agent:" in done.stdout and "oracle:" in done.stdout
+    assert not Path(str(out) + ".partial").exists()
+    # the run folder evaluates like an SB3 run's: the checkpoint's module gives the summary's
+    # agent return on the same episodes
+    evaluated = subprocess.run([sys.executable, "-m", "spinstrike.agents.cli", "evaluate",
+                                str(out), "--episodes", "5", "--no-save"],
+                               capture_output=True, text=True, env=env, timeout=300)
+    assert evaluated.returncode == 0, evaluated.stderr[-3000:]
+    import json
+
+    agent = next(r for r in json.loads((out / "summary.json").read_text())
+                 if r["policy"] == "agent")
+    assert f"{agent['mean']:.4f}" in evaluated.stdout
+
+
+def test_cli_backend_rllib_bad_input_exits_2_before_writing(tmp_path):
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "spinstrike.agents.cli", "train", "--backend", "rllib",
+           "--env", STRIKE, "--env-kwargs", "{no_such_key: 1}", "--out", str(out)]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 2 and "no_such_key" in done.stderr
+    assert not out.exists() and not Path(str(out) + ".partial").exists()
