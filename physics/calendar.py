@@ -42,12 +42,17 @@ from spinstrike.physics.layout import (
     CAL_COLUMNS,
     CAL_HEAP_SIZE,
     CAL_WATCH_SIZE,
+    F_CALF,
     FRICTION_DECEL,
     FX,
     FY,
+    H_FLOAT,
+    H_INT,
     HALF_H,
     HALF_LENGTH,
     HALF_W,
+    I_CALI,
+    I_PAIR_INDEX,
     INV_MASS,
     RADIUS,
     VX,
@@ -56,9 +61,9 @@ from spinstrike.physics.layout import (
     Y,
 )
 
-__all__ = ["BOX_MARGIN", "NEAR_SLACK", "box_meets_wall", "boxes_meet", "heap_remove",
-           "heap_set", "near_time", "rows", "sort_by_xmin", "sort_ints", "stays_clear",
-           "swept_box", "watch_insert", "watch_remove"]
+__all__ = ["BOX_MARGIN", "NEAR_SLACK", "box_meets_wall", "boxes_meet", "element_rows",
+           "heap_remove", "heap_set", "near_time", "rows", "sort_by_xmin", "sort_ints",
+           "stays_clear", "swept_box", "watch_insert", "watch_remove"]
 
 #: share of a body's reach added to its swept box: pairs that pass closer than this are
 #: searched (a search of a pair grazing past by little more than the tolerance takes many
@@ -69,10 +74,26 @@ NEAR_SLACK = 1e-6
 
 
 @jit_inline
+def element_rows(fbuf, ibuf, b, n, p):
+    """The views of element b's calendar rows in a world's buffers: (near [P], box [N, 4],
+    counters, heap [P], heap position + 1 [P], watch list [P], stamp [P], on the watch list
+    [P], order [N], pair index [N, N + 4]) (``layout.calendar_widths``, ``field_shapes``)."""
+    cf = p + n * BOX_COLUMNS
+    ci = CAL_COLUMNS + 5 * p + n
+    of = ibuf[H_FLOAT + F_CALF] + b * cf
+    oi = ibuf[H_INT + I_CALI] + b * ci
+    o = ibuf[H_INT + I_PAIR_INDEX]
+    pidx = ibuf[o:o + n * (n + 4)].reshape((n, n + 4))
+    near, box, cnt, heap, hpos, watch, stamp, watched, order = rows(fbuf[of:of + cf],
+                                                                    ibuf[oi:oi + ci], n, p)
+    return near, box, cnt, heap, hpos, watch, stamp, watched, order, pidx
+
+
+@jit_inline
 def rows(calf, cali, n, p):
-    """The views of one element's calendar rows: (near [P], box [N, 4], counters, heap [P],
-    heap position + 1 [P], watch list [P], stamp [P], on the watch list [P], order [N])
-    (``layout.calendar_widths``)."""
+    """The views of one element's calendar rows ``calf``, ``cali``: (near [P], box [N, 4],
+    counters, heap [P], heap position + 1 [P], watch list [P], stamp [P], on the watch list
+    [P], order [N]) (``layout.calendar_widths``)."""
     near = calf[:p]
     box = calf[p:p + n * BOX_COLUMNS].reshape((n, BOX_COLUMNS))
     cnt = cali[:CAL_COLUMNS]

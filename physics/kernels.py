@@ -32,8 +32,6 @@ from numba import literally
 from spinstrike.physics.events import pair_bodies, pair_geometry
 from spinstrike.physics.jit import jit, jit_inline, jit_parallel, static_if
 from spinstrike.physics.layout import (
-    BOX_COLUMNS,
-    CAL_COLUMNS,
     CF_DT,
     CF_SETTLE,
     CF_TOL,
@@ -43,7 +41,6 @@ from spinstrike.physics.layout import (
     CI_MAX_ITERATIONS,
     CI_SUBSTEPS,
     CI_ZENO_IMPACTS,
-    F_CALF,
     F_CREC,
     F_FCFG,
     F_FORCES,
@@ -56,7 +53,6 @@ from spinstrike.physics.layout import (
     FCFG_SIZE,
     FORCE_COLUMNS,
     H_B,
-    H_CALENDAR,
     H_FLOAT,
     H_INT,
     H_M,
@@ -65,14 +61,12 @@ from spinstrike.physics.layout import (
     HALF_COLUMNS,
     HALF_H,
     HALF_W,
-    I_CALI,
     I_CHANGED,
     I_CPAIR,
     I_ICFG,
     I_KIND,
     I_PAIR_A,
     I_PAIR_B,
-    I_PAIR_INDEX,
     I_STATS,
     ICFG_SIZE,
     MATERIAL_COLUMNS,
@@ -94,11 +88,10 @@ BLOCK = 64
 #: records ``crec``, time-of-impact scratch ``toi``, float config ``fcfg``, pair bodies ``PA``,
 #: ``PB``, contact pairs ``cpair``, statistics ``stats``, search kinds ``kind``, changed flags
 #: ``changed``, int config ``icfg``, clock ``clock`` (shapes: ``layout.field_shapes``)
-#: ``clock``; the exact solver's calendar rows ``calf``, ``cali`` and pair index ``pidx`` (empty
-#: below ``layout.CALENDAR_BODIES`` bodies)
+#: ``clock``; and the two buffers ``fbuf``, ``ibuf`` themselves (the exact solver's calendar
+#: takes its rows from them, ``calendar.element_rows``, only where it is compiled)
 Views = namedtuple("Views", ["S", "Pm", "F", "HW", "MAT", "crec", "toi", "fcfg", "PA", "PB",
-                             "cpair", "stats", "kind", "changed", "icfg", "clock", "calf", "cali",
-                             "pidx"])
+                             "cpair", "stats", "kind", "changed", "icfg", "clock", "fbuf", "ibuf"])
 
 
 @jit_inline
@@ -137,16 +130,8 @@ def unpack(fbuf, ibuf):
     kind = _ints(ibuf, I_KIND, B * P).reshape((B, P))
     changed = _ints(ibuf, I_CHANGED, B * N).reshape((B, N))
     icfg = _ints(ibuf, I_ICFG, ICFG_SIZE)
-    cf, ci, rows, cols = 0, 0, 0, 0
-    if ibuf[H_CALENDAR]:
-        cf = P + N * BOX_COLUMNS
-        ci = CAL_COLUMNS + 5 * P + N
-        rows, cols = N, N + 4
-    calf = _floats(fbuf, ibuf, F_CALF, B * cf).reshape((B, cf))
-    cali = _ints(ibuf, I_CALI, B * ci).reshape((B, ci))
-    pidx = _ints(ibuf, I_PAIR_INDEX, rows * cols).reshape((rows, cols))
     return Views(S, Pm, F, HW, MAT, crec, toi, fcfg, PA, PB, cpair, stats, kind, changed, icfg,
-                 clock, calf, cali, pidx)
+                 clock, fbuf, ibuf)
 
 
 #: the compile-time flags every batch kernel takes last, in this order (``World.flags``): the
@@ -179,7 +164,7 @@ def step_element(v, b, dt, fixed, rotation, contact_friction, table_friction, ja
                   v.fcfg[CF_TOL], v.icfg[CI_MAX_EVENTS], v.icfg[CI_MAX_ITERATIONS],
                   v.fcfg[CF_ZENO_SPEED], v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE], rotation,
                   contact_friction, table_friction, jam, v.cpair[b], v.crec[b], v.stats[b],
-                  v.toi[b], v.kind[b], v.changed[b], v.calf[b], v.cali[b], v.pidx, trace)
+                  v.toi[b], v.kind[b], v.changed[b], v.fbuf, v.ibuf, b, trace)
 
 
 @jit

@@ -38,10 +38,10 @@ import numpy as np
 from spinstrike.physics.calendar import (
     box_meets_wall,
     boxes_meet,
+    element_rows,
     heap_remove,
     heap_set,
     near_time,
-    rows,
     sort_by_xmin,
     sort_ints,
     stays_clear,
@@ -476,10 +476,29 @@ def _settle_substeps(S, Pm, F, PA, PB, T, settle_substep):
 
 
 @jit
-def _exact_scan(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
+def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
                   zeno_impacts, settle_substep, rotation, contact_friction, table_friction,
-                  jam, cpair, crec, stats, toi, kind, changed, trace):
-    """:func:`exact_element` for few bodies: every pair searched, scanned and swept."""
+                  jam, cpair, crec, stats, toi, kind, changed, fbuf, ibuf, element, trace):
+    """Advance one element by dt seconds, event by event.
+
+    ``toi``, ``kind`` (per pair) and ``changed`` (per body) are the element's scratch rows;
+    ``fbuf``, ``ibuf`` the world's buffers and ``element`` the element's index, whose calendar
+    rows the calendar loop takes from them (``calendar.element_rows``: empty below
+    ``layout.CALENDAR_BODIES`` bodies); ``rotation``, ``contact_friction``,
+    ``table_friction`` and ``jam`` are compile-time flags (``kernels.FLAGS``): at the level
+    ``LEVEL_MANY_BODIES`` the event loop runs on the broadphase and the event calendar
+    (``physics.calendar``; the same events, bit for bit), otherwise it scans every pair and
+    the calendar is not compiled. ``trace``: the trace hook (a ``Trace``: the state after every
+    event that resolved contacts), or None.
+    """
+    if jam >= LEVEL_MANY_BODIES:
+        _calendar_if(jam, S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations,
+                     zeno_speed, zeno_impacts, settle_substep, rotation, contact_friction,
+                     table_friction, jam, cpair, crec, stats, toi, kind, changed, fbuf, ibuf,
+                     element, trace)
+        return
+    # few bodies: every pair searched, scanned and swept (the calendar's own loop is not
+    # compiled below LEVEL_MANY_BODIES; this one is skipped above it)
     sweeps = _int(MAX_SWEEPS)
     n_pairs = PA.shape[0]
     iterations = 0
@@ -536,30 +555,6 @@ def _exact_scan(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, 
             break
     stats[STAT_EVENTS] += events
     stats[STAT_ITERATIONS] += iterations
-
-
-@jit
-def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
-                  zeno_impacts, settle_substep, rotation, contact_friction, table_friction,
-                  jam, cpair, crec, stats, toi, kind, changed, calf, cali, pidx, trace):
-    """Advance one element by dt seconds, event by event.
-
-    ``toi``, ``kind`` (per pair) and ``changed`` (per body) are the element's scratch rows,
-    ``calf``, ``cali`` its calendar rows and ``pidx`` the pair index (``layout.field_shapes``:
-    empty below ``layout.CALENDAR_BODIES`` bodies); ``rotation``, ``contact_friction``,
-    ``table_friction`` and ``jam`` are compile-time flags (``kernels.FLAGS``): at the level
-    ``LEVEL_MANY_BODIES`` the event loop runs on the broadphase and the event calendar
-    (``physics.calendar``; the same events, bit for bit), otherwise it scans every pair and
-    the calendar is not compiled. ``trace``: the trace hook (a ``Trace``: the state after every
-    event that resolved contacts), or None.
-    """
-    _scan_unless(jam, S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations,
-                 zeno_speed, zeno_impacts, settle_substep, rotation, contact_friction,
-                 table_friction, jam, cpair, crec, stats, toi, kind, changed, trace)
-    _calendar_if(jam, S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations,
-                 zeno_speed, zeno_impacts, settle_substep, rotation, contact_friction,
-                 table_friction, jam, cpair, crec, stats, toi, kind, changed, calf, cali, pidx,
-                 trace)
 
 
 @jit_inline
@@ -693,12 +688,12 @@ def _repredict(best, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotat
 @jit
 def _exact_calendar(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
                     zeno_impacts, settle_substep, rotation, contact_friction, table_friction,
-                    jam, cpair, crec, stats, toi, kind, changed, calf, cali, pidx, trace):
+                    jam, cpair, crec, stats, toi, kind, changed, fbuf, ibuf, element, trace):
     """:func:`exact_element` for many bodies, on the broadphase and the event calendar
     (``physics.calendar``): the plain loop's events, found without scanning every pair."""
     n = S.shape[0]
-    near, box, cnt, heap, hpos, watch, stamp, watched, order = rows(calf, cali, n,
-                                                                         PA.shape[0])
+    near, box, cnt, heap, hpos, watch, stamp, watched, order, pidx = element_rows(
+        fbuf, ibuf, element, n, PA.shape[0])
     sweeps = _int(MAX_SWEEPS)
     iterations = _first_predictions(S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation,
                                     table_friction, toi, kind, pidx, near, box, cnt, heap, hpos,
@@ -745,6 +740,6 @@ def _exact_calendar(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iteratio
     stats[STAT_ITERATIONS] += iterations
 
 
-#: the two event loops, by the world's literal ``jam`` level: the other is never compiled
-_scan_unless = static_if(_exact_scan, negate=True, level=LEVEL_MANY_BODIES)
+#: the calendar's event loop, compiled only at the world's literal ``jam`` level
+#: ``LEVEL_MANY_BODIES``
 _calendar_if = static_if(_exact_calendar, level=LEVEL_MANY_BODIES)
