@@ -535,10 +535,12 @@ def main(argv: list[str] | None = None) -> int:
         f"* **Batch size.** One call costs about {b1:.1f} µs at B = 1 (Python around the kernel "
         "and numba's dispatch); from B = 256 the kernels run on all cores and the cost per "
         f"element flattens at about {flat:.2f} µs (a resting scene) up to the largest batch.",
-        "* **Bodies.** The exact solver searches every pair whose bodies an event changed and "
-        "checks every pair for simultaneous contacts at each event, so with N bodies a step "
-        "costs roughly pairs x events, N^2 x N: it stops scaling at about 8 bodies. A "
-        "broadphase (sweep and prune over the pairs) is what would change that.",
+        "* **Bodies.** From 8 bodies the exact solver steps on a broadphase (swept boxes) and "
+        "an event calendar (`physics/calendar.py`, `docs/design.md` §4): an event costs the "
+        "searches of the pairs of the bodies it changed, heap updates and a pass over the "
+        "pairs that may touch, not a scan of all N^2 pairs, and the events are the same bit "
+        "for bit. What grows with N is the step's first sweep and prune and one test of each "
+        "changed body's box against every other body per event.",
         "* **Contacts.** Free flight is cheap; each impact costs a search per affected pair, "
         "and a mallet pinned against a cushion (a Zeno run of ever-smaller bounces) is settled "
         "by fixed substeps, about 1% of the steps under random actions but a good share of "
