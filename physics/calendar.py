@@ -283,7 +283,7 @@ def _sift_down(heap, hpos, toi, k, size):
     hpos[p] = k + 1
 
 
-@jit
+@jit_inline
 def heap_set(heap, hpos, cnt, toi, p):
     """Put pair p in the calendar at its time ``toi[p]``, or move it there."""
     k = hpos[p] - 1
@@ -296,7 +296,7 @@ def heap_set(heap, hpos, cnt, toi, p):
         _sift_down(heap, hpos, toi, k, cnt[CAL_HEAP_SIZE])
 
 
-@jit
+@jit_inline
 def heap_remove(heap, hpos, cnt, toi, p):
     """Take pair p out of the calendar (nothing if it is not in it)."""
     k = hpos[p] - 1
@@ -331,7 +331,7 @@ def _find(watch, size, p):
     return lo
 
 
-@jit
+@jit_inline
 def watch_insert(watch, watched, cnt, p):
     """Add pair p to the watch list, kept in pair order (nothing if it is on it)."""
     if watched[p]:
@@ -345,7 +345,7 @@ def watch_insert(watch, watched, cnt, p):
     cnt[CAL_WATCH_SIZE] = size + 1
 
 
-@jit
+@jit_inline
 def watch_remove(watch, watched, cnt, p):
     """Take pair p off the watch list (nothing if it is not on it)."""
     if not watched[p]:
