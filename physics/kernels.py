@@ -69,13 +69,14 @@ from spinstrike.physics.layout import (
     I_PAIR_B,
     I_STATS,
     ICFG_SIZE,
+    LEVEL_MANY_BODIES,
     MATERIAL_COLUMNS,
     PARAM_COLUMNS,
     REC_COLUMNS,
     STAT_COLUMNS,
     STATE_COLUMNS,
 )
-from spinstrike.physics.solvers import exact_element, fixed_element
+from spinstrike.physics.solvers import exact_element, exact_many_element, fixed_element
 
 __all__ = ["BLOCK", "FLAGS", "STEP", "BatchKernel", "Views", "element_overlap", "n_blocks",
            "step_element", "unpack"]
@@ -147,6 +148,10 @@ FLAGS = ("fixed", "rotation", "contact_friction", "table_friction", "jam")
 #: one solver or the other, by the world's literal ``fixed`` flag: the other is never compiled
 _fixed_if = static_if(fixed_element)
 _exact_unless = static_if(exact_element, negate=True)
+#: the exact solver's calendar, only at the ``jam`` level ``LEVEL_MANY_BODIES`` (exact worlds of
+#: ``CALENDAR_BODIES`` or more bodies): other worlds never compile it, and their exact step
+#: keeps its own argument list
+_many_if = static_if(exact_many_element, level=LEVEL_MANY_BODIES)
 
 
 @jit
@@ -164,7 +169,12 @@ def step_element(v, b, dt, fixed, rotation, contact_friction, table_friction, ja
                   v.fcfg[CF_TOL], v.icfg[CI_MAX_EVENTS], v.icfg[CI_MAX_ITERATIONS],
                   v.fcfg[CF_ZENO_SPEED], v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE], rotation,
                   contact_friction, table_friction, jam, v.cpair[b], v.crec[b], v.stats[b],
-                  v.toi[b], v.kind[b], v.changed[b], v.fbuf, v.ibuf, b, trace)
+                  v.toi[b], v.kind[b], v.changed[b], trace)
+    _many_if(jam, v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt, v.fcfg[CF_TOL],
+             v.icfg[CI_MAX_EVENTS], v.icfg[CI_MAX_ITERATIONS], v.fcfg[CF_ZENO_SPEED],
+             v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE], rotation, contact_friction,
+             table_friction, jam, v.cpair[b], v.crec[b], v.stats[b], v.toi[b], v.kind[b],
+             v.changed[b], v.fbuf, v.ibuf, b, trace)
 
 
 @jit

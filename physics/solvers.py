@@ -106,7 +106,8 @@ from spinstrike.physics.layout import (
 )
 from spinstrike.physics.motion import flight
 
-__all__ = ["MAX_SWEEPS", "TRACE_COUNT", "Trace", "exact_element", "fixed_element",
+__all__ = ["MAX_SWEEPS", "TRACE_COUNT", "Trace", "exact_element", "exact_many_element",
+           "fixed_element",
            "trace_state"]
 
 #: sequential-impulse sweeps over simultaneous contacts at one event
@@ -478,27 +479,18 @@ def _settle_substeps(S, Pm, F, PA, PB, T, settle_substep):
 @jit
 def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
                   zeno_impacts, settle_substep, rotation, contact_friction, table_friction,
-                  jam, cpair, crec, stats, toi, kind, changed, fbuf, ibuf, element, trace):
-    """Advance one element by dt seconds, event by event.
+                  jam, cpair, crec, stats, toi, kind, changed, trace):
+    """Advance one element by dt seconds, event by event, every pair scanned at every event.
 
     ``toi``, ``kind`` (per pair) and ``changed`` (per body) are the element's scratch rows;
-    ``fbuf``, ``ibuf`` the world's buffers and ``element`` the element's index, whose calendar
-    rows the calendar loop takes from them (``calendar.element_rows``: empty below
-    ``layout.CALENDAR_BODIES`` bodies); ``rotation``, ``contact_friction``,
-    ``table_friction`` and ``jam`` are compile-time flags (``kernels.FLAGS``): at the level
-    ``LEVEL_MANY_BODIES`` the event loop runs on the broadphase and the event calendar
-    (``physics.calendar``; the same events, bit for bit), otherwise it scans every pair and
-    the calendar is not compiled. ``trace``: the trace hook (a ``Trace``: the state after every
-    event that resolved contacts), or None.
+    ``rotation``, ``contact_friction``, ``table_friction`` and ``jam`` are compile-time flags
+    (``kernels.FLAGS``). At the ``jam`` level ``LEVEL_MANY_BODIES`` this does nothing (the
+    test is folded at compile time): :func:`exact_many_element` steps those worlds, on the
+    broadphase and the event calendar, with the same events bit for bit. ``trace``: the trace
+    hook (a ``Trace``: the state after every event that resolved contacts), or None.
     """
     if jam >= LEVEL_MANY_BODIES:
-        _calendar_if(jam, S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations,
-                     zeno_speed, zeno_impacts, settle_substep, rotation, contact_friction,
-                     table_friction, jam, cpair, crec, stats, toi, kind, changed, fbuf, ibuf,
-                     element, trace)
         return
-    # few bodies: every pair searched, scanned and swept (the calendar's own loop is not
-    # compiled below LEVEL_MANY_BODIES; this one is skipped above it)
     sweeps = _int(MAX_SWEEPS)
     n_pairs = PA.shape[0]
     iterations = 0
@@ -686,11 +678,14 @@ def _repredict(best, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotat
 
 
 @jit
-def _exact_calendar(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
-                    zeno_impacts, settle_substep, rotation, contact_friction, table_friction,
-                    jam, cpair, crec, stats, toi, kind, changed, fbuf, ibuf, element, trace):
-    """:func:`exact_element` for many bodies, on the broadphase and the event calendar
-    (``physics.calendar``): the plain loop's events, found without scanning every pair."""
+def exact_many_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations,
+                       zeno_speed, zeno_impacts, settle_substep, rotation, contact_friction,
+                       table_friction, jam, cpair, crec, stats, toi, kind, changed, fbuf, ibuf,
+                       element, trace):
+    """:func:`exact_element` for many bodies (the ``jam`` level ``LEVEL_MANY_BODIES``), on the
+    broadphase and the event calendar (``physics.calendar``): the scan's events, found without
+    scanning every pair. ``fbuf``, ``ibuf``: the world's buffers, from which element
+    ``element``'s calendar rows are taken (``calendar.element_rows``)."""
     n = S.shape[0]
     near, box, cnt, heap, hpos, watch, stamp, watched, order, pidx = element_rows(
         fbuf, ibuf, element, n, PA.shape[0])
@@ -739,7 +734,3 @@ def _exact_calendar(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iteratio
     stats[STAT_EVENTS] += events
     stats[STAT_ITERATIONS] += iterations
 
-
-#: the calendar's event loop, compiled only at the world's literal ``jam`` level
-#: ``LEVEL_MANY_BODIES``
-_calendar_if = static_if(_exact_calendar, level=LEVEL_MANY_BODIES)
