@@ -11,7 +11,9 @@ What is measured (env-steps per second unless said otherwise; fastest of the rep
 * the single env through ``gym.make`` (all default wrappers), exact and pymunk;
 * the one-strike envs: strikes per second, single and vector;
 * the share of SB3 PPO's wall time spent in the env (native ``VecEnv`` adapter);
-* how the cost grows with the batch size (1..65536) and with the number of bodies (2..64 pucks).
+* how the cost grows with the batch size (1..65536) and with the number of bodies (2..256
+  pucks, one world, beside raw pymunk at 1 and 10 substeps: ``--section bodies`` runs that part
+  alone).
 
 Contacts per step are reported beside every figure, since free flight is cheap and contacts are
 not.
@@ -228,6 +230,8 @@ def _startup_times(env_ids: list[str]) -> dict[str, tuple[float, float, float, f
 
 
 def _many_pucks_scene(n_pucks: int) -> dict:
+    """The bodies sweep's scene: n pucks (r = 0.02 m, m = 0.05 kg) on a grid over a walled
+    1.2 x 0.8 m table, velocities uniform in [-1, 1] m/s per axis (seeded), e = 0.95."""
     side = math.ceil(math.sqrt(n_pucks))
     rng = np.random.default_rng(1)
     bodies = []
@@ -255,6 +259,144 @@ def _world_step_time(scene: dict, batch: int, steps: int, repeats: int) -> tuple
     counts[0] = 0
     best = _best(run, repeats)
     return best / steps, counts[0] / (repeats * steps * batch)
+
+
+#: the bodies sweep: pucks per scene, simulated steps of 0.02 s (from the scene's start)
+BODIES = (2, 4, 8, 16, 32, 64, 128, 256)
+BODY_STEPS = 50
+
+
+def _exact_pucks(n_pucks: int, steps: int) -> tuple[float, float]:
+    """One world (B = 1) of the sweep's scene on the exact solver, ``steps`` steps of 0.02 s
+    from its start: (CPU seconds per step, contacts per step). The kernels are compiled (and the
+    step timed) on a separate world first."""
+    scene = _many_pucks_scene(n_pucks)
+    physics.World(scene).step(0.02)  # compile
+    world = physics.World(scene)
+    contacts = 0
+    t = time.process_time()
+    for _ in range(steps):
+        record = world.step(0.02)
+        contacts += len(record.impulse) + int(record.dropped.sum())  # stored + not stored
+    return (time.process_time() - t) / steps, contacts / steps
+
+
+def _pymunk_pucks(n_pucks: int, steps: int, substeps: int) -> float:
+    """Raw pymunk (one ``Space``, no SpinStrike code in the loop) on the sweep's scene:
+    segment cushions, circle pucks, elasticity sqrt(0.95) on every shape (pymunk multiplies a
+    pair's two), no friction; each 0.02 s step is ``substeps`` calls of ``Space.step``. CPU
+    seconds per step."""
+    import pymunk
+
+    scene = _many_pucks_scene(n_pucks)
+    hw, hh = 0.6, 0.4
+    space = pymunk.Space()
+    e = math.sqrt(scene["materials"]["restitution"])
+    walls = [((-hw, -hh), (hw, -hh)), ((hw, -hh), (hw, hh)), ((hw, hh), (-hw, hh)),
+             ((-hw, hh), (-hw, -hh))]
+    for a, b in walls:
+        seg = pymunk.Segment(space.static_body, a, b, 0.0)
+        seg.elasticity = e
+        seg.friction = 0.0
+        space.add(seg)
+    for spec in scene["bodies"]:
+        r, m = spec["radius"], spec["mass"]
+        body = pymunk.Body(m, pymunk.moment_for_circle(m, 0.0, r))
+        body.position = tuple(spec["position"])
+        body.velocity = tuple(spec["velocity"])
+        shape = pymunk.Circle(body, r)
+        shape.elasticity = e
+        shape.friction = 0.0
+        space.add(body, shape)
+    h = 0.02 / substeps
+    t = time.process_time()
+    for _ in range(steps):
+        for _ in range(substeps):
+            space.step(h)
+    return (time.process_time() - t) / steps
+
+
+def bodies_sweep(bodies=BODIES, steps: int = BODY_STEPS) -> list[tuple[int, float, float, float,
+                                                                        float]]:
+    """The bodies sweep, exact beside raw pymunk in the same run: per number of pucks,
+    (pucks, exact s/step, contacts/step, pymunk 1 substep s/step, pymunk 10 substeps s/step),
+    CPU time (``time.process_time``), one world."""
+    rows = []
+    for n in bodies:
+        t, c = _exact_pucks(n, steps)
+        p1 = _pymunk_pucks(n, steps, 1)
+        p10 = _pymunk_pucks(n, steps, 10)
+        rows.append((n, t, c, p1, p10))
+        per = f"{t / c * 1e6:10.1f}" if c > 0 else "         -"
+        print(f"{n:4d} pucks: exact {t * 1e6:11.1f} us/step, {c:7.2f} contacts/step, {per} us/"
+              f"contact; pymunk 1 substep {p1 * 1e6:8.1f}, 10 substeps {p10 * 1e6:8.1f} us/step",
+              flush=True)
+    return rows
+
+
+def _bodies_lines(rows, steps: int) -> list[str]:
+    lines = ["## Cost against number of bodies", "",
+             f"One world of N pucks (`_many_pucks_scene`: r = 0.02 m, m = 0.05 kg, e = 0.95, "
+             f"|v| <= 1 m/s per axis, a grid on a walled 1.2 x 0.8 m table), {steps} steps of "
+             "0.02 s from the scene's start, CPU time per step; raw pymunk (one `Space`, segment "
+             "cushions, circles) on the same scene in the same run, at 1 and 10 substeps per "
+             "step. Run alone: `python -m spinstrike.benchmarks.speed --section bodies`.", "",
+             "| pucks | exact, µs/step | contacts/step | exact, µs per contact | pymunk 1 "
+             "substep, µs/step | pymunk 10 substeps, µs/step | exact / pymunk 10 |",
+             "|---|---|---|---|---|---|---|"]
+    for n, t, c, p1, p10 in rows:
+        per = f"{t / c * 1e6:.1f}" if c > 0 else "-"
+        lines.append(f"| {n} | {t * 1e6:.1f} | {c:.2f} | {per} | {p1 * 1e6:.1f} | "
+                     f"{p10 * 1e6:.1f} | {t / p10:.2f} |")
+    lines += ["", "![cost per step against number of bodies](speed_bodies.png)", ""]
+    return lines
+
+
+def _plot_bodies(path: Path, rows) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ns = [r[0] for r in rows]
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(10, 3.8))
+    ax.loglog(ns, [r[1] * 1e6 for r in rows], "o-", label="exact")
+    ax.loglog(ns, [r[3] * 1e6 for r in rows], "s--", label="pymunk, 1 substep")
+    ax.loglog(ns, [r[4] * 1e6 for r in rows], "^--", label="pymunk, 10 substeps")
+    ax.set_xlabel("pucks")
+    ax.set_ylabel("µs per step (CPU)")
+    ax.set_title("one world, one 0.02 s step")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend()
+    with_c = [r for r in rows if r[2] > 0]
+    bx.semilogx([r[0] for r in with_c], [r[1] / r[2] * 1e6 for r in with_c], "o-")
+    bx.set_xlabel("pucks")
+    bx.set_ylabel("exact: µs per contact")
+    bx.set_title("cost per contact")
+    bx.set_ylim(bottom=0)
+    bx.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+_BODIES_BEGIN = "<!-- bodies section: generated by --section bodies -->"
+_BODIES_END = "<!-- end of bodies section -->"
+
+
+def _write_bodies(out: Path, rows, steps: int) -> None:
+    """Write (or replace) the bodies section of ``speed.md`` and its plot."""
+    _plot_bodies(out / "speed_bodies.png", rows)
+    block = "\n".join([_BODIES_BEGIN, *_bodies_lines(rows, steps), _BODIES_END])
+    md = out / "speed.md"
+    text = md.read_text() if md.exists() else "# Speed\n"
+    if _BODIES_BEGIN in text:
+        head, rest = text.split(_BODIES_BEGIN, 1)
+        tail = rest.split(_BODIES_END, 1)[1]
+        text = head + block + tail
+    else:
+        text = text.rstrip("\n") + "\n\n" + block + "\n"
+    md.write_text(text)
 
 
 def _machine() -> str:
@@ -293,10 +435,20 @@ def main(argv: list[str] | None = None) -> int:
                                 description=__doc__.split("\n")[0])
     p.add_argument("--quick", action="store_true")
     p.add_argument("--out", default="docs", help="where speed.md and the plots go")
+    p.add_argument("--section", choices=["all", "bodies"], default="all",
+                   help="bodies: only the bodies sweep (exact beside raw pymunk), which replaces "
+                        "that section of speed.md and its plot")
+    p.add_argument("--bodies", type=int, nargs="+", default=list(BODIES),
+                   help="pucks per scene in the bodies sweep (default: %(default)s)")
     args = p.parse_args(argv)
     quick = args.quick
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    body_steps = 10 if quick else BODY_STEPS
+    if args.section == "bodies":
+        _write_bodies(out, bodies_sweep(args.bodies, body_steps), body_steps)
+        print(f"wrote the bodies section of {out / 'speed.md'}")
+        return 0
     big = 1024 if quick else 4096
     reps = 2 if quick else 3
     rows = []
@@ -342,16 +494,10 @@ def main(argv: list[str] | None = None) -> int:
         t, c = _world_step_time(scene, b, max(2, 2000 // b), reps)
         per_batch.append((b, t / b, c))
         print(f"batch {b:6d}: {t / b * 1e6:9.3f} us per element-step, contacts {c:.3f}")
-    bodies = [2, 4, 8, 16, 32, 64]
-    per_bodies = []
-    for n in bodies:
-        t, c = _world_step_time(_many_pucks_scene(n), 64, 20, reps)
-        per_bodies.append((n, t / 64, c))
-        print(f"{n:3d} pucks: {t / 64 * 1e6:9.3f} us per element-step, contacts {c:.3f}")
+    body_rows = bodies_sweep(args.bodies, body_steps)
     _plot(out / "speed_batch.png", [b for b, _, _ in per_batch], [t for _, t, _ in per_batch],
           "batch size B", "world.step (RodSpinControl scene, exact): cost per element")
-    _plot(out / "speed_bodies.png", [n for n, _, _ in per_bodies],
-          [t for _, t, _ in per_bodies], "number of pucks", "world.step, walled table, B = 64")
+    _plot_bodies(out / "speed_bodies.png", body_rows)
 
     lines = ["# Speed", "",
              f"Generated by `python -m spinstrike.benchmarks.speed{' --quick' if quick else ''}` "
@@ -384,10 +530,7 @@ def main(argv: list[str] | None = None) -> int:
               "| B | µs per element-step | contacts per element-step |", "|---|---|---|"]
     lines += [f"| {b} | {t * 1e6:.3f} | {c:.3f} |" for b, t, c in per_batch]
     lines += ["", "![cost per element against batch size](speed_batch.png)", "",
-              "## Cost against number of bodies", "",
-              "| pucks | µs per element-step | contacts per element-step |", "|---|---|---|"]
-    lines += [f"| {n} | {t * 1e6:.3f} | {c:.3f} |" for n, t, c in per_bodies]
-    lines += ["", "![cost per element against number of bodies](speed_bodies.png)", ""]
+              _BODIES_BEGIN, *_bodies_lines(body_rows, body_steps), _BODIES_END, ""]
     b1 = per_batch[0][1] * 1e6
     flat = min(t for b, t, _ in per_batch if b >= 256) * 1e6
     lines += [
@@ -395,10 +538,12 @@ def main(argv: list[str] | None = None) -> int:
         f"* **Batch size.** One call costs about {b1:.1f} µs at B = 1 (Python around the kernel "
         "and numba's dispatch); from B = 256 the kernels run on all cores and the cost per "
         f"element flattens at about {flat:.2f} µs (a resting scene) up to the largest batch.",
-        "* **Bodies.** The exact solver searches every pair whose bodies an event changed and "
-        "checks every pair for simultaneous contacts at each event, so with N bodies a step "
-        "costs roughly pairs x events, N^2 x N: it stops scaling at about 8 bodies. A "
-        "broadphase (sweep and prune over the pairs) is what would change that.",
+        "* **Bodies.** From 8 bodies the exact solver steps on a broadphase (swept boxes) and "
+        "an event calendar (`physics/calendar.py`, `docs/design.md` §4): an event costs the "
+        "searches of the pairs of the bodies it changed, heap updates and a pass over the "
+        "pairs that may touch, not a scan of all N^2 pairs, and the events are the same bit "
+        "for bit. What grows with N is the step's first sweep and prune and one test of each "
+        "changed body's box against every other body per event.",
         "* **Contacts.** Free flight is cheap; each impact costs a search per affected pair, "
         "and a mallet pinned against a cushion (a Zeno run of ever-smaller bounces) is settled "
         "by fixed substeps, about 1% of the steps under random actions but a good share of "

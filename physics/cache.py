@@ -41,7 +41,10 @@ __all__ = ["KernelCache", "cache_dir", "cache_info", "clear_cache", "module_stam
 
 #: environment variable overriding the cache directory
 ENV_VAR = "SPINSTRIKE_CACHE_DIR"
-_IMPORT = re.compile(r"^\s*(?:from\s+(spinstrike(?:\.\w+)+)\s+import\s+([\w\s,()]+)"
+#: a ``from spinstrike... import`` of one line or of a parenthesised list (which must not run on
+#: into the next statement: it once swallowed the ``from`` of the import after a list, so that
+#: module fell out of the stamp), or an ``import spinstrike...``
+_IMPORT = re.compile(r"^\s*(?:from\s+(spinstrike(?:\.\w+)+)\s+import\s+(\([^)]*\)|[\w \t,]+)"
                      r"|import\s+(spinstrike(?:\.\w+)+))", re.M)
 
 

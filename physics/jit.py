@@ -47,12 +47,12 @@ jit_parallel = _compiler(parallel=True)
 
 
 
-def static_if(fn: Any, negate: bool = False) -> Callable[..., Any]:
-    """A kernel-callable ``g(flag, *args)`` that calls ``fn(*args)`` if ``flag`` (if not
-    ``flag`` with ``negate``): a *static* if when ``flag`` is a compile-time literal
-    (``kernels.FLAGS``), for then a call ruled out is never typed or compiled. numba's own
-    branch pruning does not act on literal booleans, so ``if flag: fn(...)`` would compile
-    ``fn`` for every scene; for a non-literal flag ``g`` is an ordinary run-time ``if``.
+def static_if(fn: Any, negate: bool = False, level: int = 1) -> Callable[..., Any]:
+    """A kernel-callable ``g(flag, *args)`` that calls ``fn(*args)`` if ``flag >= level`` (if
+    not, with ``negate``): a *static* if when ``flag`` is a compile-time literal, a boolean or
+    an integer level (``kernels.FLAGS``), for then a call ruled out is never typed or compiled.
+    numba's own branch pruning does not act on literal booleans, so ``if flag: fn(...)`` would
+    compile ``fn`` for every scene; for a non-literal flag ``g`` is an ordinary run-time ``if``.
 
     ``g`` is an ``overload`` inlined into its caller (no compiled layer of its own: each layer
     above the solver costs a compile of its own), which needs ``fn``'s exact parameter list, so
@@ -60,12 +60,13 @@ def static_if(fn: Any, negate: bool = False) -> Callable[..., Any]:
     """
     py_func = getattr(fn, "py_func", fn)  # a plain function under NUMBA_DISABLE_JIT
     params = ", ".join(f"a{i}" for i in range(py_func.__code__.co_argcount))
-    test = "not flag" if negate else "flag"
-    scope: dict[str, Any] = {"fn": fn, "negate": negate, "types": types}
+    test = f"not flag >= {int(level)}" if negate else f"flag >= {int(level)}"
+    scope: dict[str, Any] = {"fn": fn, "negate": negate, "level": level, "types": types}
     exec(f"def g(flag, {params}):\n    if {test}:\n        fn({params})\n"  # noqa: S102
          f"def skip(flag, {params}):\n    return None\n"
          f"def typed(flag, {params}):\n"
-         f"    if isinstance(flag, types.BooleanLiteral) and flag.literal_value == negate:\n"
+         f"    if isinstance(flag, (types.BooleanLiteral, types.IntegerLiteral)) and (\n"
+         f"            (int(flag.literal_value) >= level) == negate):\n"
          f"        return skip\n"
          f"    return g\n", scope)
     g = scope["g"]

@@ -69,13 +69,14 @@ from spinstrike.physics.layout import (
     I_PAIR_B,
     I_STATS,
     ICFG_SIZE,
+    LEVEL_MANY_BODIES,
     MATERIAL_COLUMNS,
     PARAM_COLUMNS,
     REC_COLUMNS,
     STAT_COLUMNS,
     STATE_COLUMNS,
 )
-from spinstrike.physics.solvers import exact_element, fixed_element
+from spinstrike.physics.solvers import exact_element, exact_many_element, fixed_element
 
 __all__ = ["BLOCK", "FLAGS", "STEP", "BatchKernel", "Views", "element_overlap", "n_blocks",
            "step_element", "unpack"]
@@ -88,8 +89,10 @@ BLOCK = 64
 #: records ``crec``, time-of-impact scratch ``toi``, float config ``fcfg``, pair bodies ``PA``,
 #: ``PB``, contact pairs ``cpair``, statistics ``stats``, search kinds ``kind``, changed flags
 #: ``changed``, int config ``icfg``, clock ``clock`` (shapes: ``layout.field_shapes``)
+#: ``clock``; and the two buffers ``fbuf``, ``ibuf`` themselves (the exact solver's calendar
+#: takes its rows from them, ``calendar.element_rows``, only where it is compiled)
 Views = namedtuple("Views", ["S", "Pm", "F", "HW", "MAT", "crec", "toi", "fcfg", "PA", "PB",
-                             "cpair", "stats", "kind", "changed", "icfg", "clock"])
+                             "cpair", "stats", "kind", "changed", "icfg", "clock", "fbuf", "ibuf"])
 
 
 @jit_inline
@@ -129,19 +132,26 @@ def unpack(fbuf, ibuf):
     changed = _ints(ibuf, I_CHANGED, B * N).reshape((B, N))
     icfg = _ints(ibuf, I_ICFG, ICFG_SIZE)
     return Views(S, Pm, F, HW, MAT, crec, toi, fcfg, PA, PB, cpair, stats, kind, changed, icfg,
-                 clock)
+                 clock, fbuf, ibuf)
 
 
 #: the compile-time flags every batch kernel takes last, in this order (``World.flags``): the
 #: solver is ``fixed`` (else exact); the ``rotation``, ``contact_friction`` and
-#: ``table_friction`` effects; the scene's contacts can ``jam`` (two or more contact pairs, or
-#: contact friction: otherwise sequential impulses always converge in one sweep)
+#: ``table_friction`` effects; whether the scene's contacts can ``jam``, a level
+#: (``layout.LEVEL``): 0, one contact pair (sequential impulses always converge in one sweep);
+#: 1, two or more pairs, or contact friction; 2, the same among ``layout.CALENDAR_BODIES`` or
+#: more bodies of an exact world, which then steps on its broadphase and event calendar
+#: (``physics.calendar``)
 FLAGS = ("fixed", "rotation", "contact_friction", "table_friction", "jam")
 
 
 #: one solver or the other, by the world's literal ``fixed`` flag: the other is never compiled
 _fixed_if = static_if(fixed_element)
 _exact_unless = static_if(exact_element, negate=True)
+#: the exact solver's calendar, only at the ``jam`` level ``LEVEL_MANY_BODIES`` (exact worlds of
+#: ``CALENDAR_BODIES`` or more bodies): other worlds never compile it, and their exact step
+#: keeps its own argument list
+_many_if = static_if(exact_many_element, level=LEVEL_MANY_BODIES)
 
 
 @jit
@@ -160,6 +170,11 @@ def step_element(v, b, dt, fixed, rotation, contact_friction, table_friction, ja
                   v.fcfg[CF_ZENO_SPEED], v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE], rotation,
                   contact_friction, table_friction, jam, v.cpair[b], v.crec[b], v.stats[b],
                   v.toi[b], v.kind[b], v.changed[b], trace)
+    _many_if(jam, v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt, v.fcfg[CF_TOL],
+             v.icfg[CI_MAX_EVENTS], v.icfg[CI_MAX_ITERATIONS], v.fcfg[CF_ZENO_SPEED],
+             v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE], rotation, contact_friction,
+             table_friction, jam, v.cpair[b], v.crec[b], v.stats[b], v.toi[b], v.kind[b],
+             v.changed[b], v.fbuf, v.ibuf, b, trace)
 
 
 @jit

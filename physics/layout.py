@@ -140,28 +140,71 @@ ICFG = Table("solver ints", "max_events", "max_iterations", "zeno_impacts", "rot
  CI_TABLE_FRICTION, CI_SUBSTEPS, CI_ITERATIONS, CI_FIXED) = ICFG
 ICFG_SIZE = len(ICFG)
 
+# -- the exact solver's calendar for many bodies (``physics.calendar``) ---------------------------
+
+#: a body's swept box over the rest of a step ``[N, .]``: m, its reach and the tolerance included
+BOX = Table("swept box", "xmin", "xmax", "ymin", "ymax", prefix="BOX_")
+BOX_XMIN, BOX_XMAX, BOX_YMIN, BOX_YMAX = BOX
+BOX_COLUMNS = len(BOX)
+
+#: the counters that open an element's calendar int row: pairs in the heap, pairs on the watch
+#: list, and a running event stamp (never reset: it marks pairs re-predicted at an event)
+CALENDAR = Table("calendar counters", "heap_size", "watch_size", "stamp", prefix="CAL_")
+CAL_HEAP_SIZE, CAL_WATCH_SIZE, CAL_STAMP = CALENDAR
+CAL_COLUMNS = len(CALENDAR)
+
+#: levels of the ``jam`` compile-time flag (``kernels.FLAGS``, values, not columns): one contact
+#: pair (contacts cannot jam), contacts can jam, and can jam among many bodies (from
+#: ``CALENDAR_BODIES``: the exact solver uses its broadphase and event calendar)
+LEVEL = Table("contact level", "one_pair", "can_jam", "many_bodies", prefix="LEVEL_")
+LEVEL_ONE_PAIR, LEVEL_CAN_JAM, LEVEL_MANY_BODIES = LEVEL
+
+#: bodies from which an exact world uses the broadphase and the event calendar
+CALENDAR_BODIES = 8
+
+
+def calendar_widths(N: int, P: int) -> tuple[int, int]:
+    """(float, int) width of an element's calendar rows: the float row holds each pair's
+    earliest time within ``tol`` (``[P]``) then the bodies' swept boxes (``[N, BOX_COLUMNS]``);
+    the int row the counters (``CALENDAR``), then the heap of pairs, each pair's heap position
+    plus one, the watch list, each pair's stamp, whether each pair is on the watch list
+    (``[P]`` each) and the bodies' order (``[N]``)."""
+    return P + N * BOX_COLUMNS, CAL_COLUMNS + 5 * P + N
+
+
 # -- the two packed buffers ----------------------------------------------------------------------
 
 #: the int buffer's header: sizes (batch, bodies, pairs, stored contacts per element), then the
 #: offset of each float field in the float buffer and of each int field in the int buffer
 FLOAT_FIELDS = Table("float fields", "state", "params", "forces", "half", "materials", "crec",
-                     "toi", "fcfg", "time", prefix="F_")
-F_STATE, F_PARAMS, F_FORCES, F_HALF, F_MATERIALS, F_CREC, F_TOI, F_FCFG, F_TIME = FLOAT_FIELDS
+                     "toi", "fcfg", "time", "calf", prefix="F_")
+(F_STATE, F_PARAMS, F_FORCES, F_HALF, F_MATERIALS, F_CREC, F_TOI, F_FCFG, F_TIME,
+ F_CALF) = FLOAT_FIELDS
 INT_FIELDS = Table("int fields", "pair_a", "pair_b", "cpair", "stats", "kind", "changed", "icfg",
-                   prefix="I_")
-I_PAIR_A, I_PAIR_B, I_CPAIR, I_STATS, I_KIND, I_CHANGED, I_ICFG = INT_FIELDS
-HEADER = Table("int header", "b", "n", "p", "m", ("float", len(FLOAT_FIELDS)),
+                   "cali", "pair_index", prefix="I_")
+(I_PAIR_A, I_PAIR_B, I_CPAIR, I_STATS, I_KIND, I_CHANGED, I_ICFG, I_CALI,
+ I_PAIR_INDEX) = INT_FIELDS
+HEADER = Table("int header", "b", "n", "p", "m", "calendar", ("float", len(FLOAT_FIELDS)),
                ("int", len(INT_FIELDS)), prefix="H_")
-H_B, H_N, H_P, H_M, H_FLOAT, H_INT = HEADER
+H_B, H_N, H_P, H_M, H_CALENDAR, H_FLOAT, H_INT = HEADER
 HEADER_SIZE = len(HEADER)
 
 
-def field_shapes(B: int, N: int, P: int, M: int) -> dict[str, tuple[int, ...]]:
+def field_shapes(B: int, N: int, P: int, M: int,
+                 calendar: bool = False) -> dict[str, tuple[int, ...]]:
     """Shape of every packed field for B elements of N bodies, P contact pairs and M stored
-    contacts per element (``solvers.unpack`` rebuilds the same views inside the kernels)."""
+    contacts per element (``solvers.unpack`` rebuilds the same views inside the kernels).
+
+    ``calendar``: the world steps with the exact solver's calendar (many bodies), which needs
+    the calendar rows ``calf``, ``cali`` (:func:`calendar_widths`) and the pair index
+    ``[N, N + 4]`` (the pair of two bodies, or of a body and cushion w at column N + w; -1:
+    none); otherwise they are empty."""
+    cf, ci = calendar_widths(N, P) if calendar else (0, 0)
+    rows, cols = (N, N + 4) if calendar else (0, 0)
     return {"state": (B, N, STATE_COLUMNS), "params": (B, N, PARAM_COLUMNS),
             "forces": (B, N, FORCE_COLUMNS), "half": (B, HALF_COLUMNS),
             "materials": (B, P, MATERIAL_COLUMNS), "crec": (B, M, REC_COLUMNS), "toi": (B, P),
-            "fcfg": (FCFG_SIZE,), "time": (B,),
+            "fcfg": (FCFG_SIZE,), "time": (B,), "calf": (B, cf),
             "pair_a": (P,), "pair_b": (P,), "cpair": (B, M), "stats": (B, STAT_COLUMNS),
-            "kind": (B, P), "changed": (B, N), "icfg": (ICFG_SIZE,)}
+            "kind": (B, P), "changed": (B, N), "icfg": (ICFG_SIZE,), "cali": (B, ci),
+            "pair_index": (rows, cols)}

@@ -35,6 +35,20 @@ from collections import namedtuple
 import numba
 import numpy as np
 
+from spinstrike.physics.calendar import (
+    box_meets_wall,
+    boxes_meet,
+    element_rows,
+    heap_remove,
+    heap_set,
+    near_time,
+    sort_by_xmin,
+    sort_ints,
+    stays_clear,
+    swept_box,
+    watch_insert,
+    watch_remove,
+)
 from spinstrike.physics.events import far_apart, pair_bodies, pair_geometry, time_of_impact
 from spinstrike.physics.impulse import apply_impulse, resolve
 from spinstrike.physics.jam import (
@@ -51,6 +65,11 @@ from spinstrike.physics.jam import (
 from spinstrike.physics.jit import jit, jit_inline, static_if
 from spinstrike.physics.layout import (
     ANGLE,
+    BOX_XMAX,
+    BOX_XMIN,
+    CAL_HEAP_SIZE,
+    CAL_STAMP,
+    CAL_WATCH_SIZE,
     CHECKPOINT,
     FRICTION,
     FRICTION_DECEL,
@@ -61,6 +80,7 @@ from spinstrike.physics.layout import (
     HALF_W,
     INV_INERTIA,
     INV_MASS,
+    LEVEL_MANY_BODIES,
     NONE,
     OMEGA,
     RADIUS,
@@ -86,7 +106,8 @@ from spinstrike.physics.layout import (
 )
 from spinstrike.physics.motion import flight
 
-__all__ = ["MAX_SWEEPS", "TRACE_COUNT", "Trace", "exact_element", "fixed_element",
+__all__ = ["MAX_SWEEPS", "TRACE_COUNT", "Trace", "exact_element", "exact_many_element",
+           "fixed_element",
            "trace_state"]
 
 #: sequential-impulse sweeps over simultaneous contacts at one event
@@ -172,30 +193,61 @@ def _search(p, S, Pm, F, hw, PA, PB, horizon, tol, max_iterations, rotation, tab
                           max_iterations, rotation, table_friction)
 
 
+@jit_inline
+def _contact(p, S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_friction,
+             changed, cpair, crec, stats):
+    """Resolve pair p if it is within ``slop`` and approaching. Returns (hit, resting)."""
+    a, b, wall = pair_bodies(p, PA, PB, S.shape[0])
+    g, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, wall, hw[HALF_W],
+                                                              hw[HALF_H])
+    if g <= slop and vn < 0.0:
+        px = S[a, X] + oax + ka * nx
+        py = S[a, Y] + oay + ka * ny
+        j, jt, vn0 = resolve(S, Pm, a, b, wall >= 0, nx, ny, oax, oay, ka, obx, oby, kb,
+                             MAT[p, RESTITUTION], MAT[p, FRICTION], rotation, contact_friction)
+        _record(p, t, px, py, nx, ny, j, jt, cpair, crec, stats)
+        changed[a] = 1
+        if wall < 0:
+            changed[b] = 1
+        return True, 1 if -vn0 < zeno_speed else 0
+    return False, 0
+
+
 @jit
 def _contact_pass(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_friction,
                   changed, cpair, crec, stats):
     """One sweep: resolve every pair within ``slop`` and approaching. Returns (any, resting)."""
-    n = S.shape[0]
     hit = False
     resting = 0
     for p in range(PA.shape[0]):
-        a, b, wall = pair_bodies(p, PA, PB, n)
-        g, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, wall, hw[HALF_W],
-                                                                  hw[HALF_H])
-        if g <= slop and vn < 0.0:
-            px = S[a, X] + oax + ka * nx
-            py = S[a, Y] + oay + ka * ny
-            j, jt, vn0 = resolve(S, Pm, a, b, wall >= 0, nx, ny, oax, oay, ka, obx, oby, kb,
-                                 MAT[p, RESTITUTION], MAT[p, FRICTION], rotation,
-                                 contact_friction)
-            _record(p, t, px, py, nx, ny, j, jt, cpair, crec, stats)
-            if -vn0 < zeno_speed:
-                resting += 1
-            changed[a] = 1
-            if wall < 0:
-                changed[b] = 1
-            hit = True
+        h, r = _contact(p, S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation,
+                        contact_friction, changed, cpair, crec, stats)
+        hit |= h
+        resting += r
+    return hit, resting
+
+
+@jit
+def _watched_pass(S, Pm, F, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_friction,
+                  table_friction, changed, cpair, crec, stats, watch, n_watch, near):
+    """:func:`_contact_pass` over the calendar's watch list (pairs in pair order that may be
+    within ``slop`` by now, ``physics.calendar``): every other pair is farther apart, so the
+    sweep resolves the same contacts in the same order. A pair whose time has come but whose
+    bodies are still apart gets a later time (``calendar.near_time`` from now)."""
+    hit = False
+    resting = 0
+    for k in range(n_watch):
+        p = watch[k]
+        if near[p] > t:
+            continue
+        ahead = near_time(p, S, Pm, F, hw, PA, PB, slop, table_friction)
+        if ahead > 0.0:  # still apart: not before then
+            near[p] = t + ahead
+            continue
+        h, r = _contact(p, S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation,
+                        contact_friction, changed, cpair, crec, stats)
+        hit |= h
+        resting += r
     return hit, resting
 
 
@@ -238,6 +290,26 @@ def _sweeps(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_frict
     for _ in range(sweeps):
         hit, r = _contact_pass(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation,
                                contact_friction, changed, cpair, crec, stats)
+        resting += r
+        if not hit:
+            break
+    if hit:
+        _jam_if(jam, S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, crec, stats)
+    return resting
+
+
+@jit
+def _watched_sweeps(S, Pm, F, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_friction,
+                    table_friction, changed, cpair, crec, stats, sweeps, jam, watch, n_watch,
+                    near):
+    """:func:`_sweeps` with the passes over the calendar's watch list (:func:`_watched_pass`);
+    the block solve of a jam, rare, still collects every touching pair itself."""
+    resting = 0
+    hit = False
+    for _ in range(sweeps):
+        hit, r = _watched_pass(S, Pm, F, hw, PA, PB, MAT, slop, zeno_speed, t, rotation,
+                               contact_friction, table_friction, changed, cpair, crec, stats,
+                               watch, n_watch, near)
         resting += r
         if not hit:
             break
@@ -408,13 +480,17 @@ def _settle_substeps(S, Pm, F, PA, PB, T, settle_substep):
 def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
                   zeno_impacts, settle_substep, rotation, contact_friction, table_friction,
                   jam, cpair, crec, stats, toi, kind, changed, trace):
-    """Advance one element by dt seconds, event by event.
+    """Advance one element by dt seconds, event by event, every pair scanned at every event.
 
     ``toi``, ``kind`` (per pair) and ``changed`` (per body) are the element's scratch rows;
     ``rotation``, ``contact_friction``, ``table_friction`` and ``jam`` are compile-time flags
-    (``kernels.FLAGS``); ``trace``: the trace hook (a ``Trace``: the state after every event
-    that resolved contacts), or None.
+    (``kernels.FLAGS``). At the ``jam`` level ``LEVEL_MANY_BODIES`` this does nothing (the
+    test is folded at compile time): :func:`exact_many_element` steps those worlds, on the
+    broadphase and the event calendar, with the same events bit for bit. ``trace``: the trace
+    hook (a ``Trace``: the state after every event that resolved contacts), or None.
     """
+    if jam >= LEVEL_MANY_BODIES:
+        return
     sweeps = _int(MAX_SWEEPS)
     n_pairs = PA.shape[0]
     iterations = 0
@@ -471,3 +547,190 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
             break
     stats[STAT_EVENTS] += events
     stats[STAT_ITERATIONS] += iterations
+
+
+@jit_inline
+def _predict(p, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotation,
+             table_friction, toi, kind, near, heap, hpos, watch, watched, cnt):
+    """Search pair p from now to the end of the step and file the outcome: in the calendar if
+    it has an event, on the watch list if it may come within ``tol``. Returns the search's
+    iterations."""
+    if stays_clear(p, S, Pm, F, hw, PA, PB, dt - t_now, tol, table_friction):
+        tc, k, it = dt - t_now, NONE, 0
+    else:
+        tc, k, it = _search(p, S, Pm, F, hw, PA, PB, dt - t_now, tol, max_iterations,
+                            rotation, table_friction)
+    toi[p] = t_now + tc if k != NONE else dt
+    kind[p] = k
+    if k != NONE:
+        heap_set(heap, hpos, cnt, toi, p)
+    else:
+        heap_remove(heap, hpos, cnt, toi, p)
+    t_near = t_now + near_time(p, S, Pm, F, hw, PA, PB, tol, table_friction)
+    near[p] = t_near
+    if t_near < dt:
+        watch_insert(watch, watched, cnt, p)
+    else:
+        watch_remove(watch, watched, cnt, p)
+    return it
+
+
+@jit
+def _first_predictions(S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation,
+                       table_friction, toi, kind, pidx, near, box, cnt, heap, hpos, watch,
+                       watched, order):
+    """The step's first predictions: the swept boxes, the pairs whose boxes overlap (sweep and
+    prune along x) searched, the calendar and the watch list filled. Returns the iterations."""
+    n = S.shape[0]
+    for k in range(cnt[CAL_HEAP_SIZE]):
+        hpos[heap[k]] = 0
+    for k in range(cnt[CAL_WATCH_SIZE]):
+        watched[watch[k]] = 0
+    cnt[CAL_HEAP_SIZE] = 0
+    cnt[CAL_WATCH_SIZE] = 0
+    for i in range(n):
+        swept_box(S, Pm, F, i, dt, tol, box)
+        order[i] = i
+    sort_by_xmin(order, box, n)
+    iterations = 0
+    n_watch = 0
+    for k in range(n):
+        i = order[k]
+        for m in range(k + 1, n):
+            j = order[m]
+            if box[j, BOX_XMIN] > box[i, BOX_XMAX]:
+                break
+            p = pidx[i, j]
+            if p >= 0 and boxes_meet(box, i, j):
+                n_watch, it = _first(p, S, Pm, F, hw, PA, PB, dt, tol, max_iterations,
+                                     rotation, table_friction, toi, kind, near, heap, hpos,
+                                     watch, watched, cnt, n_watch)
+                iterations += it
+        for w in range(4):
+            p = pidx[i, n + w]
+            if p >= 0 and box_meets_wall(box, i, w, hw):
+                n_watch, it = _first(p, S, Pm, F, hw, PA, PB, dt, tol, max_iterations,
+                                     rotation, table_friction, toi, kind, near, heap, hpos,
+                                     watch, watched, cnt, n_watch)
+                iterations += it
+    sort_ints(watch, n_watch)
+    cnt[CAL_WATCH_SIZE] = n_watch
+    return iterations
+
+
+@jit_inline
+def _first(p, S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation, table_friction, toi,
+           kind, near, heap, hpos, watch, watched, cnt, n_watch):
+    """:func:`_predict` at the start of the step, the watch list appended (sorted after)."""
+    if stays_clear(p, S, Pm, F, hw, PA, PB, dt, tol, table_friction):
+        tc, k, it = dt, NONE, 0
+    else:
+        tc, k, it = _search(p, S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation,
+                            table_friction)
+    toi[p] = tc
+    kind[p] = k
+    if k != NONE:
+        heap_set(heap, hpos, cnt, toi, p)
+    t_near = near_time(p, S, Pm, F, hw, PA, PB, tol, table_friction)
+    near[p] = t_near
+    if t_near < dt:
+        watch[n_watch] = p
+        watched[p] = 1
+        n_watch += 1
+    return n_watch, it
+
+
+@jit_inline
+def _repredict(best, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotation,
+               table_friction, toi, kind, changed, pidx, near, box, cnt, heap, hpos, watch, stamp,
+               watched):
+    """After an event at ``t_now``: re-predict its pair and every pair of a body it changed
+    (once each), those bodies' swept boxes recomputed first; a pair whose boxes no longer meet
+    leaves the calendar and the watch list. Returns the searches' iterations."""
+    n = S.shape[0]
+    cnt[CAL_STAMP] += 1
+    mark = cnt[CAL_STAMP]
+    stamp[best] = mark
+    iterations = _predict(best, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotation,
+                          table_friction, toi, kind, near, heap, hpos, watch, watched, cnt)
+    for i in range(n):
+        if changed[i]:
+            swept_box(S, Pm, F, i, dt - t_now, tol, box)
+    for i in range(n):
+        if not changed[i]:
+            continue
+        for j in range(n + 4):
+            p = pidx[i, j]
+            if p < 0 or stamp[p] == mark:
+                continue
+            stamp[p] = mark
+            if box_meets_wall(box, i, j - n, hw) if j >= n else boxes_meet(box, i, j):
+                iterations += _predict(p, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations,
+                                       rotation, table_friction, toi, kind, near, heap, hpos,
+                                       watch, watched, cnt)
+            else:  # (a call that passes arrays costs reference counting: test first)
+                if hpos[p]:
+                    kind[p] = NONE
+                    heap_remove(heap, hpos, cnt, toi, p)
+                if watched[p]:
+                    watch_remove(watch, watched, cnt, p)
+    return iterations
+
+
+@jit
+def exact_many_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations,
+                       zeno_speed, zeno_impacts, settle_substep, rotation, contact_friction,
+                       table_friction, jam, cpair, crec, stats, toi, kind, changed, fbuf, ibuf,
+                       element, trace):
+    """:func:`exact_element` for many bodies (the ``jam`` level ``LEVEL_MANY_BODIES``), on the
+    broadphase and the event calendar (``physics.calendar``): the scan's events, found without
+    scanning every pair. ``fbuf``, ``ibuf``: the world's buffers, from which element
+    ``element``'s calendar rows are taken (``calendar.element_rows``)."""
+    n = S.shape[0]
+    near, box, cnt, heap, hpos, watch, stamp, watched, order, pidx = element_rows(
+        fbuf, ibuf, element, n, PA.shape[0])
+    sweeps = _int(MAX_SWEEPS)
+    iterations = _first_predictions(S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation,
+                                    table_friction, toi, kind, pidx, near, box, cnt, heap, hpos,
+                                    watch, watched, order)
+    t_now = 0.0
+    events = 0
+    resting = 0
+    while True:
+        best = -1
+        t_best = dt
+        if cnt[CAL_HEAP_SIZE] > 0 and toi[heap[0]] <= dt:
+            best = heap[0]
+            t_best = toi[best]
+        if t_best > t_now:
+            _advance(S, Pm, F, t_best - t_now, rotation, table_friction)
+            t_now = t_best
+        if best == -1:
+            break
+        events += 1
+        changed[:] = 0
+        if kind[best] == CHECKPOINT:
+            a, b, wall = pair_bodies(best, PA, PB, n)
+            g = pair_geometry(S, Pm, a, b, wall, hw[HALF_W], hw[HALF_H])[0]
+            if g <= tol:
+                resting += 1
+        else:
+            resting += _watched_sweeps(S, Pm, F, hw, PA, PB, MAT, tol, zeno_speed, t_now,
+                                       rotation, contact_friction, table_friction, changed, cpair,
+                                       crec, stats, sweeps, jam, watch, cnt[CAL_WATCH_SIZE], near)
+            if trace is not None:  # the trace hook
+                trace_state(trace, t_now, S)
+        iterations += _repredict(best, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations,
+                                 rotation, table_friction, toi, kind, changed, pidx, near, box,
+                                 cnt, heap, hpos, watch, stamp, watched)
+        if events >= max_events or resting >= zeno_impacts:
+            if t_now < dt:
+                substeps = _settle_substeps(S, Pm, F, PA, PB, dt - t_now, settle_substep)
+                fixed_element(S, Pm, F, hw, PA, PB, MAT, dt - t_now, substeps, sweeps, tol,
+                              t_now, rotation, contact_friction, table_friction, cpair, crec,
+                              stats, changed, sweeps, jam, trace)
+                stats[STAT_FALLBACK] = 1
+            break
+    stats[STAT_EVENTS] += events
+    stats[STAT_ITERATIONS] += iterations
+

@@ -30,6 +30,7 @@ from spinstrike.physics.jit import jit
 from spinstrike.physics.kernels import STEP, BatchKernel
 from spinstrike.physics.layout import (
     ANGLE,
+    CALENDAR_BODIES,
     CF_DT,
     CF_OVERLAP_TOL,
     CF_SETTLE,
@@ -48,6 +49,7 @@ from spinstrike.physics.layout import (
     FRICTION,
     FRICTION_DECEL,
     H_B,
+    H_CALENDAR,
     H_FLOAT,
     H_INT,
     H_M,
@@ -60,6 +62,9 @@ from spinstrike.physics.layout import (
     INT_FIELDS,
     INV_INERTIA,
     INV_MASS,
+    LEVEL_CAN_JAM,
+    LEVEL_MANY_BODIES,
+    LEVEL_ONE_PAIR,
     OMEGA,
     PARAM_COLUMNS,
     RADIUS,
@@ -239,10 +244,19 @@ class World:
 
         pairs = self._pair_list()
         self._pair_rows: dict[tuple[str, str], np.ndarray] = {}
+        #: the exact solver steps on its broadphase and event calendar (many bodies)
+        self._calendar = (isinstance(self.solver, ExactSolver)
+                          and self.n_bodies >= CALENDAR_BODIES)
         self._alloc_buffers(len(pairs[0]))
         size = table.size if table.size is not None else (math.inf, math.inf)
         self._half[:] = 0.5 * np.asarray(size, dtype=float)
         self._pair_a[:], self._pair_b[:] = pairs
+        if self._calendar:
+            self._pair_index[:] = -1
+            self._pair_index[pairs[0], pairs[1]] = np.arange(len(pairs[0]))
+            body = np.asarray(pairs[1]) < self.n_bodies
+            self._pair_index[np.asarray(pairs[1])[body], np.asarray(pairs[0])[body]] = \
+                np.flatnonzero(body)
         self._init_materials()
         self._params[:] = self._derive_params(self._mass, self._inertia, self._radius,
                                               self._half_length, self._table_mu)
@@ -254,7 +268,7 @@ class World:
         self._parallel = B >= PARALLEL_BATCH
         #: compile-time flags of the kernels (kernels.FLAGS)
         self.flags = (isinstance(self.solver, FixedSolver), self.rotation, self.contact_friction,
-                      self.table_friction, len(self._pair_a) >= 2 or self.contact_friction)
+                      self.table_friction, self._contact_level())
         #: what follows a batch kernel's own arguments: the flags (parallel), or the range of
         #: elements then the flags (the serial body); and the kernels' compiled entry points
         self._tail = self.flags if self._parallel else (0, B, *self.flags)
@@ -269,6 +283,14 @@ class World:
         self.reset()  # the scene's placement, checked as any other change
         if isinstance(self.solver, PymunkSolver):
             self._attach_backend()
+
+    def _contact_level(self) -> int:
+        """The ``jam`` flag's level (``kernels.FLAGS``, ``layout.LEVEL``)."""
+        if self._calendar:
+            return LEVEL_MANY_BODIES
+        if len(self._pair_a) >= 2 or self.contact_friction:
+            return LEVEL_CAN_JAM
+        return LEVEL_ONE_PAIR
 
     def __setattr__(self, name: str, value: Any) -> None:
         if name.startswith("_") or not self.__dict__.get("_frozen", False):
@@ -363,7 +385,8 @@ class World:
         """One float64 and one int64 buffer holding every array the kernels touch (see
         ``physics.layout``): state, parameters, forces, table, materials, contact records,
         statistics, the solvers' scratch rows and the solver configuration."""
-        shapes = field_shapes(self.batch_size, self.n_bodies, n_pairs, self.max_contacts)
+        shapes = field_shapes(self.batch_size, self.n_bodies, n_pairs, self.max_contacts,
+                              self._calendar)
         offsets: dict[str, int] = {}
         totals = []
         for table, start in ((FLOAT_FIELDS, 0), (INT_FIELDS, HEADER_SIZE)):
@@ -374,8 +397,8 @@ class World:
             totals.append(total)
         self._fbuf = np.zeros(totals[0])
         self._ibuf = np.zeros(totals[1], dtype=np.int64)
-        self._ibuf[[H_B, H_N, H_P, H_M]] = (self.batch_size, self.n_bodies, n_pairs,
-                                            self.max_contacts)
+        self._ibuf[[H_B, H_N, H_P, H_M, H_CALENDAR]] = (self.batch_size, self.n_bodies, n_pairs,
+                                                        self.max_contacts, self._calendar)
         self._ibuf[H_FLOAT:H_FLOAT + len(FLOAT_FIELDS)] = [offsets[f] for f in FLOAT_FIELDS.names]
         self._ibuf[H_INT:H_INT + len(INT_FIELDS)] = [offsets[f] for f in INT_FIELDS.names]
         self._make_buffer_views()
@@ -384,7 +407,8 @@ class World:
         """The private named views of the buffers: ``_state``, ``_params``, ... (one per
         field of ``FLOAT_FIELDS`` / ``INT_FIELDS``)."""
         ib = self._ibuf
-        shapes = field_shapes(int(ib[H_B]), int(ib[H_N]), int(ib[H_P]), int(ib[H_M]))
+        shapes = field_shapes(int(ib[H_B]), int(ib[H_N]), int(ib[H_P]), int(ib[H_M]),
+                              bool(ib[H_CALENDAR]))
         for table, buf, head in ((FLOAT_FIELDS, self._fbuf, H_FLOAT), (INT_FIELDS, ib, H_INT)):
             for name in table.names:
                 o = int(ib[head + table[name]])

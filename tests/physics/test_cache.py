@@ -136,3 +136,21 @@ def test_warm_up_compiles_an_envs_kernels_for_the_next_process(tmp_path):
     assert out.returncode == 0, out.stderr
     hits, misses = map(int, out.stdout.split())
     assert hits >= 1 and misses == 0
+
+
+@pytest.mark.parametrize("module", ["spinstrike.physics.kernels", "spinstrike.physics.solvers",
+                                    "spinstrike.envs.fast"])
+def test_the_stamp_covers_every_import_of_a_kernel_module(module):
+    """Every ``spinstrike`` module a kernel module imports is in its stamp, also an import
+    that follows a parenthesised list (the pattern once ran on into it: ``kernels.py``'s stamp
+    missed ``solvers.py``, so an edit of the solvers kept stale kernels)."""
+    import ast
+
+    from spinstrike.physics.cache import _closure
+
+    path = Path(importlib.import_module(module).__file__).resolve()
+    stamped = {p.resolve() for p in _closure(path)}
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("spinstrike."):
+            dep = Path(importlib.import_module(node.module).__file__).resolve()
+            assert dep in stamped, f"{module}: {node.module} is not in its kernels' stamp"
