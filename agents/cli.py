@@ -261,7 +261,12 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
     parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["baselines"]:  # argparse's REMAINDER would refuse a leading --option
+        args = parser.parse_args(["baselines"])
+        args.rest = argv[1:]
+    else:
+        args = parser.parse_args(argv)
     from spinstrike.agents.config import AgentConfigError
     from spinstrike.envs.config import ConfigError
     from spinstrike.physics import SceneError
