@@ -55,11 +55,15 @@ def _machine() -> str:
             f"torch {torch.__version__}, stable-baselines3 {stable_baselines3.__version__}")
 
 
+def _name(algo: str, env_id: str, tag: str, seed: int) -> str:
+    return f"{algo}-{env_id.split('/')[-1]}{tag}-s{seed}"
+
+
 def _run(algo, env_id, seed, root: Path, scale: float, env_kwargs=None, tag="") -> dict:
     from spinstrike.agents.evaluate import load_model_policy, run_episodes
     from spinstrike.agents.train import train
 
-    name = f"{algo}-{env_id.split('/')[-1]}{tag}-s{seed}"
+    name = _name(algo, env_id, tag, seed)
     run = root / name
     result_file = run / "baseline.json"
     if result_file.exists():
@@ -124,6 +128,20 @@ def _row(label: str, means: np.ndarray, reference: float, extra: str) -> str:
             f"{st['mean']:.3f} +/- {st['std']:.3f} | {frac} | {st['runs']} | {extra}")
 
 
+def _planner_row(env_id: str, episodes: int, reference: float) -> str:
+    """The CEM planner (defaults of ``agents.planner.CEMPlanner``) on the first ``episodes``
+    of the evaluation episodes, with its CPU time per decision."""
+    from spinstrike.agents.evaluate import run_episodes
+    from spinstrike.agents.planner import CEMPlanner
+
+    t = time.process_time()
+    ev = run_episodes(CEMPlanner(), env_id, episodes, 1000, name="planner")
+    cost = 1000 * (time.process_time() - t) / (episodes * ev.mean_length)
+    print(f"{env_id} planner: {ev.mean:.3f} ({cost:.0f} ms CPU per decision)", flush=True)
+    return (f"| CEM planner (first {episodes} episodes) | - | {ev.mean:.3f} +/- {ev.std:.3f} | "
+            f"{ev.mean / reference:.3f} | - | - | {cost:.0f} ms CPU per decision |")
+
+
 #: ids the matrix runs by default (PuckSpeed-v0 is kept for old runs only)
 DEFAULT_ENVS = [e for e in envs.ENV_IDS if e != "SpinStrike/PuckSpeed-v0"]
 
@@ -137,6 +155,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--root", default="runs/baselines")
     p.add_argument("--doc", default="docs/baselines.md")
     p.add_argument("--no-transfer", action="store_true")
+    p.add_argument("--reuse-only", action="store_true",
+                   help="train nothing: report the finished runs under --root (and say which "
+                        "were not run)")
+    p.add_argument("--planner-episodes", type=int, default=10,
+                   help="episodes of the CEM planner on each control env (0: none)")
     args = p.parse_args(argv)
     from spinstrike.agents.evaluate import evaluate
 
@@ -165,7 +188,14 @@ def main(argv: list[str] | None = None) -> int:
         base = {r.policy: r for r in evaluate(env_id, None, EVAL_EPISODES, 1000)}
         reference = base["oracle"].mean
         for algo in args.algos:
-            results = [_run(algo, env_id, s, root, scale) for s in seeds]
+            todo = seeds
+            if args.reuse_only:  # report the finished runs only (a budget-limited document)
+                todo = [s for s in seeds if (root / _name(algo, env_id, "", s)
+                                             / "baseline.json").exists()]
+                if not todo:
+                    rows.append(f"| {algo.upper()} | not run in this budget | - | - | 0 | - | - |")
+                    continue
+            results = [_run(algo, env_id, s, root, scale) for s in todo]
             means = np.array([r["mean"] for r in results])
             rows.append(_row(algo.upper(), means, reference,
                              f"{results[0]['timesteps']} | "
@@ -176,6 +206,8 @@ def main(argv: list[str] | None = None) -> int:
             r = base[key]
             frac = f"{r.mean / reference:.3f}" if reference > 0 else "-"
             rows.append(f"| {label} | - | {r.mean:.3f} +/- {r.std:.3f} | {frac} | - | - | - |")
+        if "Control" in env_id and args.planner_episodes > 0:
+            rows.append(_planner_row(env_id, args.planner_episodes, reference))
         plot = _curves(env_id, root, args.algos, seeds,
                        doc.parent / "baselines" / f"{env_id.split('/')[-1]}.png")
         table[env_id] = rows

@@ -47,3 +47,12 @@ def test_cli_baselines_writes_iqm_table_and_curves_on_fixed_episodes(tmp_path, c
     assert "| policy | IQM [95% CI] | mean +/- std | IQM / reference |" in text
     assert "| PPO | " in text and "| oracle (closed form) | - | 1.000 +/- 0.000 | 1.000 |" in text
     assert (doc.parent / "baselines" / "PuckSpeed-v1.png").stat().st_size > 1000
+    # --reuse-only trains nothing: the finished PPO run is reported, SAC is said not to be run
+    doc.unlink()
+    assert main(["baselines", "--reuse-only", "--envs", "SpinStrike/PuckSpeed-v1", "--algos",
+                 "ppo", "sac", "--seeds", "0", "1", "--no-transfer", "--root", str(root),
+                 "--doc", str(doc)]) == 0
+    text = doc.read_text()
+    assert "| SAC | not run in this budget |" in text
+    assert "| PPO | " in text and " | 1 | " in text
+    assert sorted(p.name for p in root.iterdir()) == ["ppo-PuckSpeed-v1-s0"]
