@@ -106,7 +106,8 @@ def _curves(env_id: str, root: Path, algos, seeds, out: Path) -> Path:
         mid, low, high = curve_bands(values)
         ax.plot(steps, mid, label=f"{algo.upper()} (IQM, {len(curves)} seeds)")
         ax.fill_between(steps, low, high, alpha=0.2)
-    ax.set_title(f"{env_id}: evaluation during training (IQM, 95% bootstrap CI)")
+    ax.set_title(f"{env_id}: evaluation during training\n(IQM over seeds, 95% bootstrap band)",
+                 fontsize=10)
     ax.set_xlabel("timesteps")
     ax.set_ylabel("mean episode return")
     ax.grid(alpha=0.3)
