@@ -159,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--reuse-only", action="store_true",
                    help="train nothing: report the finished runs under --root (and say which "
                         "were not run)")
-    p.add_argument("--planner-episodes", type=int, default=10,
+    p.add_argument("--planner-episodes", type=int, default=20,
                    help="episodes of the CEM planner on each control env (0: none)")
     args = p.parse_args(argv)
     from spinstrike.agents.evaluate import evaluate

@@ -12,7 +12,7 @@ the plan, shifted by one step, seeds the next decision. The model is the env its
 same parameters), so the planner's only approximations are its horizon and its sampling.
 
     from spinstrike.agents.planner import CEMPlanner
-    planner = CEMPlanner(horizon=30, samples=128)
+    planner = CEMPlanner(horizon=10, samples=64)   # the defaults (docs/planner.md)
     action = planner(env, obs)          # the common policy(env, obs) signature
 
     spinstrike evaluate --planner --env SpinStrike/PuckSpeedControl-v0 --episodes 10
@@ -37,6 +37,11 @@ __all__ = ["CEMPlanner"]
 class CEMPlanner:
     """CEM model-predictive control on a batched what-if copy of the env's world.
 
+    The defaults (10 steps = 0.2 s ahead, 64 samples, 3 iterations) are where the sweep in
+    ``docs/planner.md`` plateaus: more samples do not raise the return, longer horizons lower it
+    (with 3 CEM iterations a 40-step plan is a 80-dimensional search), at 7-11 ms of CPU per
+    decision.
+
     Args:
         horizon: steps planned ahead (``dt`` each: 0.02 s by default).
         samples: action sequences evaluated per CEM iteration (the scratch batch size).
@@ -49,8 +54,8 @@ class CEMPlanner:
             so an episode's actions depend only on the episode and this seed.
     """
 
-    def __init__(self, horizon: int = 30, samples: int = 128, iterations: int = 3,
-                 elites: int = 12, init_std: float = 0.7, gamma: float = 1.0,
+    def __init__(self, horizon: int = 10, samples: int = 64, iterations: int = 3,
+                 elites: int = 6, init_std: float = 0.7, gamma: float = 1.0,
                  approach: float = 0.3, seed: int = 0) -> None:
         for name, value, low in (("horizon", horizon, 1), ("samples", samples, 2),
                                  ("iterations", iterations, 1), ("elites", elites, 1)):
