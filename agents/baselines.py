@@ -1,13 +1,16 @@
 """The baseline matrix: every env x PPO, SAC, TD3 x seeds, beside random and the oracle, and the
 accuracy-transfer study; writes ``docs/baselines.md`` and learning-curve plots.
 
-    spinstrike baselines            # the full matrix (about an hour on 2 cores)
+    spinstrike baselines            # the full matrix, 5 seeds (about 3 hours on 2 cores)
     spinstrike baselines --quick    # one seed, a tenth of the budgets (a smoke test)
-    python -m agents.baselines --envs SpinStrike/RodSpin-v0 --algos ppo
+    spinstrike baselines --envs SpinStrike/RodSpin-v0 --algos ppo --seeds 0 1 2 3 4
 
 Runs live in ``runs/baselines/<algo>-<env>-s<seed>`` and finished ones are reused, so an
 interrupted matrix picks up where it stopped. Every agent is evaluated on the same 50 episodes
-(seeds 1000..1049) as the random policy and the oracle.
+(seeds 1000..1049) as the random policy and the oracle, and its learning curve on the same 10
+episodes at every point. Results are reported as the field does (``agents.stats``, needs
+``spinstrike[stats]``): the interquartile mean over seeds with a 95% stratified-bootstrap
+confidence interval, beside mean +/- std; curves as IQM with its bootstrap band.
 
 *Does accuracy matter for learning?* PPO is trained on ``RodSpin-v0`` with the ``fixed`` solver
 (1 substep per chunk) and with pymunk, and every agent is then evaluated on the ``exact`` solver,
@@ -52,11 +55,15 @@ def _machine() -> str:
             f"torch {torch.__version__}, stable-baselines3 {stable_baselines3.__version__}")
 
 
+def _name(algo: str, env_id: str, tag: str, seed: int) -> str:
+    return f"{algo}-{env_id.split('/')[-1]}{tag}-s{seed}"
+
+
 def _run(algo, env_id, seed, root: Path, scale: float, env_kwargs=None, tag="") -> dict:
     from spinstrike.agents.evaluate import load_model_policy, run_episodes
     from spinstrike.agents.train import train
 
-    name = f"{algo}-{env_id.split('/')[-1]}{tag}-s{seed}"
+    name = _name(algo, env_id, tag, seed)
     run = root / name
     result_file = run / "baseline.json"
     if result_file.exists():
@@ -69,7 +76,8 @@ def _run(algo, env_id, seed, root: Path, scale: float, env_kwargs=None, tag="") 
     # always evaluated on the exact solver (the transfer study trains on others)
     ev = run_episodes(policy, env_id, EVAL_EPISODES, name="agent")
     out = {"algo": algo, "env": env_id, "seed": seed, "timesteps": res["timesteps"],
-           "wall_time": res["wall_time"], "mean": ev.mean, "std": ev.std, "tag": tag}
+           "wall_time": res["wall_time"], "mean": ev.mean, "std": ev.std, "tag": tag,
+           "returns": ev.returns}
     result_file.write_text(json.dumps(out))
     return out
 
@@ -79,6 +87,8 @@ def _curves(env_id: str, root: Path, algos, seeds, out: Path) -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from spinstrike.agents.stats import curve_bands
 
     fig, ax = plt.subplots(figsize=(6.5, 3.8))
     for algo in algos:
@@ -93,9 +103,11 @@ def _curves(env_id: str, root: Path, algos, seeds, out: Path) -> Path:
         n = min(len(c[0]) for c in curves)
         steps = curves[0][0][:n]
         values = np.array([c[1][:n] for c in curves])
-        ax.plot(steps, values.mean(0), label=f"{algo.upper()} ({len(curves)} seeds)")
-        ax.fill_between(steps, values.min(0), values.max(0), alpha=0.2)
-    ax.set_title(f"{env_id}: deterministic evaluation during training")
+        mid, low, high = curve_bands(values)
+        ax.plot(steps, mid, label=f"{algo.upper()} (IQM, {len(curves)} seeds)")
+        ax.fill_between(steps, low, high, alpha=0.2)
+    ax.set_title(f"{env_id}: evaluation during training\n(IQM over seeds, 95% bootstrap band)",
+                 fontsize=10)
     ax.set_xlabel("timesteps")
     ax.set_ylabel("mean episode return")
     ax.grid(alpha=0.3)
@@ -107,15 +119,48 @@ def _curves(env_id: str, root: Path, algos, seeds, out: Path) -> Path:
     return out
 
 
+def _row(label: str, means: np.ndarray, reference: float, extra: str) -> str:
+    """A table row: IQM [95% CI], mean +/- std, IQM as a fraction of the reference."""
+    from spinstrike.agents.stats import summary
+
+    st = summary(means)
+    frac = f"{st['iqm'] / reference:.3f}" if reference > 0 else "-"
+    return (f"| {label} | {st['iqm']:.3f} [{st['iqm_low']:.3f}, {st['iqm_high']:.3f}] | "
+            f"{st['mean']:.3f} +/- {st['std']:.3f} | {frac} | {st['runs']} | {extra}")
+
+
+def _planner_row(env_id: str, episodes: int, reference: float) -> str:
+    """The CEM planner (defaults of ``agents.planner.CEMPlanner``) on the first ``episodes``
+    of the evaluation episodes, with its CPU time per decision."""
+    from spinstrike.agents.evaluate import run_episodes
+    from spinstrike.agents.planner import CEMPlanner
+
+    t = time.process_time()
+    ev = run_episodes(CEMPlanner(), env_id, episodes, 1000, name="planner")
+    cost = 1000 * (time.process_time() - t) / (episodes * ev.mean_length)
+    print(f"{env_id} planner: {ev.mean:.3f} ({cost:.0f} ms CPU per decision)", flush=True)
+    return (f"| CEM planner (first {episodes} episodes) | - | {ev.mean:.3f} +/- {ev.std:.3f} | "
+            f"{ev.mean / reference:.3f} | - | - | {cost:.0f} ms CPU per decision |")
+
+
+#: ids the matrix runs by default (PuckSpeed-v0 is kept for old runs only)
+DEFAULT_ENVS = [e for e in envs.ENV_IDS if e != "SpinStrike/PuckSpeed-v0"]
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="spinstrike baselines", description=__doc__.split("\n")[0])
-    p.add_argument("--envs", nargs="+", default=list(envs.ENV_IDS))
+    p.add_argument("--envs", nargs="+", default=DEFAULT_ENVS, choices=list(envs.ENV_IDS))
     p.add_argument("--algos", nargs="+", default=list(ALGOS), choices=ALGOS)
-    p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
+    p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4])
     p.add_argument("--quick", action="store_true", help="one seed, a tenth of each budget")
     p.add_argument("--root", default="runs/baselines")
     p.add_argument("--doc", default="docs/baselines.md")
     p.add_argument("--no-transfer", action="store_true")
+    p.add_argument("--reuse-only", action="store_true",
+                   help="train nothing: report the finished runs under --root (and say which "
+                        "were not run)")
+    p.add_argument("--planner-episodes", type=int, default=20,
+                   help="episodes of the CEM planner on each control env (0: none)")
     args = p.parse_args(argv)
     from spinstrike.agents.evaluate import evaluate
 
@@ -131,41 +176,60 @@ def main(argv: list[str] | None = None) -> int:
              f"{len(seeds)} seed(s) per algorithm, budgets from "
              f"`configs/agents/*.yml`{' scaled by 0.1 (--quick)' if args.quick else ''}. Every "
              f"policy is evaluated on the same {EVAL_EPISODES} episodes (seeds 1000..1049, "
-             "deterministic actions, exact solver). Mean +/- std is over seeds of each seed's "
-             "mean return (random and oracle: over episodes).", ""]
+             "deterministic actions, exact solver). Each seed's score is its mean return over "
+             "them; the table gives the interquartile mean (IQM) of the seeds' scores with its "
+             "95% stratified-bootstrap confidence interval (rliable, 2000 replications), their "
+             "mean +/- std, and the IQM as a fraction of the reference (the oracle; for the "
+             "control envs the scripted chase-and-hit). Random and reference: over episodes. "
+             "Learning curves: IQM over seeds of the mean return on the same 10 episodes at "
+             "every point, with its 95% bootstrap band.", ""]
     table: dict[str, list[str]] = {}
     for env_id in args.envs:
         rows = []
         base = {r.policy: r for r in evaluate(env_id, None, EVAL_EPISODES, 1000)}
+        reference = base["oracle"].mean
         for algo in args.algos:
-            results = [_run(algo, env_id, s, root, scale) for s in seeds]
+            todo = seeds
+            if args.reuse_only:  # report the finished runs only (a budget-limited document)
+                todo = [s for s in seeds if (root / _name(algo, env_id, "", s)
+                                             / "baseline.json").exists()]
+                if not todo:
+                    rows.append(f"| {algo.upper()} | not run in this budget | - | - | 0 | - | - |")
+                    continue
+            results = [_run(algo, env_id, s, root, scale) for s in todo]
             means = np.array([r["mean"] for r in results])
-            rows.append(f"| {algo.upper()} | {means.mean():.3f} +/- {means.std():.3f} | "
-                        f"{results[0]['timesteps']} | "
-                        f"{np.mean([r['wall_time'] for r in results]):.0f} s |")
-            print(f"{env_id} {algo}: {means.mean():.3f} +/- {means.std():.3f}", flush=True)
+            rows.append(_row(algo.upper(), means, reference,
+                             f"{results[0]['timesteps']} | "
+                             f"{np.mean([r['wall_time'] for r in results]):.0f} s |"))
+            print(f"{env_id} {algo}: {rows[-1]}", flush=True)
         oracle = "scripted chase-and-hit" if "Control" in env_id else "oracle (closed form)"
         for label, key in (("random", "random"), (oracle, "oracle")):
-            rows.append(f"| {label} | {base[key].mean:.3f} +/- {base[key].std:.3f} | - | - |")
+            r = base[key]
+            frac = f"{r.mean / reference:.3f}" if reference > 0 else "-"
+            rows.append(f"| {label} | - | {r.mean:.3f} +/- {r.std:.3f} | {frac} | - | - | - |")
+        if "Control" in env_id and args.planner_episodes > 0:
+            rows.append(_planner_row(env_id, args.planner_episodes, reference))
         plot = _curves(env_id, root, args.algos, seeds,
                        doc.parent / "baselines" / f"{env_id.split('/')[-1]}.png")
         table[env_id] = rows
-        lines += [f"## {env_id}", "", "| policy | mean return | timesteps | train wall time |",
-                  "|---|---|---|---|", *rows, "",
+        lines += [f"## {env_id}", "",
+                  "| policy | IQM [95% CI] | mean +/- std | IQM / reference | seeds | "
+                  "timesteps | train wall time |", "|---|---|---|---|---|---|---|", *rows, "",
                   f"![learning curves]({plot.relative_to(doc.parent).as_posix()})", ""]
     if not args.no_transfer and "SpinStrike/RodSpin-v0" in args.envs:
         lines += ["## Does accuracy matter for learning?", "",
                   "PPO on `SpinStrike/RodSpin-v0`, trained with each solver, all evaluated on the "
                   "exact solver:", "",
-                  "| trained on | return on exact | train wall time |", "|---|---|---|"]
+                  "| trained on | IQM [95% CI] | mean +/- std | IQM / oracle | seeds | "
+                  "train wall time |", "|---|---|---|---|---|---|"]
         for label, solver in TRANSFER_SOLVERS.items():
             tag = "" if solver is None else "-" + solver["mode"]
             kwargs = None if solver is None else {"solver": solver}
             results = [_run("ppo", "SpinStrike/RodSpin-v0", s, root, scale, kwargs, tag)
                        for s in seeds]
             means = np.array([r["mean"] for r in results])
-            lines.append(f"| {label} | {means.mean():.3f} +/- {means.std():.3f} | "
-                         f"{np.mean([r['wall_time'] for r in results]):.0f} s |")
+            lines.append(_row(label, means, 1.0,
+                              f"{np.mean([r['wall_time'] for r in results]):.0f} s |"))
             print(f"transfer {label}: {means.mean():.3f}", flush=True)
         lines.append("")
     try:

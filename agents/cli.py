@@ -3,7 +3,7 @@
     spinstrike train    --algo ppo --env SpinStrike/RodSpin-v0 [--seed 0] [--timesteps N]
     spinstrike train    --backend rllib --env ID [--num-env-runners N] [--address ADDR]
     spinstrike evaluate RUN_DIR | --oracle/--random --env ID   [--episodes 50]
-    spinstrike record   RUN_DIR | --oracle --env ID            [--out rollout.mp4|.gif] [--grid]
+    spinstrike record   RUN_DIR | --oracle/--planner --env ID  [--out rollout.mp4|.gif] [--grid]
     spinstrike envs
     spinstrike cache    [--clear]
     spinstrike bench    accuracy|speed [--quick]
@@ -82,7 +82,7 @@ def _policy(args):
         env_kwargs = meta["hyperparameters"][meta["env"]].get("env_kwargs", {})
         return policy, meta["env"], env_kwargs, "agent"
     if not args.env:
-        for flag in ("oracle", "random"):
+        for flag in ("oracle", "random", "planner"):
             if getattr(args, flag, False):
                 raise AgentConfigError(f"--{flag}: needs --env ID; ids: {list(envs.ENV_IDS)}")
         raise AgentConfigError("give a run directory, or --oracle/--random with --env")
@@ -91,6 +91,14 @@ def _policy(args):
         return RandomPolicy(args.seed), args.env, {}, "random"
     if getattr(args, "oracle", False):
         return oracle_for(args.env), args.env, {}, "oracle"
+    if getattr(args, "planner", False):
+        from spinstrike.agents.planner import CEMPlanner
+
+        if "Control" not in args.env:
+            raise AgentConfigError(f"--planner: drives the control envs only "
+                                   f"(SpinStrike/RodSpinControl-v0, SpinStrike/PuckSpeedControl-v0)"
+                                   f"; got {args.env!r}")
+        return CEMPlanner(), args.env, {}, "planner"
     raise AgentConfigError("give a run directory, or --oracle/--random with --env")
 
 
@@ -267,6 +275,8 @@ def build_parser() -> argparse.ArgumentParser:
             e.add_argument("--json", action="store_true")
             e.add_argument("--no-save", action="store_true")
         else:
+            e.add_argument("--planner", action="store_true",
+                           help="the CEM planner (control envs; agents/planner.py)")
             e.add_argument("--out", help="video file, .mp4 or .gif (default: rollout.mp4 in "
                            "the run directory)")
             e.add_argument("--episodes", type=int, default=3)
@@ -300,7 +310,12 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
     parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["baselines"]:  # argparse's REMAINDER would refuse a leading --option
+        args = parser.parse_args(["baselines"])
+        args.rest = argv[1:]
+    else:
+        args = parser.parse_args(argv)
     from spinstrike.agents.config import AgentConfigError
     from spinstrike.envs.config import ConfigError
     from spinstrike.physics import SceneError

@@ -8,7 +8,8 @@
   oracle tries the whole family at once in a scratch batched world (one vectorised strike) and
   keeps the best. It is the upper line of the results tables.
 * :class:`PuckSpeedOracle`: a centred strike along the target heading at the speed the closed
-  form ``v_puck = (1+e) m_s / (m_s + m_p) v`` asks for (exact: one impact, no slip).
+  form ``v_puck = (1+e) m_s / (m_s + m_p) v`` asks for (exact: one impact, no slip), in either
+  action parametrisation (``PuckSpeed-v0``: heading angle and speed; ``-v1``: velocity vector).
 * :class:`ChaseAndHit`: the control envs' scripted baseline: go round behind the target, then
   drive through it.
 
@@ -22,7 +23,7 @@ import math
 import numpy as np
 
 from spinstrike.envs.control import RodSpinControlTask
-from spinstrike.envs.strike import PuckSpeedTask, RodSpinTask
+from spinstrike.envs.strike import PuckSpeedTask, PuckSpeedVelocityTask, RodSpinTask
 
 __all__ = ["ChaseAndHit", "PuckSpeedOracle", "RandomPolicy", "RodSpinOracle", "oracle_for"]
 
@@ -111,8 +112,11 @@ class PuckSpeedOracle:
         target = task.goal[0]
         gain = task.analytic()["gain"][0]
         lo, hi = task.cfg.speed_range
-        speed = math.hypot(*target) / gain
+        speed = float(np.clip(math.hypot(*target) / gain, lo, hi))
         heading = math.atan2(target[1], target[0])
+        if isinstance(task, PuckSpeedVelocityTask):
+            return np.clip(np.concatenate([[0.0], task.action_for(heading, speed, (lo, hi))]),
+                           -1, 1).astype(np.float32)
         return np.clip(np.array([0.0, heading / math.pi, 2 * (speed - lo) / (hi - lo) - 1]),
                        -1, 1).astype(np.float32)
 
@@ -168,6 +172,7 @@ class ChaseAndHit:
 def oracle_for(env_id: str):
     """The reference policy of an env: the analytic oracle, or chase-and-hit for control."""
     return {"SpinStrike/RodSpin-v0": RodSpinOracle, "SpinStrike/PuckSpeed-v0": PuckSpeedOracle,
+            "SpinStrike/PuckSpeed-v1": PuckSpeedOracle,
             "SpinStrike/RodSpinControl-v0": ChaseAndHit,
             "SpinStrike/PuckSpeedControl-v0": ChaseAndHit}[env_id]()
 

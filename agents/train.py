@@ -145,13 +145,25 @@ def _resume_model(cls, algo: str, cfg: RunConfig, work: Path, env, device: str):
     return model
 
 
+#: seed of the learning curves' evaluation episodes (the same for every run)
+EVAL_SEED = 10_000
+
+
 def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, episodes: int):
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
 
+    class _FixedEpisodesEval(EvalCallback):
+        """SB3's evaluation, reseeded before each so every point sees the same episodes."""
+
+        def _on_step(self) -> bool:
+            if self.eval_freq > 0 and self.n_calls % self.eval_freq == 0:
+                self.eval_env.seed(EVAL_SEED)
+            return super()._on_step()
+
     from spinstrike.envs.sb3 import make_sb3_vec_env
 
-    eval_env = make_sb3_vec_env(cfg.env_id, n_envs=1, seed=seed + 10_000,
-                                env_kwargs=cfg.env_kwargs)
+    # the same episodes at every evaluation and for every seed and algorithm (reseeded below)
+    eval_env = make_sb3_vec_env(cfg.env_id, n_envs=1, seed=EVAL_SEED, env_kwargs=cfg.env_kwargs)
     if cfg.normalize:
         from stable_baselines3.common.vec_env import VecNormalize
 
@@ -161,8 +173,9 @@ def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, epis
         CheckpointCallback(save_freq=every, save_path=str(work / "checkpoints"),
                            name_prefix="model", save_replay_buffer=algo in OFF_POLICY,
                            save_vecnormalize=bool(cfg.normalize)),
-        EvalCallback(eval_env, n_eval_episodes=episodes, eval_freq=every, log_path=str(work),
-                     best_model_save_path=None, deterministic=True, verbose=0),
+        _FixedEpisodesEval(eval_env, n_eval_episodes=episodes, eval_freq=every,
+                           log_path=str(work), best_model_save_path=None, deterministic=True,
+                           verbose=0),
     ])
 
 

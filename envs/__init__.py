@@ -10,7 +10,8 @@
 id                                 task
 =================================  ==========================================================
 ``SpinStrike/RodSpin-v0``          one strike on a free rod; reward for reaching a target spin
-``SpinStrike/PuckSpeed-v0``        one strike on a puck; reward for a target velocity
+``SpinStrike/PuckSpeed-v1``        one strike on a puck; reward for a target velocity
+``SpinStrike/PuckSpeed-v0``        PuckSpeed with the strike heading as an angle (kept; use v1)
 ``SpinStrike/RodSpinControl-v0``   push a mallet on a walled table; reward for spin its hits add
 ``SpinStrike/PuckSpeedControl-v0`` push a mallet on a walled table; reward for speed its hits add
 =================================  ==========================================================
@@ -27,7 +28,9 @@ __all__ = ["ENV_IDS", "ConfigError", "describe"]
 #: registered ids and a one-line description each
 ENV_IDS: dict[str, str] = {
     "SpinStrike/RodSpin-v0": "one strike on a free rod; reward for reaching a target spin",
-    "SpinStrike/PuckSpeed-v0": "one strike on a puck; reward for reaching a target velocity",
+    "SpinStrike/PuckSpeed-v1": "one strike on a puck; reward for reaching a target velocity",
+    "SpinStrike/PuckSpeed-v0":
+        "PuckSpeed-v1 with the strike's heading as an angle (wraps at +-pi; kept, use v1)",
     "SpinStrike/RodSpinControl-v0":
         "push a mallet around a walled table; reward for the spin its hits give a rod",
     "SpinStrike/PuckSpeedControl-v0":
@@ -38,6 +41,7 @@ ENV_IDS: dict[str, str] = {
 _ENTRY = {
     "SpinStrike/RodSpin-v0": ("strike:RodSpinEnv", "strike:RodSpinVectorEnv", None),
     "SpinStrike/PuckSpeed-v0": ("strike:PuckSpeedEnv", "strike:PuckSpeedVectorEnv", None),
+    "SpinStrike/PuckSpeed-v1": ("strike:PuckSpeedV1Env", "strike:PuckSpeedV1VectorEnv", None),
     "SpinStrike/RodSpinControl-v0": ("control:RodSpinControlEnv",
                                      "control:RodSpinControlVectorEnv", 250),
     "SpinStrike/PuckSpeedControl-v0": ("control:PuckSpeedControlEnv",

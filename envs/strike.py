@@ -1,4 +1,5 @@
-"""One-strike envs: ``SpinStrike/RodSpin-v0`` and ``SpinStrike/PuckSpeed-v0``.
+"""One-strike envs: ``SpinStrike/RodSpin-v0`` and ``SpinStrike/PuckSpeed-v1`` (``-v0``: its
+heading-angle action, kept).
 
 Each episode is one strike: the action launches a striker disk at a resting target (a rod or a
 puck), the exact solver simulates until no further contact can happen (or ``time_cap``), and the
@@ -31,7 +32,8 @@ from spinstrike.physics import SceneError, World
 from spinstrike.physics.layout import ANGLE, OMEGA, STATE_COLUMNS, VX, VY, X, Y
 from spinstrike.physics.solvers import TRACE_DROPPED, TRACE_ENTRIES
 
-__all__ = ["PuckSpeedEnv", "PuckSpeedVectorEnv", "RodSpinEnv", "RodSpinVectorEnv", "StrikeClip",
+__all__ = ["PuckSpeedEnv", "PuckSpeedV1Env", "PuckSpeedV1VectorEnv", "PuckSpeedVectorEnv",
+           "PuckSpeedVelocityTask", "RodSpinEnv", "RodSpinVectorEnv", "StrikeClip",
            "rod_spin_after_strike", "rod_spin_max"]
 
 #: simulated time per chunk of a strike, s (the solver's step inside the strike kernel)
@@ -605,6 +607,47 @@ class PuckSpeedTask(_StrikeTask):
                 Vector(puck.x, puck.y, puck.vx, puck.vy)]
 
 
+class PuckSpeedVelocityTask(PuckSpeedTask):
+    """``PuckSpeed-v1``: the strike's velocity as a vector, not as a heading angle.
+
+    v0's heading is ``pi * a`` with ``a`` in [-1, 1], so a target heading near +-pi needs an
+    action at either end of the box, and the best action jumps from +1 to -1 across that line: a
+    smooth policy (an MLP) cannot follow it and fails on the episodes whose heading lies near
+    the wrap. v1 gives the striker's velocity as ``(vx, vy) = speed_max * (a1, a2)`` (its length
+    clipped into ``speed_range``), which is continuous in the target everywhere.
+    """
+
+    ACTIONS = ("offset", "velocity_x", "velocity_y")
+    TITLE = "PuckSpeed-v1"
+
+    def _launch(self, actions: np.ndarray) -> None:
+        w = self.world
+        reach = self._reach() + w.radius[:, self.js]
+        offset = actions[:, 0] * reach
+        d, speed = self.velocity_of(actions[:, 1:3], self.cfg.speed_range)
+        side = np.stack([-d[:, 1], d[:, 0]], 1)
+        start = (w.state.positions[:, self.it] + offset[:, None] * side
+                 - (reach + START_MARGIN)[:, None] * d)
+        self._put_striker(start, speed[:, None] * d)
+
+    @staticmethod
+    def velocity_of(a: np.ndarray, speed_range) -> tuple[np.ndarray, np.ndarray]:
+        """Unit direction [B, 2] and speed [B] of the action's velocity part ``a`` [B, 2]:
+        ``speed_max * a``, its length clipped into ``speed_range`` (a zero vector: +x at the
+        slowest speed)."""
+        lo, hi = speed_range
+        norm = np.sqrt((a**2).sum(1))
+        safe = norm > 1e-12
+        d = np.where(safe[:, None], a / np.where(safe, norm, 1.0)[:, None], [1.0, 0.0])
+        return d, np.clip(hi * norm, lo, hi)
+
+    @staticmethod
+    def action_for(heading, speed, speed_range) -> np.ndarray:
+        """The velocity part of the action that strikes along ``heading`` at ``speed``."""
+        hi = speed_range[1]
+        return np.array([math.cos(heading), math.sin(heading)]) * (speed / hi)
+
+
 class _StrikeEnv(SpinStrikeEnv):
     metadata = dict(SpinStrikeEnv.metadata, render_fps=30)
 
@@ -703,10 +746,58 @@ class PuckSpeedEnv(_StrikeEnv):
     ``first_contact_point``, ``best_reward``, ``analytic_speed_gain``, ``reward_velocity``.
 
 {rendering}    ## Version History
+    * v1 (``PuckSpeed-v1``): the action gives the strike's velocity as a vector; v0's heading
+      angle wraps at +-pi, where trained policies fail (see :class:`PuckSpeedV1Env`).
     * v0: initial version.
     """
 
     TASK = PuckSpeedTask
+
+
+class PuckSpeedV1Env(PuckSpeedEnv):
+    """Strike a puck once and send it off at a target velocity (the strike's velocity given as a
+    vector).
+
+    ## Description
+    The task of ``PuckSpeed-v0`` (same scene, observation, reward, randomisation and info) with
+    a different action: v0 gives the strike's heading as an angle (``pi * a``), which wraps at
+    +-pi, so the best action for a target heading near +-pi jumps from one end of the box to the
+    other and a smooth policy fails there (PPO scored about 0 on those episodes and 0.75 of the
+    oracle overall). v1 gives the striker's velocity as a vector, continuous in the target.
+
+    ## Action Space
+    ``Box(-1, 1, (3,), float32)``: ``offset`` of the striker's line from the puck's centre (as a
+    fraction of the sum of radii, perpendicular to the strike), then ``velocity_x``,
+    ``velocity_y``: the striker's velocity is ``speed_range[1] * (velocity_x, velocity_y)``, its
+    length clipped into ``speed_range`` (a zero vector strikes along +x at the slowest speed).
+    NaN raises; out-of-range values are clipped to [-1, 1].
+
+    ## Observation Space
+
+{layout}
+
+    ## Rewards
+    ``reward = exp(-|v - v*|^2 / (2 (reward_width |v*|)^2))``.
+
+    ## Starting State
+    Puck at rest near the origin; striker parked beside it.
+
+    ## Episode End
+    Terminates after the one strike.
+
+    ## Arguments
+    See :class:`spinstrike.envs.config.PuckSpeedConfig`.
+
+    ## Info
+    As ``PuckSpeed-v0``: ``velocity``, ``speed``, ``spin``, ``target_velocity``,
+    ``n_contacts``, ``impulse``, ``first_contact_point``, ``best_reward``,
+    ``analytic_speed_gain``, ``reward_velocity``.
+
+{rendering}    ## Version History
+    * v1: the strike's velocity as a vector (v0: heading angle and speed).
+    """
+
+    TASK = PuckSpeedVelocityTask
 
 
 class RodSpinVectorEnv(SpinStrikeVectorEnv):
@@ -720,6 +811,13 @@ class PuckSpeedVectorEnv(SpinStrikeVectorEnv):
     """Native vector version of :class:`PuckSpeedEnv` (one batched world)."""
 
     TASK = PuckSpeedTask
+    metadata = dict(SpinStrikeVectorEnv.metadata, render_fps=30)
+
+
+class PuckSpeedV1VectorEnv(SpinStrikeVectorEnv):
+    """Native vector version of :class:`PuckSpeedV1Env` (one batched world)."""
+
+    TASK = PuckSpeedVelocityTask
     metadata = dict(SpinStrikeVectorEnv.metadata, render_fps=30)
 
 
@@ -743,4 +841,7 @@ RodSpinEnv.__doc__ = RodSpinEnv.__doc__.format(
     rendering=_RENDERING.format(what="spin (a gauge; the spin arrow)"))
 PuckSpeedEnv.__doc__ = PuckSpeedEnv.__doc__.format(
     layout=layout_table(PuckSpeedTask.LAYOUT),
+    rendering=_RENDERING.format(what="velocity (arrows, a speed gauge)"))
+PuckSpeedV1Env.__doc__ = PuckSpeedV1Env.__doc__.format(
+    layout=layout_table(PuckSpeedVelocityTask.LAYOUT),
     rendering=_RENDERING.format(what="velocity (arrows, a speed gauge)"))

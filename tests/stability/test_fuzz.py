@@ -23,6 +23,7 @@ from hypothesis import strategies as st
 
 from spinstrike import envs, physics
 from spinstrike.envs import ConfigError
+from spinstrike.envs.strike import PuckSpeedVelocityTask
 from spinstrike.physics import SceneError
 
 SMALL = settings(max_examples=40, deadline=None, suppress_health_check=list(HealthCheck))
@@ -196,7 +197,11 @@ def _check_env(env_id, kwargs, actions):
         ke_launch = None
         if not control:
             lo, hi = task.cfg.speed_range
-            speed = lo + 0.5 * (float(np.clip(a[2], -1, 1)) + 1.0) * (hi - lo)
+            if isinstance(task, PuckSpeedVelocityTask):  # v1: the velocity as a vector
+                speed = float(task.velocity_of(np.clip(a[None, 1:3], -1, 1).astype(float),
+                                               (lo, hi))[1][0])
+            else:
+                speed = lo + 0.5 * (float(np.clip(a[2], -1, 1)) + 1.0) * (hi - lo)
             ke_launch = 0.5 * world.mass[0, task.js] * speed**2 + world.kinetic_energy()[0]
         obs, reward, terminated, truncated, info = env.step(a)
         assert env.observation_space.contains(obs)

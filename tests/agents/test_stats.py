@@ -1,0 +1,58 @@
+"""agents.stats (IQM, rliable's stratified bootstrap) and ``spinstrike baselines`` end to end on a
+tiny budget: the table has IQM [CI] beside mean +/- std, and the plot is written."""
+
+import numpy as np
+import pytest
+
+from spinstrike.agents.cli import main
+from spinstrike.agents.stats import curve_bands, interval, iqm, summary
+
+
+def test_iqm_is_the_mean_of_the_middle_half():
+    assert iqm([0, 1, 2, 3, 4, 5, 6, 100]) == pytest.approx(np.mean([2, 3, 4, 5]))
+    assert iqm([[1.0], [1.0]]) == 1.0
+    with pytest.raises(ValueError, match="scores"):
+        iqm([])
+
+
+def test_interval_brackets_the_iqm_and_is_reproducible():
+    rng = np.random.default_rng(0)
+    scores = rng.normal(0.9, 0.05, (10, 3))
+    value, low, high = interval(scores)
+    assert low < value < high
+    assert value == pytest.approx(iqm(scores))
+    assert interval(scores) == (value, low, high)  # seeded
+    # more runs, narrower interval
+    wide = interval(scores[:4])
+    assert (wide[2] - wide[1]) > (high - low)
+    with pytest.raises(ValueError, match="shape"):
+        interval(np.zeros((2, 2, 2)))
+    with pytest.raises(ValueError, match="finite"):
+        interval([1.0, np.nan])
+
+
+def test_summary_and_bands():
+    s = summary([0.5, 0.9, 0.95, 0.97, 0.99])
+    assert s["runs"] == 5 and s["mean"] == pytest.approx(0.862)
+    assert s["iqm_low"] <= s["iqm"] <= s["iqm_high"]
+    mid, low, high = curve_bands(np.array([[0.1, 0.5, 0.9], [0.2, 0.6, 0.8], [0.0, 0.4, 1.0]]))
+    assert mid.shape == (3,) and np.all(low <= mid) and np.all(mid <= high)
+
+
+def test_cli_baselines_writes_iqm_table_and_curves_on_fixed_episodes(tmp_path, capsys):
+    root, doc = tmp_path / "runs", tmp_path / "docs" / "baselines.md"
+    assert main(["baselines", "--quick", "--envs", "SpinStrike/PuckSpeed-v1", "--algos", "ppo",
+                 "--seeds", "0", "--no-transfer", "--root", str(root), "--doc", str(doc)]) == 0
+    text = doc.read_text()
+    assert "| policy | IQM [95% CI] | mean +/- std | IQM / reference |" in text
+    assert "| PPO | " in text and "| oracle (closed form) | - | 1.000 +/- 0.000 | 1.000 |" in text
+    assert (doc.parent / "baselines" / "PuckSpeed-v1.png").stat().st_size > 1000
+    # --reuse-only trains nothing: the finished PPO run is reported, SAC is said not to be run
+    doc.unlink()
+    assert main(["baselines", "--reuse-only", "--envs", "SpinStrike/PuckSpeed-v1", "--algos",
+                 "ppo", "sac", "--seeds", "0", "1", "--no-transfer", "--root", str(root),
+                 "--doc", str(doc)]) == 0
+    text = doc.read_text()
+    assert "| SAC | not run in this budget |" in text
+    assert "| PPO | " in text and " | 1 | " in text
+    assert sorted(p.name for p in root.iterdir()) == ["ppo-PuckSpeed-v1-s0"]
