@@ -31,7 +31,7 @@ import numpy as np
 import yaml
 
 from spinstrike.agents.config import AgentConfigError, RunConfig, load_agent_config
-from spinstrike.agents.train import TrainResult, _work_dir, plot_learning_curve
+from spinstrike.agents.train import TrainResult, _work_dir, finish_run, plot_learning_curve
 
 __all__ = ["load_rllib_policy", "module_policy", "ppo_config", "train_rllib"]
 
@@ -178,20 +178,9 @@ def train_rllib(env_id: str, *, config: str | Path | None = None, seed: int = 0,
         if started:
             ray.shutdown()
     result = TrainResult(run_dir=str(run_dir), timesteps=steps, wall_time=wall)
-    if evaluate:
-        from spinstrike.agents.evaluate import evaluate as run_eval
-        from spinstrike.agents.evaluate import summarise
-
-        results = run_eval(env_id, policy, episodes=eval_episodes, env_kwargs=cfg.env_kwargs)
-        summarise(results, run_dir, f"## PPO (RLlib) on {env_id} (seed {seed}, {steps} steps, "
-                                    f"{wall:.0f} s)")
-        result["evaluations"] = {r.policy: (r.mean, r.std) for r in results}
-    if video:
-        from spinstrike.agents.record import record
-
-        result["video"] = record(policy, env_id, run_dir / "rollout.mp4", episodes=3,
-                                 env_kwargs=cfg.env_kwargs)["path"]
-    return result
+    return finish_run(result, policy, env_id, run_dir, cfg.env_kwargs,
+                      f"## PPO (RLlib) on {env_id} (seed {seed}, {steps} steps, {wall:.0f} s)",
+                      evaluate=evaluate, eval_episodes=eval_episodes, video=video)
 
 
 def _learn(algo_config, cfg: RunConfig, work: Path, *, seed, address, num_env_runners,

@@ -31,7 +31,7 @@ import yaml
 
 from spinstrike.agents.config import AgentConfigError, RunConfig, algo_class, load_agent_config
 
-__all__ = ["TrainResult", "plot_learning_curve", "train"]
+__all__ = ["TrainResult", "finish_run", "plot_learning_curve", "train"]
 
 OFF_POLICY = ("sac", "td3")
 
@@ -283,21 +283,31 @@ def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int
     meta.setdefault("runs", []).append({"timesteps": int(model.num_timesteps),
                                         "wall_time_s": round(wall, 2)})
     (run_dir / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
+    policy = None
     if evaluate or video:
         from spinstrike.agents.evaluate import load_model_policy
 
         policy, _ = load_model_policy(run_dir)
+    return finish_run(result, policy, env_id, run_dir,
+                      cfg.env_kwargs, f"## {algo.upper()} on {env_id} (seed {seed}, "
+                      f"{model.num_timesteps} steps, {wall:.0f} s)",
+                      evaluate=evaluate, eval_episodes=eval_episodes, video=video)
+
+
+def finish_run(result: TrainResult, policy, env_id: str, run_dir: Path, env_kwargs: dict,
+               title: str, *, evaluate: bool, eval_episodes: int, video: bool) -> TrainResult:
+    """The end of every backend's run: ``summary.md`` (the policy beside random and the
+    reference over ``eval_episodes``) and ``rollout.mp4``, as asked; returns ``result``."""
     if evaluate:
         from spinstrike.agents.evaluate import evaluate as run_eval
         from spinstrike.agents.evaluate import summarise
 
-        results = run_eval(env_id, policy, episodes=eval_episodes, env_kwargs=cfg.env_kwargs)
-        summarise(results, run_dir, f"## {algo.upper()} on {env_id} (seed {seed}, "
-                                    f"{model.num_timesteps} steps, {wall:.0f} s)")
+        results = run_eval(env_id, policy, episodes=eval_episodes, env_kwargs=env_kwargs)
+        summarise(results, run_dir, title)
         result["evaluations"] = {r.policy: (r.mean, r.std) for r in results}
     if video:
         from spinstrike.agents.record import record
 
         result["video"] = record(policy, env_id, run_dir / "rollout.mp4", episodes=3,
-                                 env_kwargs=cfg.env_kwargs)["path"]
+                                 env_kwargs=env_kwargs)["path"]
     return result
