@@ -477,8 +477,8 @@ def main(argv: list[str] | None = None) -> int:
     row("RodSpin-v0 single env, random strikes", strike_single, c4, "strikes/s")
     strike_vec, c5 = _vector_rate("SpinStrike/RodSpin-v0", 1024, 10, reps)
     row("RodSpin-v0 native vector env, 1024 envs, random strikes", strike_vec, c5, "strikes/s")
-    puck_vec, c6 = _vector_rate("SpinStrike/PuckSpeed-v0", 1024, 10, reps)
-    row("PuckSpeed-v0 native vector env, 1024 envs, random strikes", puck_vec, c6, "strikes/s")
+    puck_vec, c6 = _vector_rate("SpinStrike/PuckSpeed-v1", 1024, 10, reps)
+    row("PuckSpeed-v1 native vector env, 1024 envs, random strikes", puck_vec, c6, "strikes/s")
     startup = _startup_times(list(envs.ENV_IDS))
     for env_id, (c1, c1000, w1, w1000) in startup.items():
         print(f"start-up {env_id}: cold {c1:.1f} / {c1000:.1f} s, warm {w1:.1f} / {w1000:.1f} s")
