@@ -86,6 +86,26 @@ def _run(code: str, env: dict) -> tuple[str, float, float]:
     return out.stdout, cpu, wall
 
 
+def imported_from(tree: str | None, env: dict | None = None) -> Path:
+    """The file ``spinstrike.physics`` imports from in a fresh interpreter with ``tree`` on
+    ``PYTHONPATH``. Raises ``ValueError`` when it does not import from inside ``tree``: a
+    missing or broken tree would otherwise measure the installed code under the tree's label."""
+    env = dict(os.environ if env is None else env)
+    if tree:
+        env["PYTHONPATH"] = tree
+    out = subprocess.run([sys.executable, "-c",
+                          "import spinstrike.physics as p; print(p.__file__)"],
+                         env=env, capture_output=True, text=True, cwd=tempfile.gettempdir())
+    if out.returncode != 0:
+        last = out.stderr.strip().splitlines()[-1] if out.stderr.strip() else "no output"
+        raise ValueError(f"--tree {tree}: spinstrike does not import ({last})")
+    where = Path(out.stdout.strip())
+    if tree and not where.is_relative_to(Path(tree).absolute()):
+        raise ValueError(f"--tree {tree}: spinstrike.physics imports from {where}, not from the "
+                         "tree (it must be a folder holding spinstrike/ with its subpackages)")
+    return where
+
+
 def measure(label: str, tree: str | None, variables: dict[str, str]) -> dict:
     """Cold and warm figures of one choice (see the module docstring)."""
     with tempfile.TemporaryDirectory() as cache:
@@ -93,6 +113,7 @@ def measure(label: str, tree: str | None, variables: dict[str, str]) -> dict:
                    SPINSTRIKE_QUIET="1", **variables)
         if tree:
             env["PYTHONPATH"] = tree
+        imported_from(tree, env)
         _, cpu, wall = _run(_COLD, env)
         out, _, _ = _run(_WARM, env)
     strikes, steps = (float(x) for x in out.split())
@@ -176,6 +197,12 @@ def main(argv: list[str] | None = None) -> int:
             p.error(f"--opt: numba optimisation levels are 0..3, got {level!r}")
         suffix = " (numba's default)" if level == "3" else ""
         choices.append((f"this code, NUMBA_OPT={level}{suffix}", None, {"NUMBA_OPT": level}))
+    for _, tree, _ in choices:  # every tree is checked before anything is measured
+        if tree:
+            try:
+                imported_from(tree)
+            except ValueError as exc:
+                p.error(str(exc))
     results = []
     for label, tree, variables in choices:
         r = measure(label, tree, variables)

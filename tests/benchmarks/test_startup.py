@@ -25,7 +25,11 @@ def test_section_is_written_between_markers_and_replaced(tmp_path):
 
 
 def test_bad_arguments_are_named(tmp_path):
-    for args, word in ((["--opt", "7"], "--opt"), (["--tree", "nopath"], "--tree")):
+    empty = tmp_path / "empty"  # a tree with no spinstrike in it: the installed code would
+    empty.mkdir()               # import instead and be measured under the tree's label
+    for args, word in ((["--opt", "7"], "--opt"), (["--tree", "nopath"], "--tree"),
+                       (["--tree", f"old={empty}"], "imports from"),
+                       (["--tree", f"old={tmp_path / 'missing'}"], "--tree")):
         out = subprocess.run([sys.executable, "-m", "spinstrike.benchmarks.startup", *args,
                               "--out", str(tmp_path / "x.md")], capture_output=True, text=True,
                              cwd=tmp_path)
