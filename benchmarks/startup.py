@@ -113,7 +113,6 @@ def measure(label: str, tree: str | None, variables: dict[str, str]) -> dict:
                    SPINSTRIKE_QUIET="1", **variables)
         if tree:
             env["PYTHONPATH"] = tree
-        imported_from(tree, env)
         _, cpu, wall = _run(_COLD, env)
         out, _, _ = _run(_WARM, env)
     strikes, steps = (float(x) for x in out.split())
@@ -197,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
             p.error(f"--opt: numba optimisation levels are 0..3, got {level!r}")
         suffix = " (numba's default)" if level == "3" else ""
         choices.append((f"this code, NUMBA_OPT={level}{suffix}", None, {"NUMBA_OPT": level}))
-    for _, tree, _ in choices:  # every tree is checked before anything is measured
+    for _, tree, _ in choices:  # every tree is checked (once) before anything is measured
         if tree:
             try:
                 imported_from(tree)

@@ -100,25 +100,26 @@ def test_console_script_and_benchmark_modules(tmp_path):
 def _imported_modules(path: Path):
     """Modules a source file imports, including in code it carries as strings (snippets run in
     subprocesses: ``python -c``)."""
-    tree = ast.parse(path.read_text(), str(path))
+    yield from _imports(ast.parse(path.read_text(), str(path)))
+
+
+def _imports(tree: ast.AST, line: int | None = None):
+    """(line, module) of every absolute import in ``tree`` and in the code its strings carry
+    (``line``: the line of the string a snippet came from)."""
     for node in ast.walk(tree):
+        at = line if line is not None else getattr(node, "lineno", 0)
         if isinstance(node, ast.Import):
             for alias in node.names:
-                yield node.lineno, alias.name
+                yield at, alias.name
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            yield node.lineno, node.module
+            yield at, node.module
         elif (isinstance(node, ast.Constant) and isinstance(node.value, str)
               and "import" in node.value):
             try:
                 snippet = ast.parse(textwrap.dedent(node.value))
             except SyntaxError:
                 continue
-            for inner in ast.walk(snippet):
-                if isinstance(inner, ast.Import):
-                    for alias in inner.names:
-                        yield node.lineno, alias.name
-                elif isinstance(inner, ast.ImportFrom) and inner.level == 0 and inner.module:
-                    yield node.lineno, inner.module
+            yield from _imports(snippet, at)
 
 
 def _sources():
