@@ -36,8 +36,12 @@ from spinstrike.physics.layout import (
     ANGLE,
     CF_DT,
     CF_OVERLAP_TOL,
+    CF_TOL,
+    CF_ZENO_SPEED,
+    CI_CONTACT_FRICTION,
     CI_ROTATION,
     CI_TABLE_FRICTION,
+    FORCE_COLUMNS,
     FX,
     FY,
     H_B,
@@ -69,6 +73,7 @@ from spinstrike.physics.solvers import (
     TRACE_DROPPED,
     TRACE_ENTRIES,
     Trace,
+    rests_on,
     trace_state,
 )
 
@@ -567,23 +572,41 @@ def sample_trace(fbuf, ibuf, b, key_time, key_state, times, out):
     """States of element b at ``times`` (s, ascending) from a trace's states ``key_state [K, N,
     6]`` at ``key_time [K]`` (ascending; the first at or before the first time): each is the
     last state at or before the time, flown by the rest (``motion.flight``), into
-    ``out [len(times), N, 6]``."""
+    ``out [len(times), N, 6]``. A disk resting on a cushion in a state (``solvers.rests_on``)
+    flies as the solver flew it: without the force's component the cushion holds back."""
     v = unpack(fbuf, ibuf)
     Pm = v.Pm[b]
-    F = v.F[b]
+    hw = v.HW[b]
+    MAT = v.MAT[b]
     rotation = v.icfg[CI_ROTATION] != 0
     table_friction = v.icfg[CI_TABLE_FRICTION] != 0
+    contact_friction = v.icfg[CI_CONTACT_FRICTION] != 0
+    tol = v.fcfg[CF_TOL]
+    zeno_speed = v.fcfg[CF_ZENO_SPEED]
     k = 0
     n_keys = key_time.shape[0]
     S = np.empty((key_state.shape[1], STATE_COLUMNS))
+    F = np.empty((key_state.shape[1], FORCE_COLUMNS))
+    n = S.shape[0]
     for f in range(times.shape[0]):
         t = times[f]
         while k + 1 < n_keys and key_time[k + 1] <= t:
             k += 1
-        for i in range(S.shape[0]):
+        for i in range(n):
             for c in range(STATE_COLUMNS):
                 S[i, c] = key_state[k, i, c]
-        for i in range(S.shape[0]):
+            F[i, FX] = v.F[b, i, FX]
+            F[i, FY] = v.F[b, i, FY]
+        for p in range(v.PA.shape[0]):  # what the cushions held back in the solver's flight
+            i = v.PA[p]
+            wall = v.PB[p] - n
+            if wall >= 0 and rests_on(S, Pm, F, hw, MAT, p, i, wall, tol, zeno_speed,
+                                      contact_friction, table_friction):
+                if wall < 2:  # the left or right cushion
+                    F[i, FX] = 0.0
+                else:
+                    F[i, FY] = 0.0
+        for i in range(n):
             x, y, an, vx, vy, w = flight(S, Pm, F, i, t - key_time[k], rotation, table_friction)
             out[f, i, X] = x
             out[f, i, Y] = y

@@ -47,6 +47,7 @@ from spinstrike.physics.layout import (
     F_HALF,
     F_MATERIALS,
     F_PARAMS,
+    F_REST,
     F_STATE,
     F_TIME,
     F_TOI,
@@ -88,11 +89,13 @@ BLOCK = 64
 #: parameters ``Pm``, forces ``F``, table half sizes ``HW``, pair materials ``MAT``, contact
 #: records ``crec``, time-of-impact scratch ``toi``, float config ``fcfg``, pair bodies ``PA``,
 #: ``PB``, contact pairs ``cpair``, statistics ``stats``, search kinds ``kind``, changed flags
-#: ``changed``, int config ``icfg``, clock ``clock`` (shapes: ``layout.field_shapes``)
-#: ``clock``; and the two buffers ``fbuf``, ``ibuf`` themselves (the exact solver's calendar
-#: takes its rows from them, ``calendar.element_rows``, only where it is compiled)
+#: ``changed``, int config ``icfg``, clock ``clock`` (shapes: ``layout.field_shapes``); the two
+#: buffers ``fbuf``, ``ibuf`` themselves (the exact solver's calendar takes its rows from them,
+#: ``calendar.element_rows``, only where it is compiled); and the force components held back by
+#: cushions ``rest`` (``solvers._rest_on_cushions``)
 Views = namedtuple("Views", ["S", "Pm", "F", "HW", "MAT", "crec", "toi", "fcfg", "PA", "PB",
-                             "cpair", "stats", "kind", "changed", "icfg", "clock", "fbuf", "ibuf"])
+                             "cpair", "stats", "kind", "changed", "icfg", "clock", "fbuf", "ibuf",
+                             "rest"])
 
 
 @jit_inline
@@ -131,8 +134,9 @@ def unpack(fbuf, ibuf):
     kind = _ints(ibuf, I_KIND, B * P).reshape((B, P))
     changed = _ints(ibuf, I_CHANGED, B * N).reshape((B, N))
     icfg = _ints(ibuf, I_ICFG, ICFG_SIZE)
+    rest = _floats(fbuf, ibuf, F_REST, B * N * FORCE_COLUMNS).reshape((B, N, FORCE_COLUMNS))
     return Views(S, Pm, F, HW, MAT, crec, toi, fcfg, PA, PB, cpair, stats, kind, changed, icfg,
-                 clock, fbuf, ibuf)
+                 clock, fbuf, ibuf, rest)
 
 
 #: the compile-time flags every batch kernel takes last, in this order (``World.flags``): the
@@ -169,12 +173,12 @@ def step_element(v, b, dt, fixed, rotation, contact_friction, table_friction, ja
                   v.fcfg[CF_TOL], v.icfg[CI_MAX_EVENTS], v.icfg[CI_MAX_ITERATIONS],
                   v.fcfg[CF_ZENO_SPEED], v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE], rotation,
                   contact_friction, table_friction, jam, v.cpair[b], v.crec[b], v.stats[b],
-                  v.toi[b], v.kind[b], v.changed[b], trace)
+                  v.toi[b], v.kind[b], v.changed[b], v.rest[b], trace)
     _many_if(jam, v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt, v.fcfg[CF_TOL],
              v.icfg[CI_MAX_EVENTS], v.icfg[CI_MAX_ITERATIONS], v.fcfg[CF_ZENO_SPEED],
              v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE], rotation, contact_friction,
              table_friction, jam, v.cpair[b], v.crec[b], v.stats[b], v.toi[b], v.kind[b],
-             v.changed[b], v.fbuf, v.ibuf, b, trace)
+             v.changed[b], v.rest[b], v.fbuf, v.ibuf, b, trace)
 
 
 @jit

@@ -177,9 +177,9 @@ def calendar_widths(N: int, P: int) -> tuple[int, int]:
 #: the int buffer's header: sizes (batch, bodies, pairs, stored contacts per element), then the
 #: offset of each float field in the float buffer and of each int field in the int buffer
 FLOAT_FIELDS = Table("float fields", "state", "params", "forces", "half", "materials", "crec",
-                     "toi", "fcfg", "time", "calf", prefix="F_")
+                     "toi", "fcfg", "time", "calf", "rest", prefix="F_")
 (F_STATE, F_PARAMS, F_FORCES, F_HALF, F_MATERIALS, F_CREC, F_TOI, F_FCFG, F_TIME,
- F_CALF) = FLOAT_FIELDS
+ F_CALF, F_REST) = FLOAT_FIELDS
 INT_FIELDS = Table("int fields", "pair_a", "pair_b", "cpair", "stats", "kind", "changed", "icfg",
                    "cali", "pair_index", prefix="I_")
 (I_PAIR_A, I_PAIR_B, I_CPAIR, I_STATS, I_KIND, I_CHANGED, I_ICFG, I_CALI,
@@ -198,13 +198,14 @@ def field_shapes(B: int, N: int, P: int, M: int,
     ``calendar``: the world steps with the exact solver's calendar (many bodies), which needs
     the calendar rows ``calf``, ``cali`` (:func:`calendar_widths`) and the pair index
     ``[N, N + 4]`` (the pair of two bodies, or of a body and cushion w at column N + w; -1:
-    none); otherwise they are empty."""
+    none); otherwise they are empty. ``rest``: the force components the cushions a body rests
+    on hold back during a step (``solvers._rest_on_cushions``; zero between steps)."""
     cf, ci = calendar_widths(N, P) if calendar else (0, 0)
     rows, cols = (N, N + 4) if calendar else (0, 0)
     return {"state": (B, N, STATE_COLUMNS), "params": (B, N, PARAM_COLUMNS),
             "forces": (B, N, FORCE_COLUMNS), "half": (B, HALF_COLUMNS),
             "materials": (B, P, MATERIAL_COLUMNS), "crec": (B, M, REC_COLUMNS), "toi": (B, P),
-            "fcfg": (FCFG_SIZE,), "time": (B,), "calf": (B, cf),
+            "fcfg": (FCFG_SIZE,), "time": (B,), "calf": (B, cf), "rest": (B, N, FORCE_COLUMNS),
             "pair_a": (P,), "pair_b": (P,), "cpair": (B, M), "stats": (B, STAT_COLUMNS),
             "kind": (B, P), "changed": (B, N), "icfg": (ICFG_SIZE,), "cali": (B, ci),
             "pair_index": (rows, cols)}

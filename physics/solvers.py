@@ -7,7 +7,8 @@ then within ``tolerance`` and approaching (the *simultaneous-contact rule*: sequ
 swept in pair order until no pair approaches, at most ``MAX_SWEEPS`` sweeps — this reproduces
 Newton's cradle; if pairs still approach after that, a *jam*, one block solve of all touching pairs
 removes the rest, ``physics.jam``), and searches again only for the pairs whose bodies changed. Two
-guards keep a step finite:
+guards keep a step finite (a third case needs neither: a disk its force pushes into a cushion
+comes to rest on it, ``_rest_on_cushions``):
 
 * a run of *resting bounces* (impacts closing slower than ``zeno_speed``, or time-of-impact
   searches that stall while the pair is within ``tolerance``: an inelastic body pinned by a force,
@@ -49,6 +50,7 @@ from spinstrike.physics.calendar import (
     watch_insert,
     watch_remove,
 )
+from spinstrike.physics.contacts import wall_frame
 from spinstrike.physics.events import far_apart, pair_bodies, pair_geometry, time_of_impact
 from spinstrike.physics.impulse import apply_impulse, resolve
 from spinstrike.physics.jam import (
@@ -107,7 +109,7 @@ from spinstrike.physics.layout import (
 from spinstrike.physics.motion import flight
 
 __all__ = ["MAX_SWEEPS", "TRACE_COUNT", "Trace", "exact_element", "exact_many_element",
-           "fixed_element",
+           "fixed_element", "rests_on",
            "trace_state"]
 
 #: sequential-impulse sweeps over simultaneous contacts at one event
@@ -438,6 +440,80 @@ def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, 
     stats[STAT_SUBSTEPS] += substeps
 
 
+@jit
+def _rest_on_cushions(S, Pm, F, hw, PA, PB, MAT, rest, changed, tol, zeno_speed,
+                      contact_friction, table_friction):
+    """After an event: decide which of the bodies it changed rest on a cushion.
+
+    A disk pushed into a frictionless cushion by a constant force bounces ever lower and more
+    often (a geometric series, Zeno): each bounce leaves it ``e`` times slower, so the bounces
+    end in finite time, with the disk at rest against the cushion and sliding along it. A disk
+    that leaves a bounce slower than ``zeno_speed`` while its force pushes it into the cushion
+    is put at that limit at once: its velocity along the cushion's normal becomes zero and the
+    cushion holds back the force's normal component (stored in ``rest``, handed back at the
+    end of the step by :func:`_end_rests`), so that its closed-form flight slides along the
+    cushion. What the series would still have taken is at most ``2 e zeno_speed / (a (1 - e))``
+    seconds of bounces no higher than ``zeno_speed^2 / (2 a)``; the motion along the cushion
+    is the same (no friction there). Without this, the bounces ran the solver into its
+    resting-bounce limit and the fixed-step settling (``fallback``) in every such step.
+
+    Every body the event changed first gets its held-back force back (another body may have
+    knocked it off the cushion); then each is tested again, cushion by cushion (two in a
+    corner). Disks only (a cushion's normal through the centre: no torque), with the force as
+    their net force (no cloth friction on them) and no contact friction with that cushion.
+    """
+    n = S.shape[0]
+    for i in range(n):
+        if changed[i] and (rest[i, FX] != 0.0 or rest[i, FY] != 0.0):
+            F[i, FX] += rest[i, FX]
+            F[i, FY] += rest[i, FY]
+            rest[i, FX] = 0.0
+            rest[i, FY] = 0.0
+    for p in range(PA.shape[0]):
+        i = PA[p]
+        wall = PB[p] - n
+        if wall < 0 or not changed[i]:
+            continue
+        if rests_on(S, Pm, F, hw, MAT, p, i, wall, tol, zeno_speed, contact_friction,
+                    table_friction):
+            if wall < 2:  # the cushions are axis-aligned: one component each
+                S[i, VX] = 0.0
+                rest[i, FX] += F[i, FX]
+                F[i, FX] = 0.0
+            else:
+                S[i, VY] = 0.0
+                rest[i, FY] += F[i, FY]
+                F[i, FY] = 0.0
+
+
+@jit_inline
+def rests_on(S, Pm, F, hw, MAT, p, i, wall, tol, zeno_speed, contact_friction, table_friction):
+    """Body i, on cushion ``wall`` (pair p), is one :func:`_rest_on_cushions` puts to rest: a
+    disk (no cloth friction on it, none with this cushion) that touches the cushion, moves
+    along its normal slower than ``zeno_speed`` and is pushed into it by its force ``F``.
+    (Renderers that fly a traced state use the same test, ``envs.fast.sample_trace``.)"""
+    if Pm[i, HALF_LENGTH] != 0.0 or Pm[i, INV_MASS] == 0.0:
+        return False
+    if (table_friction and Pm[i, FRICTION_DECEL] > 0.0) or (
+            contact_friction and MAT[p, FRICTION] > 0.0):
+        return False
+    ix, iy, off = wall_frame(wall, hw[HALF_W], hw[HALF_H])
+    if ix * S[i, X] + iy * S[i, Y] + off - Pm[i, RADIUS] > tol:
+        return False
+    return ix * F[i, FX] + iy * F[i, FY] < 0.0 and abs(ix * S[i, VX] + iy * S[i, VY]) < zeno_speed
+
+
+@jit_inline
+def _end_rests(F, rest):
+    """Hand the held-back forces back (the end of the step, or before settling)."""
+    for i in range(F.shape[0]):
+        if rest[i, FX] != 0.0 or rest[i, FY] != 0.0:
+            F[i, FX] += rest[i, FX]
+            F[i, FY] += rest[i, FY]
+            rest[i, FX] = 0.0
+            rest[i, FY] = 0.0
+
+
 @jit_inline
 def _int(value):
     """``value`` as a plain int64: a constant passed on would make numba compile the callee once
@@ -479,10 +555,11 @@ def _settle_substeps(S, Pm, F, PA, PB, T, settle_substep):
 @jit
 def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
                   zeno_impacts, settle_substep, rotation, contact_friction, table_friction,
-                  jam, cpair, crec, stats, toi, kind, changed, trace):
+                  jam, cpair, crec, stats, toi, kind, changed, rest, trace):
     """Advance one element by dt seconds, event by event, every pair scanned at every event.
 
-    ``toi``, ``kind`` (per pair) and ``changed`` (per body) are the element's scratch rows;
+    ``toi``, ``kind`` (per pair), ``changed`` and ``rest`` (per body) are the element's scratch
+    rows (``rest``: the force components cushions hold back, :func:`_rest_on_cushions`);
     ``rotation``, ``contact_friction``, ``table_friction`` and ``jam`` are compile-time flags
     (``kernels.FLAGS``). At the ``jam`` level ``LEVEL_MANY_BODIES`` this does nothing (the
     test is folded at compile time): :func:`exact_many_element` steps those worlds, on the
@@ -527,6 +604,8 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
         else:
             resting += _sweeps(S, Pm, hw, PA, PB, MAT, tol, zeno_speed, t_now, rotation,
                                contact_friction, changed, cpair, crec, stats, sweeps, jam)
+            _rest_on_cushions(S, Pm, F, hw, PA, PB, MAT, rest, changed, tol, zeno_speed,
+                              contact_friction, table_friction)
             if trace is not None:  # the trace hook
                 trace_state(trace, t_now, S)
         horizon = dt - t_now
@@ -538,6 +617,7 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
                 kind[p] = k
                 iterations += it
         if events >= max_events or resting >= zeno_impacts:
+            _end_rests(F, rest)
             if t_now < dt:
                 substeps = _settle_substeps(S, Pm, F, PA, PB, dt - t_now, settle_substep)
                 fixed_element(S, Pm, F, hw, PA, PB, MAT, dt - t_now, substeps, sweeps, tol,
@@ -545,6 +625,7 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
                               stats, changed, sweeps, jam, trace)
                 stats[STAT_FALLBACK] = 1
             break
+    _end_rests(F, rest)
     stats[STAT_EVENTS] += events
     stats[STAT_ITERATIONS] += iterations
 
@@ -680,8 +761,8 @@ def _repredict(best, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotat
 @jit
 def exact_many_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations,
                        zeno_speed, zeno_impacts, settle_substep, rotation, contact_friction,
-                       table_friction, jam, cpair, crec, stats, toi, kind, changed, fbuf, ibuf,
-                       element, trace):
+                       table_friction, jam, cpair, crec, stats, toi, kind, changed, rest, fbuf,
+                       ibuf, element, trace):
     """:func:`exact_element` for many bodies (the ``jam`` level ``LEVEL_MANY_BODIES``), on the
     broadphase and the event calendar (``physics.calendar``): the scan's events, found without
     scanning every pair. ``fbuf``, ``ibuf``: the world's buffers, from which element
@@ -718,12 +799,15 @@ def exact_many_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_itera
             resting += _watched_sweeps(S, Pm, F, hw, PA, PB, MAT, tol, zeno_speed, t_now,
                                        rotation, contact_friction, table_friction, changed, cpair,
                                        crec, stats, sweeps, jam, watch, cnt[CAL_WATCH_SIZE], near)
+            _rest_on_cushions(S, Pm, F, hw, PA, PB, MAT, rest, changed, tol, zeno_speed,
+                              contact_friction, table_friction)
             if trace is not None:  # the trace hook
                 trace_state(trace, t_now, S)
         iterations += _repredict(best, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations,
                                  rotation, table_friction, toi, kind, changed, pidx, near, box,
                                  cnt, heap, hpos, watch, stamp, watched)
         if events >= max_events or resting >= zeno_impacts:
+            _end_rests(F, rest)
             if t_now < dt:
                 substeps = _settle_substeps(S, Pm, F, PA, PB, dt - t_now, settle_substep)
                 fixed_element(S, Pm, F, hw, PA, PB, MAT, dt - t_now, substeps, sweeps, tol,
@@ -731,6 +815,7 @@ def exact_many_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_itera
                               stats, changed, sweeps, jam, trace)
                 stats[STAT_FALLBACK] = 1
             break
+    _end_rests(F, rest)
     stats[STAT_EVENTS] += events
     stats[STAT_ITERATIONS] += iterations
 

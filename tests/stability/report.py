@@ -247,7 +247,11 @@ def render(results: dict, long_results: list[tuple[str, dict]]) -> str:
         "the applied force's work; in settled steps positional correction can move the mallet "
         "back against its force (work the kinematics did but the bookkeeping `F . dx` misses), "
         "bounded by the distance it moved into the contact; with the force released nothing "
-        "gains energy at all.",
+        "gains energy at all. The mallet alone driven into a frictionless cushion needs no "
+        "settling: its bounces are a geometric series with a known end, the mallet resting on "
+        "the cushion and sliding along it, and the exact solver puts it there once a bounce "
+        "leaves it slower than `zeno_speed` (`tests/physics/test_rest.py` checks the slide "
+        "against the closed form, and the corner).",
         "* **Painlevé** (a rod pushed along a cushion with friction). The contact model is "
         "sequential: Newton's normal impulse, then a Coulomb tangential impulse bounded by "
         "mu j and by what stops the slip (never reversing it), then, if the tangential "
