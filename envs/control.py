@@ -282,7 +282,10 @@ _CONTROL_DOC = """{summary}
     overlays.
 
     ## Version History
-    * v0: initial version.
+    * v0: initial version. Since 2026-11-23 the exact solver puts a mallet its force drives into
+      a cushion at rest on it (the end of its Zeno bounces) instead of settling those steps with
+      fixed substeps, which left it bouncing off at a few mm/s: in such steps trajectories
+      differ from earlier releases; observations, actions and rewards are defined as before.
     """
 
 
