@@ -32,7 +32,7 @@ import math
 
 from spinstrike.physics.contacts import wall_frame
 from spinstrike.physics.events import pair_bodies
-from spinstrike.physics.jit import jit, jit_inline
+from spinstrike.physics.jit import jit_inline, jit_uncounted
 from spinstrike.physics.layout import (
     BOX_COLUMNS,
     BOX_XMAX,
@@ -248,7 +248,7 @@ def _before(toi, p, q):
     return toi[p] < toi[q] or (toi[p] == toi[q] and p < q)
 
 
-@jit
+@jit_uncounted
 def _sift_up(heap, hpos, toi, k):
     p = heap[k]
     while k > 0:
@@ -264,7 +264,7 @@ def _sift_up(heap, hpos, toi, k):
     return k
 
 
-@jit
+@jit_uncounted
 def _sift_down(heap, hpos, toi, k, size):
     p = heap[k]
     while True:
@@ -361,7 +361,7 @@ def watch_remove(watch, watched, cnt, p):
 # -- in-place heapsorts (no allocation) -----------------------------------------------------------
 
 
-@jit
+@jit_uncounted
 def sort_ints(a, size):
     """Sort ``a[:size]`` ascending in place."""
     for start in range(size // 2 - 1, -1, -1):
@@ -387,7 +387,7 @@ def _sift_ints(a, k, size):
     a[k] = v
 
 
-@jit
+@jit_uncounted
 def sort_by_xmin(order, box, size):
     """Sort the bodies ``order[:size]`` by their boxes' lower x in place."""
     for start in range(size // 2 - 1, -1, -1):
