@@ -581,9 +581,10 @@ def _predict(p, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotation,
 @jit_uncounted
 def _first_predictions(S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation,
                        table_friction, toi, kind, pidx, near, box, cnt, heap, hpos, watch,
-                       watched, order):
+                       watched, order, seen):
     """The step's first predictions: the swept boxes, the pairs whose boxes overlap (sweep and
-    prune along x) searched, the calendar and the watch list filled. Returns the iterations."""
+    prune along x, the bodies re-sorted from the last step's order) searched, the calendar and
+    the watch list filled. ``seen``: scratch [N]. Returns the iterations."""
     n = S.shape[0]
     for k in range(cnt[CAL_HEAP_SIZE]):
         hpos[heap[k]] = 0
@@ -593,8 +594,7 @@ def _first_predictions(S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation,
     cnt[CAL_WATCH_SIZE] = 0
     for i in range(n):
         swept_box(S, Pm, F, i, dt, tol, box)
-        order[i] = i
-    sort_by_xmin(order, box, n)
+    sort_by_xmin(order, box, n, seen)
     iterations = 0
     n_watch = 0
     for k in range(n):
@@ -727,7 +727,7 @@ def _many_events(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations,
     sweeps = _int(MAX_SWEEPS)
     iterations = _first_predictions(S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation,
                                     table_friction, toi, kind, pidx, near, box, cnt, heap, hpos,
-                                    watch, watched, order)
+                                    watch, watched, order, changed)
     t_now = 0.0
     events = 0
     resting = 0
