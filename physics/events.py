@@ -28,7 +28,7 @@ import math
 
 from spinstrike.physics.contacts import capsule_capsule, capsule_wall, wall_frame
 from spinstrike.physics.impulse import relative_velocity_of
-from spinstrike.physics.jit import jit, jit_inline
+from spinstrike.physics.jit import jit, jit_counted, jit_inline
 from spinstrike.physics.layout import (
     ANGLE,
     CHECKPOINT,
@@ -179,7 +179,7 @@ def far_apart(S, Pm, F, a, b, wall, half_w, half_h, horizon, tol, rotation):
     return (p + 0.5 * q * horizon) * horizon < 0.5 * (lower - 0.5 * tol)
 
 
-@jit
+@jit_counted
 def time_of_impact(S, Pm, F, a, b, wall, half_w, half_h, horizon, tol, max_iterations, rotation,
                    table_friction):
     """First time in ``[0, horizon]`` at which the pair touches while approaching: its gap
@@ -231,7 +231,7 @@ def time_of_impact(S, Pm, F, a, b, wall, half_w, half_h, horizon, tol, max_itera
     return t, CHECKPOINT, max_iterations
 
 
-@jit
+@jit_counted
 def _bracket(S, Pm, F, a, b, wall, half_w, half_h, lo, f_lo, hi, f_hi, floor, tol, rotation,
              table_friction):
     """Illinois method on f = gap - floor, f(lo) >= 0 > f(hi), to 0 <= f <= tol approaching."""

@@ -32,7 +32,7 @@ The kernels take an element's state ``S [N, 6]`` and parameters ``Pm [N, 6]`` wi
 
 from __future__ import annotations
 
-from spinstrike.physics.jit import jit, jit_inline
+from spinstrike.physics.jit import jit, jit_counted, jit_inline
 from spinstrike.physics.layout import INV_INERTIA, INV_MASS, OMEGA, VX, VY
 
 __all__ = ["apply_impulse", "relative_velocity", "relative_velocity_of", "resolve"]
@@ -101,7 +101,7 @@ def _effective_inverse_mass(Pm, a, b, is_wall, cross_a, cross_b, rotation):
     return k
 
 
-@jit
+@jit_counted
 def _friction(S, Pm, a, b, is_wall, nx, ny, oax, oay, ka, obx, oby, kb, rna, rnb, mu, j, k_n,
               rotation):
     """Sequential Coulomb stage; returns (tangential impulse, extra plastic normal impulse)."""
@@ -128,7 +128,7 @@ def _friction(S, Pm, a, b, is_wall, nx, ny, oax, oay, ka, obx, oby, kb, rna, rnb
     return jt, 0.0
 
 
-@jit
+@jit_counted
 def resolve(S, Pm, a, b, is_wall, nx, ny, oax, oay, ka, obx, oby, kb, e, mu, rotation,
             contact_friction):
     """Resolve one contact in place.

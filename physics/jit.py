@@ -7,6 +7,13 @@
   and decrement per array, which inlining lets numba prune (vector control env: +25% throughput,
   +4 s cold compile).
 * ``jit_parallel``: the same, with ``numba.prange`` spread over threads (the batch kernels).
+* ``jit_uncounted``: ``jit`` without numba's reference counting (its runtime, the NRT): arrays
+  are borrowed from the caller, never counted. numba counts a reference (an atomic increment and
+  decrement) for each array an inlined helper takes, and its pruning leaves many of those in
+  loops: in the many-body event loop (``solvers.exact_many_element``) they were two thirds of
+  the kernel's time. Such a kernel must not allocate (``np.empty`` needs the runtime), and the
+  kernels it calls inherit the setting unless they set it themselves: a callee that allocates
+  is compiled with ``jit_counted`` (``jit`` with the counting set explicitly, so it keeps it).
 
 Every function compiled through them is cached by ``physics.cache`` (a per-user directory, and a
 freshness stamp that covers every module the kernel's module imports); other numba code in the
@@ -25,7 +32,8 @@ from numba.extending import overload
 
 from spinstrike.physics.cache import KernelCache
 
-__all__ = ["jit", "jit_inline", "jit_parallel", "static_if"]
+__all__ = ["jit", "jit_counted", "jit_inline", "jit_parallel", "jit_uncounted",
+           "static_if"]
 
 
 def _compiler(**options: Any) -> Callable[[Callable[..., Any]], Any]:
@@ -44,6 +52,8 @@ def _compiler(**options: Any) -> Callable[[Callable[..., Any]], Any]:
 jit = _compiler()
 jit_inline = _compiler(inline="always")
 jit_parallel = _compiler(parallel=True)
+jit_uncounted = _compiler(_nrt=False)
+jit_counted = _compiler(_nrt=True)
 
 
 

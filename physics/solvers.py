@@ -64,7 +64,7 @@ from spinstrike.physics.jam import (
     MAX_JAM_PAIRS,
     jam_impulses,
 )
-from spinstrike.physics.jit import jit, jit_inline, static_if
+from spinstrike.physics.jit import jit, jit_counted, jit_inline, jit_uncounted, static_if
 from spinstrike.physics.layout import (
     ANGLE,
     BOX_XMAX,
@@ -229,7 +229,7 @@ def _contact_pass(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact
     return hit, resting
 
 
-@jit
+@jit_uncounted
 def _watched_pass(S, Pm, F, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_friction,
                   table_friction, changed, cpair, crec, stats, watch, n_watch, near):
     """:func:`_contact_pass` over the calendar's watch list (pairs in pair order that may be
@@ -253,9 +253,12 @@ def _watched_pass(S, Pm, F, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, cont
     return hit, resting
 
 
-@jit
+@jit_counted
 def _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, crec, stats):
-    """The sweeps did not converge (a jam): apply and record the block solve's impulses."""
+    """The sweeps did not converge (a jam): apply and record the block solve's impulses.
+
+    Reference counted even when called from the many-body loop (``jit_counted``, which keeps
+    the counting that uncounted callers would otherwise pass on): the block solve allocates."""
     idx = np.empty(MAX_JAM_PAIRS, np.int64)
     geo = np.empty((MAX_JAM_PAIRS, JAM_COLUMNS))
     lam = np.zeros(MAX_JAM_PAIRS)
@@ -300,7 +303,7 @@ def _sweeps(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_frict
     return resting
 
 
-@jit
+@jit_uncounted
 def _watched_sweeps(S, Pm, F, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_friction,
                     table_friction, changed, cpair, crec, stats, sweeps, jam, watch, n_watch,
                     near):
@@ -440,7 +443,7 @@ def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, 
     stats[STAT_SUBSTEPS] += substeps
 
 
-@jit
+@jit_uncounted
 def _rest_on_cushions(S, Pm, F, hw, PA, PB, MAT, rest, changed, tol, zeno_speed,
                       contact_friction, table_friction):
     """After an event: decide which of the bodies it changed rest on a cushion.
@@ -656,12 +659,13 @@ def _predict(p, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotation,
     return it
 
 
-@jit
+@jit_uncounted
 def _first_predictions(S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation,
                        table_friction, toi, kind, pidx, near, box, cnt, heap, hpos, watch,
-                       watched, order):
+                       watched, order, seen):
     """The step's first predictions: the swept boxes, the pairs whose boxes overlap (sweep and
-    prune along x) searched, the calendar and the watch list filled. Returns the iterations."""
+    prune along x, the bodies re-sorted from the last step's order) searched, the calendar and
+    the watch list filled. ``seen``: scratch [N]. Returns the iterations."""
     n = S.shape[0]
     for k in range(cnt[CAL_HEAP_SIZE]):
         hpos[heap[k]] = 0
@@ -671,8 +675,7 @@ def _first_predictions(S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation,
     cnt[CAL_WATCH_SIZE] = 0
     for i in range(n):
         swept_box(S, Pm, F, i, dt, tol, box)
-        order[i] = i
-    sort_by_xmin(order, box, n)
+    sort_by_xmin(order, box, n, seen)
     iterations = 0
     n_watch = 0
     for k in range(n):
@@ -766,17 +769,52 @@ def exact_many_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_itera
     """:func:`exact_element` for many bodies (the ``jam`` level ``LEVEL_MANY_BODIES``), on the
     broadphase and the event calendar (``physics.calendar``): the scan's events, found without
     scanning every pair. ``fbuf``, ``ibuf``: the world's buffers, from which element
-    ``element``'s calendar rows are taken (``calendar.element_rows``)."""
+    ``element``'s calendar rows are taken (``calendar.element_rows``).
+
+    The event loop (:func:`_many_events`) is compiled without reference counting
+    (``jit_uncounted``): the counts numba kept on the arrays of inlined helpers in loops (a
+    flight per body per event, the heap, the sweeps) were two thirds of the step's time. The
+    settling that may end the step runs here, counted, as in :func:`exact_element`."""
     n = S.shape[0]
     near, box, cnt, heap, hpos, watch, stamp, watched, order, pidx = element_rows(
         fbuf, ibuf, element, n, PA.shape[0])
+    t_now, events, iterations, settle = _many_events(
+        S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
+        zeno_impacts, rotation, contact_friction, table_friction, jam, cpair, crec, stats, toi,
+        kind, changed, rest, near, box, cnt, heap, hpos, watch, stamp, watched, order, pidx,
+        trace)
+    _end_rests(F, rest)
+    if settle:
+        sweeps = _int(MAX_SWEEPS)
+        substeps = _settle_substeps(S, Pm, F, PA, PB, dt - t_now, settle_substep)
+        fixed_element(S, Pm, F, hw, PA, PB, MAT, dt - t_now, substeps, sweeps, tol, t_now,
+                      rotation, contact_friction, table_friction, cpair, crec, stats, changed,
+                      sweeps, jam, trace)
+        stats[STAT_FALLBACK] = 1
+    stats[STAT_EVENTS] += events
+    stats[STAT_ITERATIONS] += iterations
+
+
+@jit_uncounted
+def _many_events(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
+                 zeno_impacts, rotation, contact_friction, table_friction, jam, cpair, crec,
+                 stats, toi, kind, changed, rest, near, box, cnt, heap, hpos, watch, stamp,
+                 watched, order, pidx, trace):
+    """The event loop of :func:`exact_many_element` on the element's calendar rows. Returns
+    (time reached, events, search iterations, whether the rest of the step must be settled:
+    a run of resting bounces or ``max_events`` ended the loop before ``dt``).
+
+    Uncounted (``jit_uncounted``): nothing here allocates; the one callee that does, the block
+    solve of a jam (``_jam``), keeps its counting."""
+    n = S.shape[0]
     sweeps = _int(MAX_SWEEPS)
     iterations = _first_predictions(S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation,
                                     table_friction, toi, kind, pidx, near, box, cnt, heap, hpos,
-                                    watch, watched, order)
+                                    watch, watched, order, changed)
     t_now = 0.0
     events = 0
     resting = 0
+    settle = False
     while True:
         best = -1
         t_best = dt
@@ -807,15 +845,6 @@ def exact_many_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_itera
                                  rotation, table_friction, toi, kind, changed, pidx, near, box,
                                  cnt, heap, hpos, watch, stamp, watched)
         if events >= max_events or resting >= zeno_impacts:
-            _end_rests(F, rest)
-            if t_now < dt:
-                substeps = _settle_substeps(S, Pm, F, PA, PB, dt - t_now, settle_substep)
-                fixed_element(S, Pm, F, hw, PA, PB, MAT, dt - t_now, substeps, sweeps, tol,
-                              t_now, rotation, contact_friction, table_friction, cpair, crec,
-                              stats, changed, sweeps, jam, trace)
-                stats[STAT_FALLBACK] = 1
+            settle = t_now < dt
             break
-    _end_rests(F, rest)
-    stats[STAT_EVENTS] += events
-    stats[STAT_ITERATIONS] += iterations
-
+    return t_now, events, iterations, settle
