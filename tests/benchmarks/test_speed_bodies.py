@@ -1,0 +1,27 @@
+"""The speed benchmark's bodies sweep, as a user runs it alone (``--section bodies``): it writes
+the bodies section of ``speed.md`` and its plot, with exact and raw pymunk rows from the same
+run, and a second run replaces that section instead of adding one."""
+
+from __future__ import annotations
+
+from spinstrike.benchmarks import speed
+
+
+def test_the_bodies_section_is_written_and_replaced(tmp_path):
+    (tmp_path / "speed.md").write_text("# Speed\n\nkept above\n")
+    args = ["--section", "bodies", "--bodies", "8", "16", "--out", str(tmp_path), "--quick"]
+    assert speed.main(args) == 0
+    assert speed.main(args) == 0
+    text = (tmp_path / "speed.md").read_text()
+    assert text.startswith("# Speed\n\nkept above\n")
+    assert text.count(speed._BODIES_BEGIN) == 1 and text.count(speed._BODIES_END) == 1
+    assert f"the fastest of {speed.BODY_REPEATS} runs" in text
+    assert "load average" in text
+    rows = [line.split("|")[1:-1] for line in text.splitlines() if line.startswith("| 8 |")
+            or line.startswith("| 16 |")]
+    assert [int(r[0]) for r in rows] == [8, 16]
+    for r in rows:
+        exact, p10, ratio = float(r[1]), float(r[5]), float(r[6])
+        assert exact > 0 and p10 > 0
+        assert abs(ratio - exact / p10) <= 0.01 + 0.01 * ratio
+    assert (tmp_path / "speed_bodies.png").stat().st_size > 0
