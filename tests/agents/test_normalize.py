@@ -46,9 +46,11 @@ def test_normalized_run_trains_evaluates_and_resumes(tmp_path, capsys):
     env = gym.make(ENV)
     obs = np.stack([env.reset(seed=s)[0] for s in range(8)])
     acts = np.stack([policy(env, o) for o in obs])
-    np.testing.assert_array_equal(acts, model.predict(first.normalize_obs(obs),
-                                                      deterministic=True)[0])
-    assert not np.allclose(acts, model.predict(obs, deterministic=True)[0])  # it matters
+    # (one observation at a time vs a batch: float32 rounding apart)
+    normalized = model.predict(first.normalize_obs(obs), deterministic=True)[0]
+    np.testing.assert_allclose(acts, normalized, rtol=1e-5, atol=1e-7)
+    raw = model.predict(obs, deterministic=True)[0]
+    assert not np.allclose(acts, raw, rtol=1e-3, atol=1e-5)  # the normalisation matters
     manual = run_episodes(lambda env, obs: model.predict(first.normalize_obs(obs),
                                                          deterministic=True)[0], ENV, 2)
     capsys.readouterr()
