@@ -133,10 +133,16 @@ def _resume_model(cls, algo: str, cfg: RunConfig, work: Path, env, device: str):
     """Load the newest checkpoint (with its replay buffer and normalisation statistics)."""
     ckpt = _latest_checkpoint(work)
     model = cls.load(ckpt, env=env, device=device)
-    stats = work / "checkpoints" / "vecnormalize.pkl"
-    if cfg.normalize and stats.exists():
+    if cfg.normalize:
         from stable_baselines3.common.vec_env import VecNormalize
 
+        # SB3's CheckpointCallback names them model_vecnormalize_<steps>_steps.pkl, beside
+        # model_<steps>_steps.zip; without them the policy would see unnormalised observations
+        stats = ckpt.with_name(ckpt.name.replace("model_", "model_vecnormalize_")
+                               .replace(".zip", ".pkl"))
+        if not stats.exists():
+            raise AgentConfigError(f"resume: {ckpt} has no normalisation statistics "
+                                   f"({stats.name}) although the run normalizes")
         model.set_env(VecNormalize.load(str(stats), env.venv))
     buf = ckpt.with_name(ckpt.name.replace("model_", "model_replay_buffer_")
                          .replace(".zip", ".pkl"))
