@@ -466,27 +466,58 @@ def _rest_on_cushions(S, Pm, F, hw, PA, PB, MAT, rest, changed, tol, zeno_speed,
     their net force (no cloth friction on them) and no contact friction with that cushion.
     """
     n = S.shape[0]
+    _release(F, rest, changed)
+    for p in range(PA.shape[0]):
+        i = PA[p]
+        wall = PB[p] - n
+        if wall >= 0 and changed[i]:
+            _rest(S, Pm, F, hw, MAT, rest, p, i, wall, tol, zeno_speed, contact_friction,
+                  table_friction)
+
+
+@jit_uncounted
+def _rest_on_cushions_indexed(S, Pm, F, hw, MAT, rest, changed, pidx, tol, zeno_speed,
+                              contact_friction, table_friction):
+    """:func:`_rest_on_cushions` for the event calendar: the changed bodies' cushion pairs
+    from the pair index (``pidx [N, N + 4]``), not a scan of every pair. Each decision touches
+    only its body's normal component, so the order does not matter: the same rests."""
+    n = S.shape[0]
+    _release(F, rest, changed)
     for i in range(n):
+        if changed[i]:
+            for wall in range(4):
+                p = pidx[i, n + wall]
+                if p >= 0:
+                    _rest(S, Pm, F, hw, MAT, rest, p, i, wall, tol, zeno_speed,
+                          contact_friction, table_friction)
+
+
+@jit_inline
+def _release(F, rest, changed):
+    """The changed bodies get their held-back forces back (another body may have knocked one
+    off its cushion)."""
+    for i in range(F.shape[0]):
         if changed[i] and (rest[i, FX] != 0.0 or rest[i, FY] != 0.0):
             F[i, FX] += rest[i, FX]
             F[i, FY] += rest[i, FY]
             rest[i, FX] = 0.0
             rest[i, FY] = 0.0
-    for p in range(PA.shape[0]):
-        i = PA[p]
-        wall = PB[p] - n
-        if wall < 0 or not changed[i]:
-            continue
-        if rests_on(S, Pm, F, hw, MAT, p, i, wall, tol, zeno_speed, contact_friction,
-                    table_friction):
-            if wall < 2:  # the cushions are axis-aligned: one component each
-                S[i, VX] = 0.0
-                rest[i, FX] += F[i, FX]
-                F[i, FX] = 0.0
-            else:
-                S[i, VY] = 0.0
-                rest[i, FY] += F[i, FY]
-                F[i, FY] = 0.0
+
+
+@jit_inline
+def _rest(S, Pm, F, hw, MAT, rest, p, i, wall, tol, zeno_speed, contact_friction,
+          table_friction):
+    """Put body i at rest on cushion ``wall`` (pair p) if :func:`rests_on` says so."""
+    if rests_on(S, Pm, F, hw, MAT, p, i, wall, tol, zeno_speed, contact_friction,
+                table_friction):
+        if wall < 2:  # the cushions are axis-aligned: one component each
+            S[i, VX] = 0.0
+            rest[i, FX] += F[i, FX]
+            F[i, FX] = 0.0
+        else:
+            S[i, VY] = 0.0
+            rest[i, FY] += F[i, FY]
+            F[i, FY] = 0.0
 
 
 @jit_inline
@@ -837,8 +868,8 @@ def _many_events(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations,
             resting += _watched_sweeps(S, Pm, F, hw, PA, PB, MAT, tol, zeno_speed, t_now,
                                        rotation, contact_friction, table_friction, changed, cpair,
                                        crec, stats, sweeps, jam, watch, cnt[CAL_WATCH_SIZE], near)
-            _rest_on_cushions(S, Pm, F, hw, PA, PB, MAT, rest, changed, tol, zeno_speed,
-                              contact_friction, table_friction)
+            _rest_on_cushions_indexed(S, Pm, F, hw, MAT, rest, changed, pidx, tol, zeno_speed,
+                                      contact_friction, table_friction)
             if trace is not None:  # the trace hook
                 trace_state(trace, t_now, S)
         iterations += _repredict(best, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations,

@@ -139,3 +139,35 @@ def test_bodies_moved_by_the_user_are_re_sorted_bit_for_bit():
         np.testing.assert_array_equal(fast.get_state()["state"], plain.get_state()["state"])
         contacts += int(fast.last_step.contacts.sum())
     assert contacts > 30
+
+
+def test_a_mallet_driven_into_a_cushion_rests_there_the_same_way_on_both_loops():
+    """The rest on a cushion (``solvers._rest_on_cushions``): the calendar finds the changed
+    bodies' cushion pairs from its pair index, the scan from its pair list; the same rests, bit
+    for bit, and the mallet does end up resting (so both paths ran it)."""
+    scene = _many_pucks_scene(10)
+    scene["materials"] = {"restitution": 0.5}
+    scene["bodies"].append({"name": "mallet", "shape": "disk", "radius": 0.04, "mass": 0.3,
+                            "driven": True, "position": [0.0, 0.0]})
+    batch = 3
+    fast = physics.World(scene, batch_size=batch)
+    plain = _scan_world(scene, batch_size=batch)
+    assert fast.flags[-1] == layout.LEVEL_MANY_BODIES
+    assert plain.flags[-1] < layout.LEVEL_MANY_BODIES
+    pushes = np.array([[5.0, 0.5], [-4.0, 3.0], [0.5, -5.0]])
+    for w in (fast, plain):
+        w.set_force("mallet", pushes)
+    for _ in range(60):
+        fast.step(0.02)
+        plain.step(0.02)
+        np.testing.assert_array_equal(fast.get_state()["state"], plain.get_state()["state"])
+    np.testing.assert_array_equal(fast.forces, plain.forces)
+    m = fast.names.index("mallet")
+    rests = 0
+    for b in range(batch):
+        x, y = fast.state.positions[b, m]
+        vx, vy = fast.state.velocities[b, m]
+        on_side = abs(abs(x) - (fast.table_half_size[b, 0] - 0.04)) < 1e-9 and vx == 0.0
+        on_end = abs(abs(y) - (fast.table_half_size[b, 1] - 0.04)) < 1e-9 and vy == 0.0
+        rests += on_side or on_end
+    assert rests >= 2
