@@ -549,6 +549,14 @@ def _end_rests(F, rest):
 
 
 @jit_inline
+def _stalled_in_contact(p, S, Pm, hw, PA, PB, tol):
+    """1 if pair p, whose search stalled (a checkpoint), is within ``tol``: a sliding or rolling
+    contact, which counts toward settling like a resting bounce; else 0. (Both event loops.)"""
+    a, b, wall = pair_bodies(p, PA, PB, S.shape[0])
+    return 1 if pair_geometry(S, Pm, a, b, wall, hw[HALF_W], hw[HALF_H])[0] <= tol else 0
+
+
+@jit_inline
 def _int(value):
     """``value`` as a plain int64: a constant passed on would make numba compile the callee once
     more for its literal type."""
@@ -629,12 +637,7 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
         events += 1
         changed[:] = 0
         if kind[best] == CHECKPOINT:
-            # a search that stalls while the pair is in contact is a sliding/rolling contact:
-            # it counts toward settling like a resting bounce
-            a, b, wall = pair_bodies(best, PA, PB, S.shape[0])
-            g = pair_geometry(S, Pm, a, b, wall, hw[HALF_W], hw[HALF_H])[0]
-            if g <= tol:
-                resting += 1
+            resting += _stalled_in_contact(best, S, Pm, hw, PA, PB, tol)
         else:
             resting += _sweeps(S, Pm, hw, PA, PB, MAT, tol, zeno_speed, t_now, rotation,
                                contact_friction, changed, cpair, crec, stats, sweeps, jam)
@@ -837,7 +840,6 @@ def _many_events(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations,
 
     Uncounted (``jit_uncounted``): nothing here allocates; the one callee that does, the block
     solve of a jam (``_jam``), keeps its counting."""
-    n = S.shape[0]
     sweeps = _int(MAX_SWEEPS)
     iterations = _first_predictions(S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation,
                                     table_friction, toi, kind, pidx, near, box, cnt, heap, hpos,
@@ -860,10 +862,7 @@ def _many_events(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations,
         events += 1
         changed[:] = 0
         if kind[best] == CHECKPOINT:
-            a, b, wall = pair_bodies(best, PA, PB, n)
-            g = pair_geometry(S, Pm, a, b, wall, hw[HALF_W], hw[HALF_H])[0]
-            if g <= tol:
-                resting += 1
+            resting += _stalled_in_contact(best, S, Pm, hw, PA, PB, tol)
         else:
             resting += _watched_sweeps(S, Pm, F, hw, PA, PB, MAT, tol, zeno_speed, t_now,
                                        rotation, contact_friction, table_friction, changed, cpair,
