@@ -52,11 +52,16 @@ class CEMPlanner:
         approach: weight of the terminal term ``-distance(mallet, target)`` (m); 0 disables it.
         seed: the sampling generator's seed; it is reseeded at every episode start (env clock 0),
             so an episode's actions depend only on the episode and this seed.
+        warm_start: seed each decision's Gaussian with the last decision's best plan shifted by
+            one step (the default). With ``False`` every decision starts from a zero mean, so
+            the action depends on the current state (and the sampling) only, as a reactive
+            policy's does: the reference a learned state-feedback policy can aim at (see
+            ``docs/baselines.md``, control envs).
     """
 
     def __init__(self, horizon: int = 10, samples: int = 64, iterations: int = 3,
                  elites: int = 6, init_std: float = 0.7, gamma: float = 1.0,
-                 approach: float = 0.3, seed: int = 0) -> None:
+                 approach: float = 0.3, seed: int = 0, warm_start: bool = True) -> None:
         for name, value, low in (("horizon", horizon, 1), ("samples", samples, 2),
                                  ("iterations", iterations, 1), ("elites", elites, 1)):
             if not isinstance(value, (int, np.integer)) or value < low:
@@ -70,6 +75,7 @@ class CEMPlanner:
         self.horizon, self.samples, self.iterations = int(horizon), int(samples), int(iterations)
         self.elites, self.init_std, self.gamma = int(elites), float(init_std), float(gamma)
         self.approach = float(approach)
+        self.warm_start = bool(warm_start)
         self.seed = seed
         self.rng = np.random.default_rng(seed)
         self._scratch: _ControlTask | None = None
@@ -127,7 +133,8 @@ class CEMPlanner:
             std = np.maximum(elite.std(0), 0.05)
         self.last_steps = self.iterations * H
         # warm start: the best plan shifted by one step, the last action repeated
-        self._mean = np.concatenate([best_seq[1:], best_seq[-1:]])
+        if self.warm_start:
+            self._mean = np.concatenate([best_seq[1:], best_seq[-1:]])
         return best_seq[0].copy()
 
     def __call__(self, env, obs) -> np.ndarray:
@@ -179,6 +186,34 @@ def sweep(env_ids=("SpinStrike/RodSpinControl-v0", "SpinStrike/PuckSpeedControl-
     return text
 
 
+#: the settings ``warm_start_table`` compares: (warm start, samples, iterations, elites)
+WARM_START_SETTINGS = ((True, 64, 3, 6), (False, 64, 3, 6), (False, 128, 4, 12),
+                       (False, 256, 5, 16))
+
+
+def warm_start_table(env_id: str, episodes: int = 20, seed: int = 1000,
+                     settings=WARM_START_SETTINGS) -> str:
+    """Markdown rows: the planner with and without its warm start (and, without, at more
+    samples and iterations) on the evaluation episodes ``seed...``, with the CPU time per
+    decision. Without the warm start the planner is a reactive (state-feedback) policy."""
+    import time
+
+    from spinstrike.agents.evaluate import run_episodes
+
+    rows = [f"| {env_id} | warm start | samples x iterations | return (mean +/- std) | "
+            "ms CPU per decision |", "|---|---|---|---|---|"]
+    for warm, n, iters, elites in settings:
+        planner = CEMPlanner(samples=n, iterations=iters, elites=elites, warm_start=warm)
+        t = time.process_time()
+        ev = run_episodes(planner, env_id, episodes, seed, name="planner")
+        cost = 1000 * (time.process_time() - t) / (episodes * ev.mean_length)
+        print(f"{env_id} warm={warm} {n}x{iters}: {ev.mean:.3f} +/- {ev.std:.3f} "
+              f"{cost:.1f} ms", flush=True)
+        rows.append(f"| | {'yes' if warm else 'no'} | {n} x {iters} | {ev.mean:.2f} +/- "
+                    f"{ev.std:.2f} | {cost:.0f} |")
+    return "\n".join(rows) + "\n"
+
+
 if __name__ == "__main__":
     import argparse
 
@@ -189,6 +224,12 @@ if __name__ == "__main__":
     p.add_argument("--horizons", type=int, nargs="+", default=[5, 10, 20, 40])
     p.add_argument("--samples", type=int, nargs="+", default=[16, 64, 256])
     p.add_argument("--out", default="docs/planner.md")
+    p.add_argument("--warm-start-table", metavar="ENV_ID",
+                   help="instead of the sweep: the planner with and without its warm start on "
+                        "ENV_ID's first --episodes evaluation episodes (seeds 1000...)")
     a = p.parse_args()
+    if a.warm_start_table:
+        print(warm_start_table(a.warm_start_table, a.episodes))
+        raise SystemExit
     print(sweep(horizons=a.horizons, samples=a.samples, episodes=a.episodes, steps=a.steps,
                 out=a.out))

@@ -103,3 +103,21 @@ def test_cli_record_planner(tmp_path, capsys):
     assert err.startswith("error: --planner: drives the control envs only")
     assert main(["record", "--planner"]) == 2
     assert "--planner: needs --env" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("warm_start", [True, False])
+def test_planner_without_warm_start_acts_on_the_state_alone(warm_start):
+    """warm_start=False: the decision at a state is the same whatever the planner decided
+    before (given the same draws), as a reactive policy's is; the default carries its last plan
+    over, so there it differs."""
+    env = gym.make(CONTROL[0])
+    obs, _ = env.reset(seed=4)
+    used = CEMPlanner(horizon=6, samples=16, elites=3, seed=3, warm_start=warm_start)
+    for _ in range(15):
+        obs, *_ = env.step(used(env, obs))
+    task = env.unwrapped.task
+    used.rng = np.random.default_rng(3)  # the same draws as a fresh planner's
+    a = used.plan(task)
+    b = CEMPlanner(horizon=6, samples=16, elites=3, seed=3, warm_start=warm_start).plan(task)
+    assert np.array_equal(a, b) == (not warm_start)
+    env.close()
