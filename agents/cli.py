@@ -1,6 +1,7 @@
 """The ``spinstrike`` command line.
 
     spinstrike train    --algo ppo --env SpinStrike/RodSpin-v0 [--seed 0] [--timesteps N]
+    spinstrike train    --algo ppo --env ID --imitate planner   (DAgger first, then PPO)
     spinstrike train    --backend rllib --env ID [--num-env-runners N] [--address ADDR]
     spinstrike evaluate RUN_DIR | --oracle/--random --env ID   [--episodes 50]
     spinstrike record   RUN_DIR | --oracle/--planner --env ID  [--out rollout.mp4|.gif] [--grid]
@@ -109,6 +110,10 @@ def cmd_train(args) -> int:
     if not args.no_eval:
         _check_episodes("--eval-episodes", args.eval_episodes)
     if args.backend == "rllib":
+        if args.imitate:
+            from spinstrike.agents.config import AgentConfigError
+
+            raise AgentConfigError("--imitate: starts SB3's PPO only (not --backend rllib)")
         result = _train_rllib(args)
     else:
         result = train(args.algo, args.env, config=args.config, seed=args.seed,
@@ -118,7 +123,9 @@ def cmd_train(args) -> int:
                        eval_episodes=args.eval_episodes, video=not args.no_video,
                        env_kwargs=_kwargs(args.env_kwargs),
                        torch_threads=args.torch_threads or None,
-                       command="spinstrike " + shlex.join(sys.argv[1:]))
+                       command="spinstrike " + shlex.join(sys.argv[1:]),
+                       imitate=args.imitate, imitate_rounds=args.imitate_rounds,
+                       imitate_episodes=args.imitate_episodes)
     print(f"run: {result['run_dir']}  ({result['timesteps']} steps, {result['wall_time']:.1f} s)")
     for name, (mean, std) in result.get("evaluations", {}).items():
         print(f"  {name:>7s}: {mean:.4f} +/- {std:.4f}")
@@ -253,6 +260,13 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--no-eval", action="store_true")
     t.add_argument("--no-video", action="store_true")
     t.add_argument("--no-progress", action="store_true")
+    t.add_argument("--imitate", metavar="TEACHER",
+                   help="PPO: start the policy from a teacher's behaviour by DAgger before "
+                        "training (planner | chase-and-hit; agents/imitate.py)")
+    t.add_argument("--imitate-rounds", type=int, default=20,
+                   help="DAgger rounds (default 20; round 0 is the teacher's)")
+    t.add_argument("--imitate-episodes", type=int, default=16,
+                   help="episodes per DAgger round (default 16)")
     t.add_argument("--backend", choices=("sb3", "rllib"), default="sb3",
                    help="sb3 (default) or rllib: PPO with Ray RLlib (the rllib extra; "
                         "docs/rllib.md)")

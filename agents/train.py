@@ -186,7 +186,7 @@ def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, epis
 
 
 def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, eval_freq,
-           eval_episodes_during, command, torch_threads) -> tuple[Any, float]:
+           eval_episodes_during, command, torch_threads, imitate=None) -> tuple[Any, float]:
     """Build (or resume) the model and train it to the budget; save it into ``work``."""
     from spinstrike.envs.warm import warm_up
 
@@ -212,8 +212,17 @@ def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, 
         meta = {"algo": algo, "env": cfg.env_id, "seed": seed, "source": cfg.source,
                 "versions": _versions(), "torch_threads": torch.get_num_threads(),
                 "hyperparameters": cfg.as_yaml_dict()}
-        (work / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
         (work / "command.txt").write_text((command or shlex.join(sys.argv)) + "\n")
+        if imitate:
+            from spinstrike.agents.imitate import dagger
+
+            done = dagger(model, cfg.env_id, seed=seed, env_kwargs=cfg.env_kwargs,
+                          log=work / "imitation.csv", progress=progress, **imitate)
+            meta["imitation"] = {**imitate, "wall_time_s": round(done.wall_time, 1),
+                                 "states": done.rounds[-1]["states"],
+                                 "last_return": done.rounds[-1]["return_mean"],
+                                 "log_std": [round(x, 4) for x in done.log_std]}
+        (work / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
     model.set_logger(Logger(str(work), [make_output_format("csv", str(work)),
                                         make_output_format("tensorboard", str(work / "tb"))]))
     freq = eval_freq or max(cfg.n_timesteps // 10, 1)
@@ -239,7 +248,9 @@ def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int
           force: bool = False, progress: bool = True, evaluate: bool = True,
           eval_episodes: int = 50, video: bool = True, env_kwargs: dict | None = None,
           eval_freq: int | None = None, eval_episodes_during: int = 10,
-          torch_threads: int | None = 1, command: str | None = None) -> TrainResult:
+          torch_threads: int | None = 1, command: str | None = None,
+          imitate: str | None = None, imitate_rounds: int = 20,
+          imitate_episodes: int = 16) -> TrainResult:
     """Train ``algo`` on ``env_id``; return the run directory and what was measured.
 
     Args:
@@ -254,6 +265,9 @@ def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int
             spaced, of 10 episodes each).
         torch_threads: PyTorch CPU threads (1 is fastest for these small networks, and leaves
             the other core to the env); None keeps PyTorch's default.
+        imitate: start PPO's policy from this teacher (``planner`` or ``chase-and-hit``) by
+            DAgger (``agents.imitate``): ``imitate_rounds`` rounds of ``imitate_episodes``
+            episodes, before the ``n_timesteps`` of PPO. Written to ``imitation.csv``.
     """
     overrides: dict[str, Any] = {}
     if timesteps is not None:
@@ -265,6 +279,14 @@ def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int
         cfg.env_kwargs = {**cfg.env_kwargs, **env_kwargs}
     if not isinstance(seed, int) or seed < 0:
         raise AgentConfigError(f"seed: must be an integer >= 0 (got {seed!r})")
+    imitation = None
+    if imitate is not None:
+        from spinstrike.agents.imitate import settings
+
+        imitation = settings(imitate, algo, env_id, bool(cfg.normalize), imitate_rounds,
+                             imitate_episodes)
+        if resume:  # the checkpoint holds the imitated policy already
+            imitation = None
     name = f"{algo}-{env_id.split('/')[-1]}-s{seed}"
     run_dir = Path(out) if out is not None else Path("runs") / name
     work = _work_dir(run_dir, resume, force)
@@ -272,7 +294,7 @@ def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int
         model, wall = _learn(algo, cfg, work, seed=seed, device=device, resume=resume,
                              progress=progress, eval_freq=eval_freq,
                              eval_episodes_during=eval_episodes_during, command=command,
-                             torch_threads=torch_threads)
+                             torch_threads=torch_threads, imitate=imitation)
         if work != run_dir:
             if run_dir.exists():
                 shutil.rmtree(run_dir)
