@@ -39,7 +39,7 @@ import numpy as np
 __all__ = ["TEACHERS", "ImitationResult", "dagger", "make_teacher", "settings"]
 
 #: teachers by name: what ``--imitate`` accepts
-TEACHERS = ("planner", "chase-and-hit")
+TEACHERS = ("planner", "reactive-planner", "chase-and-hit")
 #: the fewest gradient steps of the critic's fit
 CRITIC_STEPS = 500
 
@@ -50,6 +50,10 @@ def make_teacher(name: str, seed: int = 0):
         from spinstrike.agents.planner import CEMPlanner
 
         return CEMPlanner(seed=seed)
+    if name == "reactive-planner":  # a function of the state: see CEMPlanner's warm_start
+        from spinstrike.agents.planner import CEMPlanner
+
+        return CEMPlanner(samples=128, iterations=4, elites=12, warm_start=False, seed=seed)
     if name == "chase-and-hit":
         from spinstrike.agents.oracle import ChaseAndHit
 
@@ -74,8 +78,8 @@ def settings(teacher: str, algo: str, env_id: str, normalize: bool, rounds: int,
     if teacher not in TEACHERS:
         raise AgentConfigError(f"--imitate: unknown teacher {teacher!r}; allowed: "
                                f"{list(TEACHERS)}")
-    if teacher == "planner" and "Control" not in env_id:
-        raise AgentConfigError(f"--imitate planner: the planner drives the control envs only "
+    if teacher.endswith("planner") and "Control" not in env_id:
+        raise AgentConfigError(f"--imitate {teacher}: the planner drives the control envs only "
                                f"(got {env_id})")
     if normalize:
         raise AgentConfigError("--imitate: not with 'normalize: true' in the hyperparameters "
