@@ -22,9 +22,10 @@ critic; a return depends on the episode's layout more than a few dozen episodes 
 returns are not bootstrapped at the 250-step truncation.)
 
 Measured (``docs/baselines.md``, control envs): PuckSpeedControl, the shipped PPO entry, 20
-rounds of 16 episodes (80,000 labelled states, 692 s on 2 cores): the student's return rose from
-3.4 to 13.9 over the rounds; PPO's 500k steps after it kept it at 13.4-14.8 (50 evaluation
-episodes: 13.87), against 8.90 for PPO alone after 2M steps and 28.3 for the planner.
+rounds of 16 episodes (80,000 labelled states, 587 s on 2 cores): the student's return rose from
+2.1 to 13.3 over the rounds; PPO's 500k steps after it reached 14.5 (50 evaluation episodes),
+against 8.90 for PPO alone after 2M steps and 28.3 for the planner. On RodSpinControl the
+student stays at 2-4, PPO alone's level.
 """
 
 from __future__ import annotations
