@@ -262,7 +262,8 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--no-progress", action="store_true")
     t.add_argument("--imitate", metavar="TEACHER",
                    help="PPO: start the policy from a teacher's behaviour by DAgger before "
-                        "training (planner | chase-and-hit; agents/imitate.py)")
+                        "training (planner | reactive-planner | chase-and-hit; "
+                        "agents/imitate.py)")
     t.add_argument("--imitate-rounds", type=int, default=20,
                    help="DAgger rounds (default 20; round 0 is the teacher's)")
     t.add_argument("--imitate-episodes", type=int, default=16,

@@ -56,7 +56,7 @@ class CEMPlanner:
             one step (the default). With ``False`` every decision starts from a zero mean, so
             the action depends on the current state (and the sampling) only, as a reactive
             policy's does: the reference a learned state-feedback policy can aim at (see
-            ``docs/baselines.md``, control envs).
+            ``docs/planner.md``, "Warm start"; ``warm_start_table`` measures it).
     """
 
     def __init__(self, horizon: int = 10, samples: int = 64, iterations: int = 3,

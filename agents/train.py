@@ -265,9 +265,11 @@ def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int
             spaced, of 10 episodes each).
         torch_threads: PyTorch CPU threads (1 is fastest for these small networks, and leaves
             the other core to the env); None keeps PyTorch's default.
-        imitate: start PPO's policy from this teacher (``planner`` or ``chase-and-hit``) by
-            DAgger (``agents.imitate``): ``imitate_rounds`` rounds of ``imitate_episodes``
-            episodes, before the ``n_timesteps`` of PPO. Written to ``imitation.csv``.
+        imitate: start PPO's policy from this teacher (one of ``agents.imitate.TEACHERS``:
+            ``planner``, ``reactive-planner``, ``chase-and-hit``) by DAgger
+            (``agents.imitate``): ``imitate_rounds`` rounds of ``imitate_episodes`` episodes,
+            before the ``n_timesteps`` of PPO. Written to ``imitation.csv`` and ``config.yml``
+            (its wall time there; the returned ``wall_time`` is PPO's).
     """
     overrides: dict[str, Any] = {}
     if timesteps is not None:

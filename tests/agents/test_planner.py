@@ -121,3 +121,15 @@ def test_planner_without_warm_start_acts_on_the_state_alone(warm_start):
     b = CEMPlanner(horizon=6, samples=16, elites=3, seed=3, warm_start=warm_start).plan(task)
     assert np.array_equal(a, b) == (not warm_start)
     env.close()
+
+
+def test_warm_start_table_rows():
+    """``python -m spinstrike.agents.planner --warm-start-table``'s rows (tiny searches)."""
+    from spinstrike.agents.planner import warm_start_table
+
+    text = warm_start_table(CONTROL[1], episodes=1, settings=((True, 4, 1, 2), (False, 4, 1, 2)))
+    rows = [r for r in text.splitlines() if r.startswith("| | ")]
+    assert [r.split("|")[2].strip() for r in rows] == ["yes", "no"]
+    for r in rows:
+        assert r.split("|")[3].strip() == "4 x 1"
+        assert np.isfinite(float(r.split("|")[4].split("+/-")[0]))
