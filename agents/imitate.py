@@ -109,6 +109,34 @@ class ImitationResult:
             w.writeheader()
             w.writerows(self.rounds)
 
+    def plot(self, path: str | Path, title: str) -> Path:
+        """The student's return per round (mean +/- std over the round's episodes) against the
+        teacher's (round 0): ``imitation.png``."""
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        rounds = np.array([r["round"] for r in self.rounds[1:]])
+        mean = np.array([r["return_mean"] for r in self.rounds[1:]])
+        std = np.array([r["return_std"] for r in self.rounds[1:]])
+        fig, ax = plt.subplots(figsize=(6, 3.5))
+        if len(rounds):
+            ax.plot(rounds, mean, marker="o", ms=3, label="student (acts in round r)")
+            ax.fill_between(rounds, mean - std, mean + std, alpha=0.25)
+        ax.axhline(self.rounds[0]["return_mean"], color="k", ls="--",
+                   label=f"{self.rounds[0]['acted']} (round 0)")
+        ax.set_xlabel("DAgger round")
+        ax.xaxis.set_major_locator(plt.MaxNLocator(integer=True))
+        ax.set_ylabel("episode return")
+        ax.set_title(title)
+        ax.grid(alpha=0.3)
+        ax.legend(loc="lower right", fontsize=8)
+        fig.tight_layout()
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        return Path(path)
+
 
 def _worker_init() -> None:
     import torch
@@ -211,7 +239,8 @@ def dagger(model, env_id: str, teacher: str = "planner", *, rounds: int = 20,
             other; the same results as any other count).
         epochs, batch_size, lr: the fit after each round (Adam; it continues from the last
             round's weights over all the states gathered so far).
-        log: where to write the rounds as CSV (``imitation.csv``), after every round.
+        log: where to write the rounds as CSV (``imitation.csv``), after every round; their
+            plot goes beside it at the end (``imitation.png``).
 
     Raises:
         AgentConfigError: bad settings or a model this does not apply to.
@@ -304,4 +333,6 @@ def dagger(model, env_id: str, teacher: str = "planner", *, rounds: int = 20,
     result.critic_mse = _fit(policy, c_obs, c_ret, head="critic", epochs=critic_epochs,
                              batch_size=batch_size, lr=lr, rng=rng)
     result.wall_time = time.time() - start
+    if log is not None:
+        result.plot(Path(log).with_suffix(".png"), f"DAgger from the {teacher} on {env_id}")
     return result

@@ -125,6 +125,7 @@ def test_cli_train_imitate_writes_the_rounds_and_starts_ppo_from_the_student(tmp
                  "--no-video", "--no-progress", "--eval-episodes", "5", "--out",
                  str(out)]) == 0
     rows = list(csv.DictReader(open(out / "imitation.csv")))
+    assert (out / "imitation.png").read_bytes()[:4] == b"\x89PNG"
     assert [r["acted"] for r in rows] == ["chase-and-hit", "student", "student"]
     meta = yaml.safe_load((out / "config.yml").read_text())
     assert meta["imitation"]["teacher"] == "chase-and-hit"
