@@ -132,12 +132,9 @@ def _row(label: str, means: np.ndarray, reference: float, extra: str) -> str:
 def _planner_row(env_id: str, episodes: int, reference: float) -> str:
     """The CEM planner (defaults of ``agents.planner.CEMPlanner``) on the first ``episodes``
     of the evaluation episodes, with its CPU time per decision."""
-    from spinstrike.agents.evaluate import run_episodes
-    from spinstrike.agents.planner import CEMPlanner
+    from spinstrike.agents.planner import CEMPlanner, timed_episodes
 
-    t = time.process_time()
-    ev = run_episodes(CEMPlanner(), env_id, episodes, 1000, name="planner")
-    cost = 1000 * (time.process_time() - t) / (episodes * ev.mean_length)
+    ev, cost = timed_episodes(CEMPlanner(), env_id, episodes, 1000)
     print(f"{env_id} planner: {ev.mean:.3f} ({cost:.0f} ms CPU per decision)", flush=True)
     return (f"| CEM planner (first {episodes} episodes) | - | {ev.mean:.3f} +/- {ev.std:.3f} | "
             f"{ev.mean / reference:.3f} | - | - | {cost:.0f} ms CPU per decision |")

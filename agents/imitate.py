@@ -37,7 +37,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["TEACHERS", "ImitationResult", "dagger", "make_teacher", "settings"]
+__all__ = ["TEACHERS", "ImitationResult", "check_teacher", "dagger", "make_teacher",
+           "settings"]
 
 #: teachers by name: what ``--imitate`` accepts
 TEACHERS = ("planner", "reactive-planner", "chase-and-hit")
@@ -45,23 +46,28 @@ TEACHERS = ("planner", "reactive-planner", "chase-and-hit")
 CRITIC_STEPS = 500
 
 
+def check_teacher(name: str) -> None:
+    """Raise :class:`AgentConfigError` unless ``name`` is one of :data:`TEACHERS`."""
+    if name not in TEACHERS:
+        from spinstrike.agents.config import AgentConfigError
+
+        raise AgentConfigError(f"--imitate: unknown teacher {name!r}; allowed: "
+                               f"{list(TEACHERS)}")
+
+
 def make_teacher(name: str, seed: int = 0):
     """The policy ``name`` (one of :data:`TEACHERS`) with the ``policy(env, obs)`` signature."""
-    if name == "planner":
-        from spinstrike.agents.planner import CEMPlanner
-
-        return CEMPlanner(seed=seed)
-    if name == "reactive-planner":  # a function of the state: see CEMPlanner's warm_start
-        from spinstrike.agents.planner import CEMPlanner
-
-        return CEMPlanner(samples=128, iterations=4, elites=12, warm_start=False, seed=seed)
+    check_teacher(name)
     if name == "chase-and-hit":
         from spinstrike.agents.oracle import ChaseAndHit
 
         return ChaseAndHit()
-    from spinstrike.agents.config import AgentConfigError
+    from spinstrike.agents.planner import CEMPlanner
 
-    raise AgentConfigError(f"--imitate: unknown teacher {name!r}; allowed: {list(TEACHERS)}")
+    if name == "planner":
+        return CEMPlanner(seed=seed)
+    # reactive-planner: a function of the state (CEMPlanner's warm_start), more search instead
+    return CEMPlanner(samples=128, iterations=4, elites=12, warm_start=False, seed=seed)
 
 
 def settings(teacher: str, algo: str, env_id: str, normalize: bool, rounds: int,
@@ -76,9 +82,7 @@ def settings(teacher: str, algo: str, env_id: str, normalize: bool, rounds: int,
 
     if algo != "ppo":
         raise AgentConfigError(f"--imitate: starts PPO only (got --algo {algo})")
-    if teacher not in TEACHERS:
-        raise AgentConfigError(f"--imitate: unknown teacher {teacher!r}; allowed: "
-                               f"{list(TEACHERS)}")
+    check_teacher(teacher)
     if teacher.endswith("planner") and "Control" not in env_id:
         raise AgentConfigError(f"--imitate {teacher}: the planner drives the control envs only "
                                f"(got {env_id})")
@@ -255,9 +259,7 @@ def dagger(model, env_id: str, teacher: str = "planner", *, rounds: int = 20,
         if not isinstance(value, (int, np.integer)) or value < low:
             raise AgentConfigError(f"imitation {name}: must be an integer >= {low} "
                                    f"(got {value!r})")
-    if teacher not in TEACHERS:
-        raise AgentConfigError(f"--imitate: unknown teacher {teacher!r}; allowed: "
-                               f"{list(TEACHERS)}")
+    check_teacher(teacher)
     policy = model.policy
     if not hasattr(policy, "log_std") or not hasattr(policy, "predict_values"):
         raise AgentConfigError("--imitate: starts PPO's Gaussian policy only (--algo ppo)")
@@ -297,12 +299,12 @@ def dagger(model, env_id: str, teacher: str = "planner", *, rounds: int = 20,
             jobs = [(env_id, env_kwargs, share, teacher, student)
                     for share in np.array_split(seeds, parallel) if len(share)]
             parts = run(_rollouts, jobs)
-            obs_all = np.concatenate([obs_all, *(p[0] for p in parts)])
+            obs = np.concatenate([p[0] for p in parts])
+            obs_all = np.concatenate([obs_all, obs])
             act_all = np.concatenate([act_all, *(p[1] for p in parts)])
-            rewards = np.concatenate([p[2] for p in parts])
             if r > 0 or rounds == 1:  # the critic's data: the rounds the student acted
-                critic_obs.append(np.concatenate([p[0] for p in parts]))
-                critic_returns.append(_discounted(rewards, gamma))
+                critic_obs.append(obs)
+                critic_returns.append(_discounted(np.concatenate([p[2] for p in parts]), gamma))
             returns = [x for p in parts for x in p[3]]
             mse = _fit(policy, obs_all, act_all, head="actor", epochs=epochs,
                        batch_size=batch_size, lr=lr, rng=rng)

@@ -141,13 +141,25 @@ class CEMPlanner:
         return self.plan(env.unwrapped.task).astype(np.float32)
 
 
+def timed_episodes(planner: CEMPlanner, env_id: str, episodes: int, seed: int = 1000,
+                   env_kwargs: dict | None = None):
+    """``planner`` on episodes ``seed...`` of ``env_id`` (``evaluate.run_episodes``) and its
+    CPU time (``time.process_time``) per decision, in ms: ``(Evaluation, cost)``."""
+    import time
+
+    from spinstrike.agents.evaluate import run_episodes
+
+    t = time.process_time()
+    ev = run_episodes(planner, env_id, episodes, seed, env_kwargs, "planner")
+    return ev, 1000 * (time.process_time() - t) / (episodes * ev.mean_length)
+
+
 def sweep(env_ids=("SpinStrike/RodSpinControl-v0", "SpinStrike/PuckSpeedControl-v0"),
           horizons=(5, 10, 20, 40), samples=(16, 64, 256), episodes: int = 3,
           steps: int = 100, seed: int = 1000, out: str | None = "docs/planner.md") -> str:
     """Return against horizon x samples, with the CPU time per decision, on the same short
     episodes (``steps`` steps, seeds ``seed``...) beside chase-and-hit; a markdown report."""
     import os
-    import time
 
     from spinstrike.agents.evaluate import run_episodes
     from spinstrike.agents.oracle import ChaseAndHit
@@ -170,9 +182,7 @@ def sweep(env_ids=("SpinStrike/RodSpinControl-v0", "SpinStrike/PuckSpeedControl-
             cells = []
             for n in samples:
                 planner = CEMPlanner(horizon=h, samples=n, elites=max(2, n // 10))
-                t = time.process_time()
-                ev = run_episodes(planner, env_id, episodes, seed, kwargs, "planner")
-                cost = 1000 * (time.process_time() - t) / (episodes * ev.mean_length)
+                ev, cost = timed_episodes(planner, env_id, episodes, seed, kwargs)
                 cells.append(f"{ev.mean:.2f} ({cost:.0f} ms)")
                 print(f"{env_id} H={h} N={n}: {ev.mean:.3f} {cost:.1f} ms", flush=True)
             lines.append(f"| {h} | " + " | ".join(cells) + " |")
@@ -196,17 +206,11 @@ def warm_start_table(env_id: str, episodes: int = 20, seed: int = 1000,
     """Markdown rows: the planner with and without its warm start (and, without, at more
     samples and iterations) on the evaluation episodes ``seed...``, with the CPU time per
     decision. Without the warm start the planner is a reactive (state-feedback) policy."""
-    import time
-
-    from spinstrike.agents.evaluate import run_episodes
-
     rows = [f"| {env_id} | warm start | samples x iterations | return (mean +/- std) | "
             "ms CPU per decision |", "|---|---|---|---|---|"]
     for warm, n, iters, elites in settings:
         planner = CEMPlanner(samples=n, iterations=iters, elites=elites, warm_start=warm)
-        t = time.process_time()
-        ev = run_episodes(planner, env_id, episodes, seed, name="planner")
-        cost = 1000 * (time.process_time() - t) / (episodes * ev.mean_length)
+        ev, cost = timed_episodes(planner, env_id, episodes, seed)
         print(f"{env_id} warm={warm} {n}x{iters}: {ev.mean:.3f} +/- {ev.std:.3f} "
               f"{cost:.1f} ms", flush=True)
         rows.append(f"| | {'yes' if warm else 'no'} | {n} x {iters} | {ev.mean:.2f} +/- "
