@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import csv
 import time
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -140,6 +141,29 @@ class ImitationResult:
         fig.savefig(path, dpi=110)
         plt.close(fig)
         return Path(path)
+
+
+@contextmanager
+def _sigterm_exits():
+    """Within: SIGTERM raises ``SystemExit(143)`` in the main thread, as Ctrl-C raises
+    ``KeyboardInterrupt``, so that the worker pool's ``with`` block terminates its workers on
+    the way out (by default SIGTERM ends the process at once and leaves the spawned workers to
+    finish the round they are running)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield  # signal handlers can only be set from the main thread
+        return
+
+    def _exit(signum, frame):
+        raise SystemExit(128 + signum)
+
+    previous = signal.signal(signal.SIGTERM, _exit)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _worker_init() -> None:
@@ -281,12 +305,12 @@ def dagger(model, env_id: str, teacher: str = "planner", *, rounds: int = 20,
         from tqdm.auto import tqdm
 
         bar = tqdm(total=rounds, desc=f"DAgger from the {teacher}", unit="round")
-    from contextlib import nullcontext
     from multiprocessing import get_context
 
     parallel = max(workers, 1)
-    pool_cm = get_context("spawn").Pool(workers, _worker_init) if workers else nullcontext()
-    with pool_cm as pool:
+    # the handler first, then the pool (a with statement enters them in order)
+    with _sigterm_exits(), (get_context("spawn").Pool(workers, _worker_init) if workers
+                            else nullcontext()) as pool:
         run = pool.map if pool is not None else lambda f, jobs: list(map(f, jobs))
         for r in range(rounds):
             t0 = time.time()

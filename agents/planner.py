@@ -57,11 +57,17 @@ class CEMPlanner:
             the action depends on the current state (and the sampling) only, as a reactive
             policy's does: the reference a learned state-feedback policy can aim at (see
             ``docs/planner.md``, "Warm start"; ``warm_start_table`` measures it).
+        common_noise: reseed the generator with ``seed`` before every decision, so that every
+            decision draws the same standard-normal samples (common random numbers). With
+            ``warm_start=False`` the action is then a deterministic function of the state: a
+            state visited twice gets one action, and nearby states rank the same candidate
+            sequences, so the mallet does not waver between approaches from step to step.
     """
 
     def __init__(self, horizon: int = 10, samples: int = 64, iterations: int = 3,
                  elites: int = 6, init_std: float = 0.7, gamma: float = 1.0,
-                 approach: float = 0.3, seed: int = 0, warm_start: bool = True) -> None:
+                 approach: float = 0.3, seed: int = 0, warm_start: bool = True,
+                 common_noise: bool = False) -> None:
         for name, value, low in (("horizon", horizon, 1), ("samples", samples, 2),
                                  ("iterations", iterations, 1), ("elites", elites, 1)):
             if not isinstance(value, (int, np.integer)) or value < low:
@@ -76,6 +82,7 @@ class CEMPlanner:
         self.elites, self.init_std, self.gamma = int(elites), float(init_std), float(gamma)
         self.approach = float(approach)
         self.warm_start = bool(warm_start)
+        self.common_noise = bool(common_noise)
         self.seed = seed
         self.rng = np.random.default_rng(seed)
         self._scratch: _ControlTask | None = None
@@ -104,6 +111,8 @@ class CEMPlanner:
         if task is not self._source or task.world.time[0] == 0.0:
             self._source = task
             self.reset()
+        elif self.common_noise:
+            self.rng = np.random.default_rng(self.seed)
         scratch = self._scratch_for(task)
         w = scratch.world
         w.load_element(task.world, 0)
@@ -196,25 +205,30 @@ def sweep(env_ids=("SpinStrike/RodSpinControl-v0", "SpinStrike/PuckSpeedControl-
     return text
 
 
-#: the settings ``warm_start_table`` compares: (warm start, samples, iterations, elites)
-WARM_START_SETTINGS = ((True, 64, 3, 6), (False, 64, 3, 6), (False, 128, 4, 12),
-                       (False, 256, 5, 16))
+#: the settings ``warm_start_table`` compares: (warm start, samples, iterations, elites,
+#: common noise)
+WARM_START_SETTINGS = ((True, 64, 3, 6, False), (False, 64, 3, 6, False),
+                       (False, 64, 3, 6, True), (False, 128, 4, 12, False),
+                       (False, 128, 4, 12, True), (False, 256, 5, 16, False))
 
 
 def warm_start_table(env_id: str, episodes: int = 20, seed: int = 1000,
                      settings=WARM_START_SETTINGS) -> str:
     """Markdown rows: the planner with and without its warm start (and, without, at more
-    samples and iterations) on the evaluation episodes ``seed...``, with the CPU time per
-    decision. Without the warm start the planner is a reactive (state-feedback) policy."""
-    rows = [f"| {env_id} | warm start | samples x iterations | return (mean +/- std) | "
-            "ms CPU per decision |", "|---|---|---|---|---|"]
-    for warm, n, iters, elites in settings:
-        planner = CEMPlanner(samples=n, iterations=iters, elites=elites, warm_start=warm)
+    samples and iterations, with fresh or common noise) on the evaluation episodes
+    ``seed...``, with the CPU time per decision. Without the warm start the planner is a
+    reactive (state-feedback) policy; with common noise as well, a deterministic one."""
+    rows = [f"| {env_id} | warm start | noise | samples x iterations | return (mean +/- std) | "
+            "ms CPU per decision |", "|---|---|---|---|---|---|"]
+    for warm, n, iters, elites, common in settings:
+        planner = CEMPlanner(samples=n, iterations=iters, elites=elites, warm_start=warm,
+                             common_noise=common)
         ev, cost = timed_episodes(planner, env_id, episodes, seed)
-        print(f"{env_id} warm={warm} {n}x{iters}: {ev.mean:.3f} +/- {ev.std:.3f} "
+        noise = "common" if common else "fresh"
+        print(f"{env_id} warm={warm} {noise} {n}x{iters}: {ev.mean:.3f} +/- {ev.std:.3f} "
               f"{cost:.1f} ms", flush=True)
-        rows.append(f"| | {'yes' if warm else 'no'} | {n} x {iters} | {ev.mean:.2f} +/- "
-                    f"{ev.std:.2f} | {cost:.0f} |")
+        rows.append(f"| | {'yes' if warm else 'no'} | {noise} | {n} x {iters} | {ev.mean:.2f} "
+                    f"+/- {ev.std:.2f} | {cost:.0f} |")
     return "\n".join(rows) + "\n"
 
 

@@ -7,6 +7,11 @@ policy, and the saved model acts as the teacher.
 """
 
 import csv
+import os
+import signal
+import subprocess
+import sys
+import time
 
 import gymnasium as gym
 import numpy as np
@@ -134,3 +139,53 @@ def test_cli_train_imitate_writes_the_rounds_and_starts_ppo_from_the_student(tmp
     agent = float(summary.split("| agent |")[1].split("|")[0])
     oracle = float(summary.split("| oracle |")[1].split("|")[0])
     assert agent > 0.7 * oracle, summary
+
+
+def _children(pid: int) -> set[int]:
+    try:
+        text = open(f"/proc/{pid}/task/{pid}/children").read()
+    except OSError:
+        return set()
+    return {int(p) for p in text.split()}
+
+
+def _alive(pid: int) -> bool:
+    try:  # a zombie (exited, not yet reaped by its parent) counts as gone
+        return open(f"/proc/{pid}/stat").read().split(")")[-1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+@pytest.mark.skipif(not os.path.exists(f"/proc/{os.getpid()}/task/{os.getpid()}/children"),
+                    reason="needs Linux's /proc/PID/task/PID/children")
+def test_sigterm_on_an_imitate_run_stops_its_workers(tmp_path):
+    """``kill PID`` (SIGTERM) on ``spinstrike train --imitate`` in the middle of a round ends
+    it with exit code 143 and takes the spawned DAgger workers with it (by default SIGTERM ends
+    the process at once and leaves its workers to finish their round: seconds to minutes)."""
+    out = tmp_path / "run"
+    args = ["train", "--algo", "ppo", "--env", ENV, "--imitate", "chase-and-hit",
+            "--imitate-rounds", "50", "--imitate-episodes", "64", "--timesteps", "2048",
+            "--no-video", "--no-progress", "--out", str(out)]
+    proc = subprocess.Popen([sys.executable, "-c", "import sys; from spinstrike.agents.cli "
+                             f"import main; sys.exit(main({args!r}))"], cwd=tmp_path,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        deadline = time.time() + 240
+        # training writes into run.partial; imitation.csv appears when round 0 is done
+        while not (tmp_path / "run.partial" / "imitation.csv").exists():
+            assert proc.poll() is None, proc.stderr.read().decode()
+            assert time.time() < deadline, "round 0 did not finish in 240 s"
+            time.sleep(0.2)
+        time.sleep(1.0)
+        workers = _children(proc.pid)
+        assert len(workers) >= 2  # the pool (and multiprocessing's resource tracker)
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=60) == 128 + signal.SIGTERM
+        deadline = time.time() + 3  # a student's round of 64 episodes takes far longer
+        while any(_alive(p) for p in workers) and time.time() < deadline:
+            time.sleep(0.1)
+        assert not [p for p in workers if _alive(p)]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()

@@ -123,13 +123,37 @@ def test_planner_without_warm_start_acts_on_the_state_alone(warm_start):
     env.close()
 
 
+@pytest.mark.parametrize("common_noise", [True, False])
+def test_common_noise_makes_the_reactive_planner_a_function_of_the_state(common_noise):
+    """warm_start=False, common_noise=True: every decision draws the same samples, so the
+    action at a state is one value, whatever the planner did before and however often it is
+    asked (no reseeding by hand); with fresh noise two decisions at one state differ."""
+    kw = dict(horizon=6, samples=16, elites=3, seed=5, warm_start=False,
+              common_noise=common_noise)
+    env = gym.make(CONTROL[0])
+    obs, _ = env.reset(seed=4)
+    used = CEMPlanner(**kw)
+    for _ in range(15):
+        obs, *_ = env.step(used(env, obs))
+    first, again = used(env, obs), used(env, obs)
+    fresh = CEMPlanner(**kw)(env, obs)
+    assert np.array_equal(first, again) == common_noise
+    assert np.array_equal(first, fresh) == common_noise
+    # and the state's action is not the same constant everywhere
+    obs, *_ = env.step(first)
+    assert not np.array_equal(used(env, obs), first)
+    env.close()
+
+
 def test_warm_start_table_rows():
     """``python -m spinstrike.agents.planner --warm-start-table``'s rows (tiny searches)."""
     from spinstrike.agents.planner import warm_start_table
 
-    text = warm_start_table(CONTROL[1], episodes=1, settings=((True, 4, 1, 2), (False, 4, 1, 2)))
+    text = warm_start_table(CONTROL[1], episodes=1, settings=((True, 4, 1, 2, False),
+                                                              (False, 4, 1, 2, True)))
     rows = [r for r in text.splitlines() if r.startswith("| | ")]
     assert [r.split("|")[2].strip() for r in rows] == ["yes", "no"]
+    assert [r.split("|")[3].strip() for r in rows] == ["fresh", "common"]
     for r in rows:
-        assert r.split("|")[3].strip() == "4 x 1"
-        assert np.isfinite(float(r.split("|")[4].split("+/-")[0]))
+        assert r.split("|")[4].strip() == "4 x 1"
+        assert np.isfinite(float(r.split("|")[5].split("+/-")[0]))
