@@ -67,8 +67,10 @@ def make_teacher(name: str, seed: int = 0):
 
     if name == "planner":
         return CEMPlanner(seed=seed)
-    # reactive-planner: a function of the state (CEMPlanner's warm_start), more search instead
-    return CEMPlanner(samples=128, iterations=4, elites=12, warm_start=False, seed=seed)
+    # reactive-planner: a deterministic function of the state (no warm start, common noise),
+    # more search instead: 0.96 (RodSpinControl) and 0.89 (PuckSpeedControl) of the planner
+    return CEMPlanner(samples=128, iterations=4, elites=12, warm_start=False, common_noise=True,
+                      seed=seed)
 
 
 def settings(teacher: str, algo: str, env_id: str, normalize: bool, rounds: int,

@@ -302,7 +302,12 @@ def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int
                 shutil.rmtree(run_dir)
             work.rename(run_dir)
     except KeyboardInterrupt:
-        print(f"interrupted: continue with --resume --out {run_dir}", file=sys.stderr)
+        if resume or _latest_checkpoint(work) is not None:
+            print(f"interrupted: continue with --resume --out {run_dir}", file=sys.stderr)
+        else:  # e.g. during --imitate's DAgger rounds, before PPO's first checkpoint
+            print(f"interrupted before the first checkpoint: nothing to resume ({work} keeps "
+                  "what was written); run the same command again to start over",
+                  file=sys.stderr)
         raise
     except BaseException:
         if not resume:

@@ -189,3 +189,30 @@ def test_sigterm_on_an_imitate_run_stops_its_workers(tmp_path):
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+
+
+def test_ctrl_c_during_dagger_says_there_is_nothing_to_resume(tmp_path, monkeypatch, capsys):
+    """Ctrl-C in the DAgger rounds (before PPO's first checkpoint): the message does not send the
+    user to --resume (which would refuse: no checkpoint) and the same command, run again,
+    starts over without --force."""
+    import spinstrike.agents.imitate as imitate
+
+    real = imitate.dagger
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(imitate, "dagger", interrupted)
+    args = ["train", "--algo", "ppo", "--env", ENV, "--imitate", "chase-and-hit",
+            "--imitate-rounds", "1", "--imitate-episodes", "1", "--timesteps", "1024",
+            "--no-video", "--no-eval", "--no-progress", "--out", str(tmp_path / "run")]
+    with pytest.raises(KeyboardInterrupt):
+        main(args)
+    err = capsys.readouterr().err
+    assert "nothing to resume" in err and "--resume" not in err
+    assert main(args[:-2] + ["--resume", "--out", str(tmp_path / "run")]) == 2
+    assert capsys.readouterr().err.startswith("error: resume: ")  # a clear refusal
+    monkeypatch.setattr(imitate, "dagger", real)
+    assert main(args) == 0
+    assert (tmp_path / "run" / "model.zip").exists()
