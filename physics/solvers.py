@@ -493,15 +493,22 @@ def _rest_on_cushions_indexed(S, Pm, F, hw, MAT, rest, changed, pidx, tol, zeno_
 
 
 @jit_inline
+def _hand_back(F, rest, i):
+    """Body i gets the force a cushion held back from it (if any) back."""
+    if rest[i, FX] != 0.0 or rest[i, FY] != 0.0:
+        F[i, FX] += rest[i, FX]
+        F[i, FY] += rest[i, FY]
+        rest[i, FX] = 0.0
+        rest[i, FY] = 0.0
+
+
+@jit_inline
 def _release(F, rest, changed):
     """The changed bodies get their held-back forces back (another body may have knocked one
     off its cushion)."""
     for i in range(F.shape[0]):
-        if changed[i] and (rest[i, FX] != 0.0 or rest[i, FY] != 0.0):
-            F[i, FX] += rest[i, FX]
-            F[i, FY] += rest[i, FY]
-            rest[i, FX] = 0.0
-            rest[i, FY] = 0.0
+        if changed[i]:
+            _hand_back(F, rest, i)
 
 
 @jit_inline
@@ -541,11 +548,7 @@ def rests_on(S, Pm, F, hw, MAT, p, i, wall, tol, zeno_speed, contact_friction, t
 def _end_rests(F, rest):
     """Hand the held-back forces back (the end of the step, or before settling)."""
     for i in range(F.shape[0]):
-        if rest[i, FX] != 0.0 or rest[i, FY] != 0.0:
-            F[i, FX] += rest[i, FX]
-            F[i, FY] += rest[i, FY]
-            rest[i, FX] = 0.0
-            rest[i, FY] = 0.0
+        _hand_back(F, rest, i)
 
 
 @jit_inline
