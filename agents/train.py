@@ -11,9 +11,10 @@ A run directory holds everything needed to reproduce and resume a run::
 
 Training goes into ``<name>.partial`` and is renamed at the end, so an unfinished run never looks
 complete and an existing run is never overwritten (unless ``force``). A run that fails with an
-error leaves nothing behind; an interrupted one (Ctrl-C) keeps its ``.partial`` directory with
-its checkpoints, and ``resume`` continues it (or a finished run, to a larger budget) from the
-newest checkpoint.
+error leaves nothing behind; an interrupted one (Ctrl-C, or SIGTERM during ``--imitate``'s
+DAgger rounds) keeps its ``.partial`` directory with its checkpoints, and ``resume`` continues
+it (or a finished run, to a larger budget) from the newest checkpoint; interrupted before the
+first checkpoint, it has nothing to resume and the same command starts over.
 """
 
 from __future__ import annotations
@@ -301,7 +302,7 @@ def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int
             if run_dir.exists():
                 shutil.rmtree(run_dir)
             work.rename(run_dir)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, SystemExit):  # Ctrl-C; SIGTERM in DAgger (imitate.dagger)
         if resume or _latest_checkpoint(work) is not None:
             print(f"interrupted: continue with --resume --out {run_dir}", file=sys.stderr)
         else:  # e.g. during --imitate's DAgger rounds, before PPO's first checkpoint

@@ -181,6 +181,9 @@ def test_sigterm_on_an_imitate_run_stops_its_workers(tmp_path):
         assert len(workers) >= 2  # the pool (and multiprocessing's resource tracker)
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(timeout=60) == 128 + signal.SIGTERM
+        # as after Ctrl-C: the rounds' log is kept, and the message says there is no resuming
+        assert (tmp_path / "run.partial" / "imitation.csv").exists()
+        assert "nothing to resume" in proc.stderr.read().decode()
         deadline = time.time() + 3  # a student's round of 64 episodes takes far longer
         while any(_alive(p) for p in workers) and time.time() < deadline:
             time.sleep(0.1)
