@@ -166,9 +166,8 @@ def test_sigterm_on_an_imitate_run_stops_its_workers(tmp_path):
     args = ["train", "--algo", "ppo", "--env", ENV, "--imitate", "chase-and-hit",
             "--imitate-rounds", "50", "--imitate-episodes", "64", "--timesteps", "2048",
             "--no-video", "--no-progress", "--out", str(out)]
-    proc = subprocess.Popen([sys.executable, "-c", "import sys; from spinstrike.agents.cli "
-                             f"import main; sys.exit(main({args!r}))"], cwd=tmp_path,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    proc = subprocess.Popen([sys.executable, "-m", "spinstrike.agents.cli", *args],
+                            cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
         deadline = time.time() + 240
         # training writes into run.partial; imitation.csv appears when round 0 is done
