@@ -5,6 +5,7 @@ import os
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 
+import pytest  # noqa: E402
 from hypothesis import HealthCheck, settings  # noqa: E402
 
 settings.register_profile("default", deadline=None, max_examples=150,
@@ -12,3 +13,10 @@ settings.register_profile("default", deadline=None, max_examples=150,
 settings.register_profile("slow", deadline=None, max_examples=5000,
                           suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _sb3_logs_in_pytest_tmp(tmp_path_factory):
+    """SB3 models built without a logger make an empty ``SB3-<date>`` folder in ``/tmp`` on every
+    ``learn()`` (hundreds a run); ``SB3_LOGDIR`` sends them into pytest's own, pruned, temp dir."""
+    os.environ.setdefault("SB3_LOGDIR", str(tmp_path_factory.mktemp("sb3-logs")))
