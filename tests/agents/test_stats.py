@@ -1,9 +1,13 @@
 """agents.stats (IQM, rliable's stratified bootstrap) and ``spinstrike baselines`` end to end on a
-tiny budget: the table has IQM [CI] beside mean +/- std, and the plot is written."""
+tiny budget: the table has IQM [CI] beside mean +/- std, the plot is written, and a rerun keeps
+the notes written by hand around the generated part."""
+
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from spinstrike.agents.baselines import BEGIN, END, write_doc
 from spinstrike.agents.cli import main
 from spinstrike.agents.stats import curve_bands, interval, iqm, summary
 
@@ -56,3 +60,31 @@ def test_cli_baselines_writes_iqm_table_and_curves_on_fixed_episodes(tmp_path, c
     assert "| SAC | not run in this budget |" in text
     assert "| PPO | " in text and " | 1 | " in text
     assert sorted(p.name for p in root.iterdir()) == ["ppo-PuckSpeed-v1-s0"]
+    # notes written by hand around the generated part survive a rerun; the tables are replaced
+    stale = text.replace("| SAC | not run in this budget |", "| SAC | stale |")
+    edited = "Intro by hand.\n\n" + stale + "\n## Why (by hand)\n\nAn analysis.\n"
+    doc.write_text(edited)
+    assert main(["baselines", "--reuse-only", "--envs", "SpinStrike/PuckSpeed-v1", "--algos",
+                 "ppo", "sac", "--seeds", "0", "1", "--no-transfer", "--root", str(root),
+                 "--doc", str(doc)]) == 0
+    again = doc.read_text()
+    assert again.startswith("Intro by hand.\n\n" + BEGIN) and "| SAC | stale |" not in again
+    assert again.endswith(END + "\n\n## Why (by hand)\n\nAn analysis.\n")
+    assert again.count("| SAC | not run in this budget |") == 1
+
+
+def test_baselines_doc_markers(tmp_path):
+    """The shipped ``docs/baselines.md`` has its notes outside the markers (a rerun keeps its
+    analysis of the control envs); a file with one marker is refused, not overwritten."""
+    shipped = (Path(__file__).resolve().parents[2] / "docs" / "baselines.md").read_text()
+    doc = tmp_path / "baselines.md"
+    doc.write_text(shipped)
+    write_doc(doc, "# Baselines\n\nnew tables")
+    text = doc.read_text()
+    assert "new tables" in text and "## SpinStrike/RodSpin-v0" not in text
+    assert "## Control envs: what limits the learners (issue 16)" in text
+    assert "### Fourth session (2026-11-23): why the RodSpinControl students fail" in text
+    doc.write_text(f"{BEGIN}\n# Baselines\nnotes with no end marker\n")
+    with pytest.raises(SystemExit, match="expected the markers"):
+        write_doc(doc, "tables")
+    assert "notes with no end marker" in doc.read_text()
