@@ -63,7 +63,8 @@ def _name(algo: str, env_id: str, tag: str, seed: int) -> str:
     return f"{algo}-{env_id.split('/')[-1]}{tag}-s{seed}"
 
 
-def _run(algo, env_id, seed, root: Path, scale: float, env_kwargs=None, tag="") -> dict:
+def _run(algo, env_id, seed, root: Path, scale: float, env_kwargs=None, tag="",
+         imitate: str | None = None) -> dict:
     from spinstrike.agents.evaluate import load_model_policy, run_episodes
     from spinstrike.agents.train import train
 
@@ -74,19 +75,27 @@ def _run(algo, env_id, seed, root: Path, scale: float, env_kwargs=None, tag="") 
         return json.loads(result_file.read_text())
     cfg = load_agent_config(algo, env_id)
     steps = max(int(cfg.n_timesteps * scale), 256)
+    rounds = {} if imitate is None or scale >= 1 else {"imitate_rounds": 2,
+                                                       "imitate_episodes": 2}
     res = train(algo, env_id, seed=seed, timesteps=steps, out=run, force=True, progress=False,
-                evaluate=False, video=False, env_kwargs=env_kwargs)
+                evaluate=False, video=False, env_kwargs=env_kwargs, imitate=imitate, **rounds)
+    dagger = 0.0
+    if imitate is not None:  # DAgger's wall time, before PPO's (``res["wall_time"]``)
+        import csv
+
+        with open(run / "imitation.csv") as f:
+            dagger = sum(float(r["wall_time_s"]) for r in csv.DictReader(f))
     policy, _ = load_model_policy(run)
     # always evaluated on the exact solver (the transfer study trains on others)
     ev = run_episodes(policy, env_id, EVAL_EPISODES, name="agent")
     out = {"algo": algo, "env": env_id, "seed": seed, "timesteps": res["timesteps"],
            "wall_time": res["wall_time"], "mean": ev.mean, "std": ev.std, "tag": tag,
-           "returns": ev.returns}
+           "returns": ev.returns, "imitate": imitate, "dagger_wall_time": dagger}
     result_file.write_text(json.dumps(out))
     return out
 
 
-def _curves(env_id: str, root: Path, algos, seeds, out: Path) -> Path:
+def _curves(env_id: str, root: Path, algos, seeds, out: Path, imitate: str | None = None) -> Path:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -95,10 +104,13 @@ def _curves(env_id: str, root: Path, algos, seeds, out: Path) -> Path:
     from spinstrike.agents.stats import curve_bands
 
     fig, ax = plt.subplots(figsize=(6.5, 3.8))
-    for algo in algos:
+    series = [(algo, "", algo.upper()) for algo in algos]
+    if imitate is not None:
+        series.append(("ppo", f"-imitate-{imitate}", f"PPO from the {imitate}"))
+    for algo, tag, label in series:
         curves = []
         for seed in seeds:
-            f = root / f"{algo}-{env_id.split('/')[-1]}-s{seed}" / "evaluations.npz"
+            f = root / _name(algo, env_id, tag, seed) / "evaluations.npz"
             if f.exists():
                 d = np.load(f)
                 curves.append((d["timesteps"], d["results"].mean(1)))
@@ -108,7 +120,7 @@ def _curves(env_id: str, root: Path, algos, seeds, out: Path) -> Path:
         steps = curves[0][0][:n]
         values = np.array([c[1][:n] for c in curves])
         mid, low, high = curve_bands(values)
-        ax.plot(steps, mid, label=f"{algo.upper()} (IQM, {len(curves)} seeds)")
+        ax.plot(steps, mid, label=f"{label} (IQM, {len(curves)} seeds)")
         ax.fill_between(steps, low, high, alpha=0.2)
     ax.set_title(f"{env_id}: evaluation during training\n(IQM over seeds, 95% bootstrap band)",
                  fontsize=10)
@@ -131,6 +143,27 @@ def _row(label: str, means: np.ndarray, reference: float, extra: str) -> str:
     frac = f"{st['iqm'] / reference:.3f}" if reference > 0 else "-"
     return (f"| {label} | {st['iqm']:.3f} [{st['iqm_low']:.3f}, {st['iqm_high']:.3f}] | "
             f"{st['mean']:.3f} +/- {st['std']:.3f} | {frac} | {st['runs']} | {extra}")
+
+
+def _imitate_row(env_id: str, args, root: Path, scale: float, seeds, reference: float) -> str:
+    """PPO started from ``args.imitate`` by DAgger (``spinstrike train --imitate``): its row,
+    with DAgger's wall time beside PPO's. ``--reuse-only`` reports the finished seeds only."""
+    tag = f"-imitate-{args.imitate}"
+    label = f"PPO from the {args.imitate} (DAgger)"
+    todo = seeds
+    if args.reuse_only:
+        todo = [s for s in seeds if (root / _name("ppo", env_id, tag, s) / "baseline.json")
+                .exists()]
+        if not todo:
+            return f"| {label} | not run in this budget | - | - | 0 | - | - |"
+    results = [_run("ppo", env_id, s, root, scale, tag=tag, imitate=args.imitate) for s in todo]
+    means = np.array([r["mean"] for r in results])
+    dagger = np.mean([r["dagger_wall_time"] for r in results])
+    ppo = np.mean([r["wall_time"] for r in results])
+    row = _row(label, means, reference, f"{results[0]['timesteps']} | {dagger:.0f} s DAgger + "
+               f"{ppo:.0f} s PPO |")
+    print(f"{env_id} ppo {tag}: {row}", flush=True)
+    return row
 
 
 def _planner_row(env_id: str, episodes: int, reference: float) -> str:
@@ -184,10 +217,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--reuse-only", action="store_true",
                    help="train nothing: report the finished runs under --root (and say which "
                         "were not run)")
+    p.add_argument("--imitate", metavar="TEACHER", default=None,
+                   help="also train PPO started from TEACHER by DAgger on each control env "
+                        "(spinstrike train --imitate; a row of its own)")
     p.add_argument("--planner-episodes", type=int, default=20,
                    help="episodes of the CEM planner on each control env (0: none)")
     args = p.parse_args(argv)
     from spinstrike.agents.evaluate import evaluate
+
+    if args.imitate is not None:
+        from spinstrike.agents.imitate import check_teacher
+
+        check_teacher(args.imitate)
 
     scale = 0.1 if args.quick else 1.0
     seeds = args.seeds[:1] if args.quick else args.seeds
@@ -227,6 +268,8 @@ def main(argv: list[str] | None = None) -> int:
                              f"{results[0]['timesteps']} | "
                              f"{np.mean([r['wall_time'] for r in results]):.0f} s |"))
             print(f"{env_id} {algo}: {rows[-1]}", flush=True)
+        if args.imitate is not None and "Control" in env_id:
+            rows.append(_imitate_row(env_id, args, root, scale, seeds, reference))
         oracle = "scripted chase-and-hit" if "Control" in env_id else "oracle (closed form)"
         for label, key in (("random", "random"), (oracle, "oracle")):
             r = base[key]
@@ -235,7 +278,8 @@ def main(argv: list[str] | None = None) -> int:
         if "Control" in env_id and args.planner_episodes > 0:
             rows.append(_planner_row(env_id, args.planner_episodes, reference))
         plot = _curves(env_id, root, args.algos, seeds,
-                       doc.parent / "baselines" / f"{env_id.split('/')[-1]}.png")
+                       doc.parent / "baselines" / f"{env_id.split('/')[-1]}.png",
+                       args.imitate if "Control" in env_id else None)
         table[env_id] = rows
         lines += [f"## {env_id}", "",
                   "| policy | IQM [95% CI] | mean +/- std | IQM / reference | seeds | "

@@ -88,3 +88,27 @@ def test_baselines_doc_markers(tmp_path):
     with pytest.raises(SystemExit, match="expected the markers"):
         write_doc(doc, "tables")
     assert "notes with no end marker" in doc.read_text()
+
+
+def test_cli_baselines_imitate_row(tmp_path, capsys):
+    """``--imitate planner`` trains PPO started by DAgger beside plain PPO on a control env (a
+    row of its own, with DAgger's wall time, and its learning curve), and ``--reuse-only``
+    reports it again without training."""
+    root, doc = tmp_path / "runs", tmp_path / "baselines.md"
+    args = ["baselines", "--quick", "--envs", "SpinStrike/PuckSpeedControl-v0", "--algos", "ppo",
+            "--imitate", "planner", "--seeds", "0", "--no-transfer", "--planner-episodes", "0",
+            "--root", str(root), "--doc", str(doc)]
+    assert main(args) == 0
+    rows = [r for r in doc.read_text().splitlines() if r.startswith("| PPO")]
+    assert len(rows) == 2 and rows[1].startswith("| PPO from the planner (DAgger) | ")
+    assert " s DAgger + " in rows[1]
+    run = root / "ppo-PuckSpeedControl-v0-imitate-planner-s0"
+    assert (run / "imitation.csv").read_text().count("\n") == 3  # header, 2 quick rounds
+    first = doc.read_text()
+    assert main([*args, "--reuse-only"]) == 0
+    again = [r for r in doc.read_text().splitlines() if r.startswith("| PPO")]
+    assert again == rows  # same runs, same seeds' scores: the same rows
+    assert first.count("PPO from the planner") == 1
+    capsys.readouterr()
+    assert main([*args, "--imitate", "nobody"]) == 2  # before anything is trained
+    assert "unknown teacher 'nobody'" in capsys.readouterr().err
