@@ -63,16 +63,37 @@ def _name(algo: str, env_id: str, tag: str, seed: int) -> str:
     return f"{algo}-{env_id.split('/')[-1]}{tag}-s{seed}"
 
 
-def _run(algo, env_id, seed, root: Path, scale: float, env_kwargs=None, tag="",
-         imitate: str | None = None) -> dict:
+def _commit() -> str:
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                              text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def _scores(run: Path, env_id: str) -> dict:
+    """The finished run's policy on the :data:`EVAL_EPISODES` evaluation episodes, always on
+    the exact solver (the transfer study trains on others)."""
     from spinstrike.agents.evaluate import load_model_policy, run_episodes
+
+    policy, _ = load_model_policy(run)
+    ev = run_episodes(policy, env_id, EVAL_EPISODES, name="agent")
+    return {"mean": ev.mean, "std": ev.std, "returns": ev.returns}
+
+
+def _run(algo, env_id, seed, root: Path, scale: float, env_kwargs=None, tag="",
+         imitate: str | None = None, re_evaluate: bool = False) -> dict:
     from spinstrike.agents.train import train
 
     name = _name(algo, env_id, tag, seed)
     run = root / name
     result_file = run / "baseline.json"
     if result_file.exists():
-        return json.loads(result_file.read_text())
+        out = json.loads(result_file.read_text())
+        if re_evaluate:  # the same model, scored by the current code (e.g. after a physics fix)
+            out.update(_scores(run, env_id), evaluated_at=_commit())
+            result_file.write_text(json.dumps(out))
+        return out
     cfg = load_agent_config(algo, env_id)
     steps = max(int(cfg.n_timesteps * scale), 256)
     rounds = {} if imitate is None or scale >= 1 else {"imitate_rounds": 2,
@@ -85,12 +106,9 @@ def _run(algo, env_id, seed, root: Path, scale: float, env_kwargs=None, tag="",
 
         with open(run / "imitation.csv") as f:
             dagger = sum(float(r["wall_time_s"]) for r in csv.DictReader(f))
-    policy, _ = load_model_policy(run)
-    # always evaluated on the exact solver (the transfer study trains on others)
-    ev = run_episodes(policy, env_id, EVAL_EPISODES, name="agent")
     out = {"algo": algo, "env": env_id, "seed": seed, "timesteps": res["timesteps"],
-           "wall_time": res["wall_time"], "mean": ev.mean, "std": ev.std, "tag": tag,
-           "returns": ev.returns, "imitate": imitate, "dagger_wall_time": dagger}
+           "wall_time": res["wall_time"], "tag": tag, "imitate": imitate,
+           "dagger_wall_time": dagger, **_scores(run, env_id), "evaluated_at": _commit()}
     result_file.write_text(json.dumps(out))
     return out
 
@@ -156,7 +174,8 @@ def _imitate_row(env_id: str, args, root: Path, scale: float, seeds, reference: 
                 .exists()]
         if not todo:
             return f"| {label} | not run in this budget | - | - | 0 | - | - |"
-    results = [_run("ppo", env_id, s, root, scale, tag=tag, imitate=args.imitate) for s in todo]
+    results = [_run("ppo", env_id, s, root, scale, tag=tag, imitate=args.imitate,
+                    re_evaluate=args.re_evaluate) for s in todo]
     means = np.array([r["mean"] for r in results])
     dagger = np.mean([r["dagger_wall_time"] for r in results])
     ppo = np.mean([r["wall_time"] for r in results])
@@ -217,6 +236,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--reuse-only", action="store_true",
                    help="train nothing: report the finished runs under --root (and say which "
                         "were not run)")
+    p.add_argument("--re-evaluate", action="store_true",
+                   help="score the finished runs again with the current code (their models "
+                        "as they are), e.g. after a change to the physics")
     p.add_argument("--imitate", metavar="TEACHER", default=None,
                    help="also train PPO started from TEACHER by DAgger on each control env "
                         "(spinstrike train --imitate; a row of its own)")
@@ -262,7 +284,8 @@ def main(argv: list[str] | None = None) -> int:
                 if not todo:
                     rows.append(f"| {algo.upper()} | not run in this budget | - | - | 0 | - | - |")
                     continue
-            results = [_run(algo, env_id, s, root, scale) for s in todo]
+            results = [_run(algo, env_id, s, root, scale, re_evaluate=args.re_evaluate)
+                       for s in todo]
             means = np.array([r["mean"] for r in results])
             rows.append(_row(algo.upper(), means, reference,
                              f"{results[0]['timesteps']} | "
@@ -294,18 +317,14 @@ def main(argv: list[str] | None = None) -> int:
         for label, solver in TRANSFER_SOLVERS.items():
             tag = "" if solver is None else "-" + solver["mode"]
             kwargs = None if solver is None else {"solver": solver}
-            results = [_run("ppo", "SpinStrike/RodSpin-v0", s, root, scale, kwargs, tag)
-                       for s in seeds]
+            results = [_run("ppo", "SpinStrike/RodSpin-v0", s, root, scale, kwargs, tag,
+                            re_evaluate=args.re_evaluate) for s in seeds]
             means = np.array([r["mean"] for r in results])
             lines.append(_row(label, means, 1.0,
                               f"{np.mean([r['wall_time'] for r in results]):.0f} s |"))
             print(f"transfer {label}: {means.mean():.3f}", flush=True)
         lines.append("")
-    try:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
-                                text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        commit = "unknown"
+    commit = _commit()
     lines.append(f"Total wall time of this run: {time.time() - started:.0f} s (reused runs "
                  f"count as 0); load average at the end {os.getloadavg()[0]:.2f}. Code at commit "
                  f"{commit}.")

@@ -2,6 +2,7 @@
 tiny budget: the table has IQM [CI] beside mean +/- std, the plot is written, and a rerun keeps
 the notes written by hand around the generated part."""
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -71,6 +72,17 @@ def test_cli_baselines_writes_iqm_table_and_curves_on_fixed_episodes(tmp_path, c
     assert again.startswith("Intro by hand.\n\n" + BEGIN) and "| SAC | stale |" not in again
     assert again.endswith(END + "\n\n## Why (by hand)\n\nAn analysis.\n")
     assert again.count("| SAC | not run in this budget |") == 1
+    # --re-evaluate scores the finished run again (the model as it is) with the current code
+    result = root / "ppo-PuckSpeed-v1-s0" / "baseline.json"
+    kept = json.loads(result.read_text())
+    result.write_text(json.dumps({**kept, "mean": 999.0}))
+    reuse = ["baselines", "--reuse-only", "--envs", "SpinStrike/PuckSpeed-v1", "--algos", "ppo",
+             "--seeds", "0", "--no-transfer", "--root", str(root), "--doc", str(doc)]
+    assert main(reuse) == 0 and "999.000" in doc.read_text()
+    assert main([*reuse, "--re-evaluate"]) == 0 and "999.000" not in doc.read_text()
+    scored = json.loads(result.read_text())
+    assert scored["mean"] == kept["mean"] and scored["returns"] == kept["returns"]
+    assert scored["timesteps"] == kept["timesteps"] and scored["evaluated_at"]
 
 
 def test_baselines_doc_markers(tmp_path):
