@@ -124,7 +124,7 @@ def _curves(env_id: str, root: Path, algos, seeds, out: Path, imitate: str | Non
     fig, ax = plt.subplots(figsize=(6.5, 3.8))
     series = [(algo, "", algo.upper()) for algo in algos]
     if imitate is not None:
-        series.append(("ppo", f"-imitate-{imitate}", f"PPO from the {imitate}"))
+        series.append(("ppo", f"-imitate-{imitate}", f"PPO after DAgger from the {imitate}"))
     for algo, tag, label in series:
         curves = []
         for seed in seeds:
