@@ -251,6 +251,11 @@ def main(argv: list[str] | None = None) -> int:
         from spinstrike.agents.imitate import check_teacher
 
         check_teacher(args.imitate)
+        if not any("Control" in e for e in args.envs):
+            from spinstrike.agents.config import AgentConfigError
+
+            raise AgentConfigError(f"--imitate: adds a row on the control envs only, and none "
+                                   f"is among --envs {' '.join(args.envs)}")
 
     scale = 0.1 if args.quick else 1.0
     seeds = args.seeds[:1] if args.quick else args.seeds

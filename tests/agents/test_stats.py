@@ -124,3 +124,7 @@ def test_cli_baselines_imitate_row(tmp_path, capsys):
     capsys.readouterr()
     assert main([*args, "--imitate", "nobody"]) == 2  # before anything is trained
     assert "unknown teacher 'nobody'" in capsys.readouterr().err
+    strike = ["baselines", "--envs", "SpinStrike/RodSpin-v0", "--imitate", "planner", "--root",
+              str(tmp_path / "other"), "--doc", str(tmp_path / "other.md")]
+    assert main(strike) == 2 and "control envs only" in capsys.readouterr().err
+    assert not (tmp_path / "other").exists() and not (tmp_path / "other.md").exists()
