@@ -293,16 +293,21 @@ def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int
     name = f"{algo}-{env_id.split('/')[-1]}-s{seed}"
     run_dir = Path(out) if out is not None else Path("runs") / name
     work = _work_dir(run_dir, resume, force)
+    from spinstrike.agents.imitate import _sigterm_exits
+
     try:
-        model, wall = _learn(algo, cfg, work, seed=seed, device=device, resume=resume,
-                             progress=progress, eval_freq=eval_freq,
-                             eval_episodes_during=eval_episodes_during, command=command,
-                             torch_threads=torch_threads, imitate=imitation)
+        # SIGTERM (a scheduler's kill) as Ctrl-C: the logs are flushed, the message below says
+        # how to go on, and DAgger's workers are stopped (by default it ends the process at once)
+        with _sigterm_exits():
+            model, wall = _learn(algo, cfg, work, seed=seed, device=device, resume=resume,
+                                 progress=progress, eval_freq=eval_freq,
+                                 eval_episodes_during=eval_episodes_during, command=command,
+                                 torch_threads=torch_threads, imitate=imitation)
         if work != run_dir:
             if run_dir.exists():
                 shutil.rmtree(run_dir)
             work.rename(run_dir)
-    except (KeyboardInterrupt, SystemExit):  # Ctrl-C; SIGTERM in DAgger (imitate.dagger)
+    except (KeyboardInterrupt, SystemExit):  # Ctrl-C; SIGTERM (imitate._sigterm_exits)
         if resume or _latest_checkpoint(work) is not None:
             print(f"interrupted: continue with --resume --out {run_dir}", file=sys.stderr)
         else:  # e.g. during --imitate's DAgger rounds, before PPO's first checkpoint

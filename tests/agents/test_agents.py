@@ -140,3 +140,38 @@ def test_rl_zoo3_trains_from_our_config(tmp_path):
            "-f", str(tmp_path), "--eval-freq", "-1", "--seed", "0"]
     subprocess.run(cmd, check=True, capture_output=True, text=True, cwd=tmp_path, timeout=600)
     assert list(tmp_path.rglob("SpinStrike-RodSpin-v0.zip"))
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+def test_sigterm_during_training_says_resume_and_the_run_resumes(tmp_path):
+    """``kill PID`` (SIGTERM, as a cluster's scheduler stops a job) on ``spinstrike train`` after
+    a checkpoint: exit code 143, the resume hint, the learning-curve log flushed, and
+    ``--resume`` finishes the run (by default SIGTERM ended the process with none of that)."""
+    import signal
+    import time
+
+    args = ["train", "--algo", "ppo", "--env", "SpinStrike/RodSpin-v0", "--timesteps", "100000",
+            "--no-video", "--no-progress", "--no-eval", "--out", str(tmp_path / "run")]
+    proc = subprocess.Popen([sys.executable, "-m", "spinstrike.agents.cli", *args],
+                            cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    checkpoints = tmp_path / "run.partial" / "checkpoints"
+    try:
+        deadline = time.time() + 240
+        while not (checkpoints.exists() and any(checkpoints.glob("model_*_steps.zip"))):
+            assert proc.poll() is None, proc.stderr.read().decode()
+            assert time.time() < deadline, "no checkpoint in 240 s"
+            time.sleep(0.2)
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=60) == 128 + signal.SIGTERM
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert "continue with --resume" in proc.stderr.read().decode()
+    assert (tmp_path / "run.partial" / "progress.csv").read_text().count("\n") >= 2
+    done = subprocess.run([sys.executable, "-m", "spinstrike.agents.cli", *args, "--resume"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "run" / "model.zip").exists()
+    assert yaml.safe_load((tmp_path / "run" / "config.yml").read_text())["runs"][-1][
+        "timesteps"] >= 100000
