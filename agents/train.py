@@ -271,6 +271,10 @@ def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int
             (``agents.imitate``): ``imitate_rounds`` rounds of ``imitate_episodes`` episodes,
             before the ``n_timesteps`` of PPO. Written to ``imitation.csv`` and ``config.yml``
             (its wall time there; the returned ``wall_time`` is PPO's).
+
+    Interrupted by Ctrl-C, or by SIGTERM (in the main thread, while it trains SIGTERM raises
+    ``SystemExit(143)``; the previous handler is restored after), it keeps the work folder
+    (``<out>.partial`` for a new run), says how to go on, and re-raises.
     """
     overrides: dict[str, Any] = {}
     if timesteps is not None:
