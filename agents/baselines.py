@@ -163,25 +163,26 @@ def _row(label: str, means: np.ndarray, reference: float, extra: str) -> str:
             f"{st['mean']:.3f} +/- {st['std']:.3f} | {frac} | {st['runs']} | {extra}")
 
 
-def _imitate_row(env_id: str, args, root: Path, scale: float, seeds, reference: float) -> str:
-    """PPO started from ``args.imitate`` by DAgger (``spinstrike train --imitate``): its row,
-    with DAgger's wall time beside PPO's. ``--reuse-only`` reports the finished seeds only."""
-    tag = f"-imitate-{args.imitate}"
-    label = f"PPO from the {args.imitate} (DAgger)"
+def _seeds_row(label: str, algo: str, env_id: str, args, root: Path, scale: float, seeds,
+               reference: float, imitate: str | None = None) -> str:
+    """One agent's table row over ``seeds`` (training the seeds not run yet; ``--reuse-only``
+    reports the finished ones only). With ``imitate``: PPO started from that teacher by DAgger
+    (``spinstrike train --imitate``), its runs tagged apart, DAgger's wall time beside PPO's."""
+    tag = "" if imitate is None else f"-imitate-{imitate}"
     todo = seeds
-    if args.reuse_only:
-        todo = [s for s in seeds if (root / _name("ppo", env_id, tag, s) / "baseline.json")
+    if args.reuse_only:  # report the finished runs only (a budget-limited document)
+        todo = [s for s in seeds if (root / _name(algo, env_id, tag, s) / "baseline.json")
                 .exists()]
         if not todo:
             return f"| {label} | not run in this budget | - | - | 0 | - | - |"
-    results = [_run("ppo", env_id, s, root, scale, tag=tag, imitate=args.imitate,
+    results = [_run(algo, env_id, s, root, scale, tag=tag, imitate=imitate,
                     re_evaluate=args.re_evaluate) for s in todo]
     means = np.array([r["mean"] for r in results])
-    dagger = np.mean([r["dagger_wall_time"] for r in results])
-    ppo = np.mean([r["wall_time"] for r in results])
-    row = _row(label, means, reference, f"{results[0]['timesteps']} | {dagger:.0f} s DAgger + "
-               f"{ppo:.0f} s PPO |")
-    print(f"{env_id} ppo {tag}: {row}", flush=True)
+    wall = f"{np.mean([r['wall_time'] for r in results]):.0f} s"
+    if imitate is not None:
+        wall = f"{np.mean([r['dagger_wall_time'] for r in results]):.0f} s DAgger + {wall} PPO"
+    row = _row(label, means, reference, f"{results[0]['timesteps']} | {wall} |")
+    print(f"{env_id} {algo}{tag}: {row}", flush=True)
     return row
 
 
@@ -282,22 +283,11 @@ def main(argv: list[str] | None = None) -> int:
         base = {r.policy: r for r in evaluate(env_id, None, EVAL_EPISODES, 1000)}
         reference = base["oracle"].mean
         for algo in args.algos:
-            todo = seeds
-            if args.reuse_only:  # report the finished runs only (a budget-limited document)
-                todo = [s for s in seeds if (root / _name(algo, env_id, "", s)
-                                             / "baseline.json").exists()]
-                if not todo:
-                    rows.append(f"| {algo.upper()} | not run in this budget | - | - | 0 | - | - |")
-                    continue
-            results = [_run(algo, env_id, s, root, scale, re_evaluate=args.re_evaluate)
-                       for s in todo]
-            means = np.array([r["mean"] for r in results])
-            rows.append(_row(algo.upper(), means, reference,
-                             f"{results[0]['timesteps']} | "
-                             f"{np.mean([r['wall_time'] for r in results]):.0f} s |"))
-            print(f"{env_id} {algo}: {rows[-1]}", flush=True)
+            rows.append(_seeds_row(algo.upper(), algo, env_id, args, root, scale, seeds,
+                                   reference))
         if args.imitate is not None and "Control" in env_id:
-            rows.append(_imitate_row(env_id, args, root, scale, seeds, reference))
+            rows.append(_seeds_row(f"PPO from the {args.imitate} (DAgger)", "ppo", env_id, args,
+                                   root, scale, seeds, reference, imitate=args.imitate))
         oracle = "scripted chase-and-hit" if "Control" in env_id else "oracle (closed form)"
         for label, key in (("random", "random"), (oracle, "oracle")):
             r = base[key]

@@ -11,10 +11,10 @@ A run directory holds everything needed to reproduce and resume a run::
 
 Training goes into ``<name>.partial`` and is renamed at the end, so an unfinished run never looks
 complete and an existing run is never overwritten (unless ``force``). A run that fails with an
-error leaves nothing behind; an interrupted one (Ctrl-C, or SIGTERM during ``--imitate``'s
-DAgger rounds) keeps its ``.partial`` directory with its checkpoints, and ``resume`` continues
-it (or a finished run, to a larger budget) from the newest checkpoint; interrupted before the
-first checkpoint, it has nothing to resume and the same command starts over.
+error leaves nothing behind; an interrupted one (Ctrl-C, or SIGTERM while it trains) keeps its
+``.partial`` directory with its checkpoints, and ``resume`` continues it (or a finished run, to a
+larger budget) from the newest checkpoint; interrupted before the first checkpoint, it has
+nothing to resume and the same command starts over.
 """
 
 from __future__ import annotations
