@@ -263,10 +263,12 @@ def main(argv: list[str] | None = None) -> int:
     root = Path(args.root)
     doc = Path(args.doc)
     started = time.time()
+    load0 = os.getloadavg()[0]
+    # this process adds ~1 once it trains: a load already near 1 means another job is running
+    shared = ": other jobs shared the cores, so wall times are upper bounds" if load0 >= 0.5 else ""
     lines = ["# Baselines", "",
              f"Produced by `{shlex.join(['spinstrike', 'baselines', *(argv or sys.argv[1:])])}` "
-             f"on {_machine()} (load average at start {os.getloadavg()[0]:.2f}: other jobs "
-             "shared the cores, so wall times are upper bounds); "
+             f"on {_machine()} (load average at start {load0:.2f}{shared}); "
              f"{len(seeds)} seed(s) per algorithm, budgets from "
              f"`configs/agents/*.yml`{' scaled by 0.1 (--quick)' if args.quick else ''}. Every "
              f"policy is evaluated on the same {EVAL_EPISODES} episodes (seeds 1000..1049, "

@@ -3,6 +3,7 @@ tiny budget: the table has IQM [CI] beside mean +/- std, the plot is written, an
 the notes written by hand around the generated part."""
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -44,7 +45,8 @@ def test_summary_and_bands():
     assert mid.shape == (3,) and np.all(low <= mid) and np.all(mid <= high)
 
 
-def test_cli_baselines_writes_iqm_table_and_curves_on_fixed_episodes(tmp_path, capsys):
+def test_cli_baselines_writes_iqm_table_and_curves_on_fixed_episodes(tmp_path, capsys,
+                                                                     monkeypatch):
     root, doc = tmp_path / "runs", tmp_path / "docs" / "baselines.md"
     assert main(["baselines", "--quick", "--envs", "SpinStrike/PuckSpeed-v1", "--algos", "ppo",
                  "--seeds", "0", "--no-transfer", "--root", str(root), "--doc", str(doc)]) == 0
@@ -83,6 +85,12 @@ def test_cli_baselines_writes_iqm_table_and_curves_on_fixed_episodes(tmp_path, c
     scored = json.loads(result.read_text())
     assert scored["mean"] == kept["mean"] and scored["returns"] == kept["returns"]
     assert scored["timesteps"] == kept["timesteps"] and scored["evaluated_at"]
+    # the header says other jobs shared the cores only when the load average says so
+    for load, shared in ((0.1, False), (2.0, True)):
+        monkeypatch.setattr(os, "getloadavg", lambda x=load: (x, x, x))
+        assert main(reuse) == 0
+        assert f"load average at start {load:.2f}" in doc.read_text()
+        assert ("other jobs shared the cores" in doc.read_text()) is shared
 
 
 def test_baselines_doc_markers(tmp_path):
