@@ -8,15 +8,12 @@ raises :class:`ConfigError` naming the field and what is allowed. Scenes ship in
 from __future__ import annotations
 
 import copy
-from importlib import resources
-from pathlib import Path
 from typing import ClassVar, Literal
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from spinstrike.physics import EFFECTS, SceneError, load_scene
-from spinstrike.physics.scene import Integer, Number, Scene
+from spinstrike.physics.scene import Integer, Number, Scene, packaged_scene, read_scene
 
 __all__ = [
     "ConfigError",
@@ -217,9 +214,9 @@ def parse_config(model: type[EnvConfig], config: dict | None, kwargs: dict) -> E
 
 
 def load_packaged_scene(name: str) -> dict:
-    """The raw dict of a packaged scene ``configs/scenes/<name>.yaml``."""
-    text = resources.files("spinstrike.configs.scenes").joinpath(f"{name}.yaml").read_text()
-    return yaml.safe_load(text)
+    """The raw dict of a packaged scene ``configs/scenes/<name>.yaml``
+    (``physics.packaged_scene``)."""
+    return packaged_scene(name)
 
 
 #: scene sections the env edits, and the type each must have
@@ -228,29 +225,19 @@ _SECTIONS = {"effects": (list, "a list of effect names"), "materials": (dict, "a
 
 
 def _scene_data(source: str | dict) -> dict:
-    """The raw dict of a user's scene (a dict, a YAML string or a path to a YAML file), checked
-    just enough for the env's overrides; every problem is a :class:`ConfigError` naming it.
-
-    A string without a newline is a path when it ends in ``.yaml``/``.yml`` or exists (as in
-    :func:`physics.load_scene`), else YAML text. (Before, a missing file, a directory, malformed
-    YAML or ``bodies`` that were not a list of mappings escaped as FileNotFoundError,
-    IsADirectoryError, yaml.ParserError or TypeError.)
+    """The raw dict of a user's scene (a dict, a packaged scene's name, a YAML string or a path
+    to a YAML file: ``physics.scene.read_scene``), checked just enough for the env's overrides;
+    every problem is a :class:`ConfigError` naming it. (Before, a missing file, a directory,
+    malformed YAML or ``bodies`` that were not a list of mappings escaped as
+    FileNotFoundError, IsADirectoryError, yaml.ParserError or TypeError.)
     """
     if isinstance(source, dict):
         data = copy.deepcopy(source)
     else:
-        text = source
-        path = Path(text)
-        if "\n" not in text and (path.suffix in (".yaml", ".yml") or path.exists()):
-            if not path.is_file():
-                problem = "is not a file" if path.exists() else "does not exist"
-                raise ConfigError(f"scene: {text!r} {problem} (give a path to a YAML scene "
-                                  "file, a YAML string or a dict)")
-            text = path.read_text()
         try:
-            data = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            raise ConfigError(f"scene: not valid YAML: {exc}") from None
+            data = read_scene(source)
+        except SceneError as exc:
+            raise ConfigError(str(exc)) from None
     if not isinstance(data, dict):
         raise ConfigError(f"scene: must be a mapping of scene fields (table, effects, solver, "
                           f"materials, bodies), got {type(data).__name__}")

@@ -2,7 +2,7 @@
 
 Public API::
 
-    scene = physics.load_scene("configs/scenes/rod_strike.yaml")   # or a dict / YAML string
+    scene = physics.load_scene("rod_control")   # a packaged scene, a YAML path, a dict or text
     world = physics.World(scene, batch_size=B, solver=None)         # solver overrides the scene
     contacts = world.step(dt)                                       # flat arrays, batch index
     world.state.positions, .angles, .velocities, .omegas            # [B, N, 2] / [B, N]
@@ -26,6 +26,7 @@ from spinstrike.physics.scene import (
     Scene,
     SceneError,
     load_scene,
+    packaged_scenes,
 )
 from spinstrike.physics.world import Buffers, Contacts, State, StepStats, World
 
@@ -47,4 +48,5 @@ __all__ = [
     "World",
     "WorldEdit",
     "load_scene",
+    "packaged_scenes",
 ]

@@ -58,6 +58,9 @@ __all__ = [
     "Table",
     "WALL_NAMES",
     "load_scene",
+    "packaged_scene",
+    "packaged_scenes",
+    "read_scene",
     "validate_solver",
 ]
 
@@ -407,30 +410,74 @@ def _format_error(err: ValidationError) -> str:
     return "; ".join(lines)
 
 
+#: the package that ships the scenes (``configs/scenes/*.yaml`` in the repository)
+SCENES_PACKAGE = "spinstrike.configs.scenes"
+
+
+def packaged_scenes() -> list[str]:
+    """Names of the scenes shipped with the package (``configs/scenes/<name>.yaml``)."""
+    from importlib import resources
+
+    return sorted(f.name[:-len(".yaml")] for f in resources.files(SCENES_PACKAGE).iterdir()
+                  if f.name.endswith(".yaml"))
+
+
+def packaged_scene(name: str) -> dict[str, Any]:
+    """The raw (unvalidated) dict of the packaged scene ``name`` (:func:`packaged_scenes`).
+
+    Raises:
+        SceneError: ``name`` is not a packaged scene (the names are listed).
+    """
+    from importlib import resources
+
+    names = packaged_scenes()
+    if name not in names:
+        raise SceneError(f"scene: {name!r} is neither a file nor a packaged scene's name "
+                         f"(packaged: {names})")
+    return yaml.safe_load(resources.files(SCENES_PACKAGE).joinpath(f"{name}.yaml").read_text())
+
+
+def read_scene(source: str | Path) -> Any:
+    """The raw (unvalidated) data of a scene given as a string or path: a path to a YAML file, a
+    packaged scene's name (``"rod_control"``: :func:`packaged_scenes`) or YAML text.
+
+    A string without a newline is a path when it ends in ``.yaml``/``.yml`` or names an existing
+    file, a packaged scene's name when it is one bare word, else YAML text.
+
+    Raises:
+        SceneError: a missing file (with where relative paths start and the packaged scenes),
+            an unknown name (with the packaged scenes), or text that is not YAML.
+    """
+    text = str(source)
+    path = Path(text)
+    if "\n" not in text and (path.suffix in (".yaml", ".yml") or path.exists()):
+        if not path.is_file():
+            problem = "is not a file" if path.exists() else "does not exist"
+            raise SceneError(f"scene: {text!r} {problem} (relative paths start at "
+                             f"{str(Path.cwd())!r}; a packaged scene loads by its name from "
+                             f"anywhere: {packaged_scenes()})")
+        text = path.read_text()
+    elif isinstance(source, str) and re.fullmatch(r"[A-Za-z0-9_]+", text):
+        return packaged_scene(text)
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise SceneError(f"scene: not valid YAML: {exc}") from None
+
+
 def load_scene(source: str | Path | dict[str, Any] | Scene) -> Scene:
     """Load and validate a scene.
 
     Args:
-        source: a path to a YAML file, a YAML string, a dict, or an existing :class:`Scene`.
+        source: a packaged scene's name (``"rod_control"``), a path to a YAML file, a YAML
+            string (:func:`read_scene`), a dict, or an existing :class:`Scene`.
 
     Raises:
         SceneError: naming the first invalid fields and what is allowed.
     """
     if isinstance(source, Scene):
         return source
-    if isinstance(source, (str, Path)):
-        text = str(source)
-        path = Path(text)
-        if "\n" not in text and (path.suffix in (".yaml", ".yml") or path.exists()):
-            if not path.is_file():
-                raise SceneError(f"scene file {str(path)!r} does not exist")
-            text = path.read_text()
-        try:
-            data = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            raise SceneError(f"scene is not valid YAML: {exc}") from exc
-    else:
-        data = source
+    data = read_scene(source) if isinstance(source, (str, Path)) else source
     if not isinstance(data, dict):
         raise SceneError(f"scene must be a mapping of fields, got {type(data).__name__}")
     try:

@@ -368,3 +368,25 @@ def test_large_rods_do_not_collide_with_the_parked_striker():
         env.reset(seed=0)
         _, reward, terminated, _, info = env.step(np.array([0.3, 0.0, 0.5], np.float32))
         assert terminated and np.isfinite(reward) and info["n_contacts"] >= 1
+
+
+def test_scene_by_packaged_name_or_path_is_the_default_scene(tmp_path, monkeypatch):
+    """``scene="rod_control"`` (a packaged scene's name) and the path of its file give the same
+    episode as the default, bit for bit, from any folder."""
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "configs" / "scenes" / "rod_control.yaml"
+    monkeypatch.chdir(tmp_path)
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1, 1, (40, 2)).astype(np.float32)
+    runs = []
+    for kwargs in ({}, {"scene": "rod_control"}, {"scene": str(path)}):
+        env = gym.make("SpinStrike/RodSpinControl-v0", **kwargs)
+        obs, _ = env.reset(seed=3)
+        out = [obs]
+        for a in actions:
+            out.append(env.step(a)[0])
+        runs.append(np.array(out))
+        env.close()
+    np.testing.assert_array_equal(runs[0], runs[1])
+    np.testing.assert_array_equal(runs[0], runs[2])

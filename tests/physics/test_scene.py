@@ -2,6 +2,7 @@
 
 import copy
 import math
+from pathlib import Path
 
 import pytest
 
@@ -126,8 +127,10 @@ def test_valid_scene_roundtrip_from_yaml(tmp_path):
 
 
 def test_missing_file_and_bad_yaml():
-    with pytest.raises(SceneError, match="does not exist"):
+    with pytest.raises(SceneError, match="does not exist") as info:
         load_scene("no/such/scene.yaml")
+    # where a relative path was looked for, and what loads from anywhere instead
+    assert "relative paths start at" in str(info.value) and "rod_control" in str(info.value)
     with pytest.raises(SceneError, match="mapping"):
         load_scene("- just\n- a list\n")
 
@@ -148,3 +151,21 @@ def test_inertia_defaults_and_overrides():
     thin = load_scene(_set("bodies.0.inertia", "thin_rod")).bodies[0]
     assert thin.moment == pytest.approx(0.1 * 0.4**2 / 12)
     assert load_scene(_set("bodies.0.inertia", 0.5)).bodies[0].moment == 0.5
+
+
+def test_packaged_scenes_load_by_name_from_any_folder(tmp_path, monkeypatch):
+    """A packaged scene's name works wherever the user is (``World("rod_control")``), and is
+    the packaged file; an unknown bare word names the packaged scenes."""
+    repo = Path(__file__).resolve().parents[2]
+    names = physics.packaged_scenes()
+    assert names == sorted(p.stem for p in (repo / "configs" / "scenes").glob("*.yaml"))
+    monkeypatch.chdir(tmp_path)
+    for name in names:
+        assert load_scene(name) == load_scene(repo / "configs" / "scenes" / f"{name}.yaml")
+    assert physics.World("rod_control", batch_size=2).names[:2] == ("rod", "mallet")
+    with pytest.raises(SceneError, match=r"'rod_contrl' is neither a file nor a packaged "
+                                         r"scene's name \(packaged: \['break'"):
+        load_scene("rod_contrl")
+    # a file of that name in the current folder is still a file
+    (tmp_path / "rod_control").write_text("bodies: [{name: p, shape: disk, radius: 1, mass: 1}]")
+    assert load_scene("rod_control").names == ("p",)

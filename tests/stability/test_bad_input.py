@@ -69,7 +69,7 @@ def test_bad_scene_file_is_one_error_naming_the_field(tmp_path, text, names):
 def test_missing_scene_file_and_directory(tmp_path):
     with pytest.raises(SceneError, match="does not exist"):
         physics.load_scene(str(tmp_path / "nope.yaml"))
-    with pytest.raises(SceneError, match="does not exist"):
+    with pytest.raises(SceneError, match="is not a file"):
         physics.load_scene(tmp_path)
 
 
@@ -158,6 +158,7 @@ BAD_KWARGS = [
     ("SpinStrike/RodSpin-v0", {"obs_mode": "telepathy"}, "obs_mode"),
     ("SpinStrike/RodSpin-v0", {"solver": {"mode": "fixed", "substeps": -3}}, "substeps"),
     ("SpinStrike/RodSpin-v0", {"scene": "missing.yaml"}, "scene: 'missing.yaml' does not"),
+    ("SpinStrike/RodSpin-v0", {"scene": "rod_spn"}, "scene: 'rod_spn' is neither a file"),
     ("SpinStrike/RodSpin-v0", {"scene": "bodies: [\n {name: x"}, "scene: not valid YAML"),
     ("SpinStrike/RodSpin-v0", {"scene": {"bodies": "rod"}}, "scene.bodies"),
     ("SpinStrike/RodSpin-v0", {"scene": {"bodies": [DISK]}}, "needs a body named"),
