@@ -159,12 +159,16 @@ def cmd_evaluate(args) -> int:
 
     _check_episodes("--episodes", args.episodes)
     policy, env_id, env_kwargs, name = _policy(args)
-    results = evaluate(env_id, policy if name == "agent" else None, args.episodes, args.seed,
-                       env_kwargs, baselines=True)
+    # random and the oracle are always among the baselines; a run's agent or the planner joins
+    named = name not in ("random", "oracle")
+    results = evaluate(env_id, policy if named else None, args.episodes, args.seed,
+                       env_kwargs, baselines=True, name=name)
     out = Path(args.run_dir) if args.run_dir and not args.no_save else None
     print(summarise(results, out, f"## {env_id}"))
     if args.json:
-        print(json.dumps({r.policy: {"mean": r.mean, "std": r.std} for r in results}))
+        print(json.dumps({r.policy: {"mean": r.mean, "std": r.std,
+                                     **({"hits": r.hits} if r.hits else {})}
+                          for r in results}))
     return 0
 
 
@@ -277,12 +281,16 @@ def build_parser() -> argparse.ArgumentParser:
                                      "local Ray)")
     t.set_defaults(func=cmd_train)
 
-    for name, func, helptext in (("evaluate", cmd_evaluate, "mean +/- std return vs random and "
-                                  "oracle"), ("record", cmd_record, "write an mp4 rollout")):
+    for name, func, helptext in (
+            ("evaluate", cmd_evaluate, "mean +/- std return vs random and the oracle (control "
+             "envs: and what their hits gained and lost)"),
+            ("record", cmd_record, "write an mp4 rollout")):
         e = sub.add_parser(name, help=helptext)
         e.add_argument("run_dir", nargs="?")
         e.add_argument("--env")
         e.add_argument("--oracle", action="store_true")
+        e.add_argument("--planner", action="store_true",
+                       help="the CEM planner (control envs; agents/planner.py)")
         if name == "evaluate":
             e.add_argument("--random", action="store_true")
             e.add_argument("--episodes", type=int, default=50)
@@ -290,8 +298,6 @@ def build_parser() -> argparse.ArgumentParser:
             e.add_argument("--json", action="store_true")
             e.add_argument("--no-save", action="store_true")
         else:
-            e.add_argument("--planner", action="store_true",
-                           help="the CEM planner (control envs; agents/planner.py)")
             e.add_argument("--out", help="video file, .mp4 or .gif (default: rollout.mp4 in "
                            "the run directory)")
             e.add_argument("--episodes", type=int, default=3)

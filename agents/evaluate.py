@@ -23,9 +23,23 @@ __all__ = ["Evaluation", "evaluate", "load_model_policy", "read_run_config", "su
 Policy = Callable[[gym.Env, object], np.ndarray]
 
 
+#: the control envs' hit anatomy (:attr:`Evaluation.hits`): key -> column heading
+HIT_COLUMNS = {"hit_steps": "steps with a hit / ep.", "gained": "gained by hits / ep.",
+               "lost": "lost by hits / ep."}
+
+
 @dataclass
 class Evaluation:
-    """Returns of one policy over ``episodes`` episodes."""
+    """Returns of one policy over ``episodes`` episodes.
+
+    ``hits`` (control envs, whose reward is paid only in steps in which the mallet touches the
+    target): per-episode means of the steps with a hit (``hit_steps``), of the reward those
+    steps gained (``gained``, the positive rewards) and of what they lost (``lost``, the
+    negative ones: hits against the rod's spin or the puck's motion); ``gained + lost`` is the
+    mean return. How a policy earns what it scores: the planner on RodSpinControl gains ~48 an
+    episode in ~33 big hits and loses under 1, PPO gains ~8 and loses ~4 (``docs/baselines.md``).
+    None for the one-strike envs.
+    """
 
     policy: str
     episodes: int
@@ -33,6 +47,7 @@ class Evaluation:
     std: float
     mean_length: float
     returns: list[float]
+    hits: dict[str, float] | None = None
 
     def line(self) -> str:
         return (f"{self.policy:>8s}: {self.mean:.4f} +/- {self.std:.4f} "
@@ -48,19 +63,27 @@ def run_episodes(policy: Policy, env_id: str, episodes: int, seed: int = 1000,
         raise AgentConfigError(f"episodes: must be >= 1 (got {episodes!r})")
     env = gym.make(env_id, **(env_kwargs or {}))
     returns, lengths = [], []
+    anatomy = np.zeros(3)  # steps with a hit, gained, lost (control envs)
+    counts_hits = False
     for k in range(episodes):
         obs, _ = env.reset(seed=seed + k)
         total, n, done = 0.0, 0, False
         while not done:
-            obs, r, term, trunc, _ = env.step(policy(env, obs))
+            obs, r, term, trunc, info = env.step(policy(env, obs))
             total += float(r)
             n += 1
             done = term or trunc
+            if "reward_hit" in info:
+                counts_hits = True
+                if info["hits"] > 0:
+                    anatomy += (1.0, max(float(r), 0.0), min(float(r), 0.0))
         returns.append(total)
         lengths.append(n)
     env.close()
+    hits = (dict(zip(HIT_COLUMNS, (anatomy / episodes).tolist(), strict=True))
+            if counts_hits else None)
     return Evaluation(name, episodes, float(np.mean(returns)), float(np.std(returns)),
-                      float(np.mean(lengths)), returns)
+                      float(np.mean(lengths)), returns, hits)
 
 
 def read_run_config(run_dir: str | Path) -> dict:
@@ -122,11 +145,13 @@ def load_model_policy(run_dir: str | Path) -> tuple[Policy, dict]:
 
 
 def evaluate(env_id: str, policy: Policy | None = None, episodes: int = 50, seed: int = 1000,
-             env_kwargs: dict | None = None, baselines: bool = True) -> list[Evaluation]:
-    """Evaluate ``policy`` (if given) and, with ``baselines``, the random policy and the oracle."""
+             env_kwargs: dict | None = None, baselines: bool = True,
+             name: str = "agent") -> list[Evaluation]:
+    """Evaluate ``policy`` (if given, reported as ``name``) and, with ``baselines``, the random
+    policy and the oracle (the control envs' scripted chase-and-hit)."""
     results = []
     if policy is not None:
-        results.append(run_episodes(policy, env_id, episodes, seed, env_kwargs, "agent"))
+        results.append(run_episodes(policy, env_id, episodes, seed, env_kwargs, name))
     if baselines:
         results.append(run_episodes(RandomPolicy(seed), env_id, episodes, seed, env_kwargs,
                                     "random"))
@@ -138,9 +163,18 @@ def evaluate(env_id: str, policy: Policy | None = None, episodes: int = 50, seed
 def summarise(results: list[Evaluation], path: str | Path | None = None,
               header: str = "") -> str:
     """A markdown table of the results; also written as ``summary.md``/``summary.json``."""
-    lines = [header, "", "| policy | mean return | std | episodes |", "|---|---|---|---|"]
+    hits = any(r.hits for r in results)
+    extra = "".join(f" {h} |" for h in HIT_COLUMNS.values()) if hits else ""
+    lines = [header, "", "| policy | mean return | std | episodes |" + extra,
+             "|---|---|---|---|" + "---|" * (len(HIT_COLUMNS) if hits else 0)]
     for r in results:
-        lines.append(f"| {r.policy} | {r.mean:.4f} | {r.std:.4f} | {r.episodes} |")
+        cells = "".join(f" {r.hits[k]:.2f} |" if r.hits else " - |" for k in HIT_COLUMNS) \
+            if hits else ""
+        lines.append(f"| {r.policy} | {r.mean:.4f} | {r.std:.4f} | {r.episodes} |" + cells)
+    if hits:
+        lines += ["", "Control envs pay only in steps in which the mallet touches the target: "
+                  "what those steps gained and lost, per episode (gained + lost = the mean "
+                  "return)."]
     text = "\n".join(lines).strip() + "\n"
     if path is not None:
         path = Path(path)

@@ -2,6 +2,8 @@
 chase-and-hit on a fixed set of short episodes, it is deterministic given its seed, its what-if
 model is the env itself, and bad settings fail with the field named."""
 
+import json
+
 import gymnasium as gym
 import imageio_ffmpeg
 import numpy as np
@@ -157,3 +159,28 @@ def test_warm_start_table_rows():
     for r in rows:
         assert r.split("|")[4].strip() == "4 x 1"
         assert np.isfinite(float(r.split("|")[5].split("+/-")[0]))
+
+
+def test_cli_evaluate_planner_reports_its_hits(capsys, tmp_path):
+    """``spinstrike evaluate --planner --env ID`` (the planner module's own example) scores the
+    planner beside random and chase-and-hit, and for a control env says what the hits gained
+    and lost; a one-strike env's report has no such columns."""
+    assert main(["evaluate", "--planner", "--env", CONTROL[1], "--episodes", "1",
+                 "--json"]) == 0
+    text = capsys.readouterr().out
+    table, report = text.split("\n{", 1)
+    report = json.loads("{" + report)
+    assert list(report) == ["planner", "random", "oracle"]
+    assert "| planner |" in table and "gained by hits / ep." in table
+    for row in report.values():  # rewards are paid in steps with a hit only
+        hits = row["hits"]
+        assert hits["gained"] + hits["lost"] == pytest.approx(row["mean"], abs=1e-9)
+        assert hits["gained"] >= 0 >= hits["lost"]
+    assert report["planner"]["hits"]["hit_steps"] >= 10
+    assert report["planner"]["mean"] > 2 * report["oracle"]["mean"]
+    assert main(["evaluate", "--oracle", "--env", "SpinStrike/RodSpin-v0", "--episodes", "2",
+                 "--json"]) == 0
+    text = capsys.readouterr().out
+    assert "hits" not in text and "| oracle | 1.0000 |" in text
+    assert main(["evaluate", "--planner", "--env", "SpinStrike/RodSpin-v0"]) == 2
+    assert "--planner: drives the control envs only" in capsys.readouterr().err
