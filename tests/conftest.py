@@ -20,3 +20,12 @@ def _sb3_logs_in_pytest_tmp(tmp_path_factory):
     """SB3 models built without a logger make an empty ``SB3-<date>`` folder in ``/tmp`` on every
     ``learn()`` (hundreds a run); ``SB3_LOGDIR`` sends them into pytest's own, pruned, temp dir."""
     os.environ.setdefault("SB3_LOGDIR", str(tmp_path_factory.mktemp("sb3-logs")))
+
+
+def pytest_collection_modifyitems(config, items):
+    """The Ray tests share one xdist worker (``--dist loadgroup`` in pyproject.toml): each starts
+    a local Ray of 2 CPUs, or a two-node cluster, and two of them at once would fight for the
+    machine's cores and Ray's session directory."""
+    for item in items:
+        if item.get_closest_marker("rllib"):
+            item.add_marker(pytest.mark.xdist_group("ray"))
