@@ -49,7 +49,8 @@ TRANSFER_SOLVERS = {"exact": None, "fixed (1 substep)": {"mode": "fixed", "subst
 def _machine() -> str:
     try:
         model = next(line.split(":", 1)[1].strip() for line in
-                     open("/proc/cpuinfo").read().splitlines() if line.startswith("model name"))
+                     Path("/proc/cpuinfo").read_text().splitlines()
+                     if line.startswith("model name"))
     except (OSError, StopIteration):
         model = platform.processor() or "unknown CPU"
     import stable_baselines3
@@ -90,6 +91,10 @@ def _run(algo, env_id, seed, root: Path, scale: float, env_kwargs=None, tag="",
     result_file = run / "baseline.json"
     if result_file.exists():
         out = json.loads(result_file.read_text())
+        if out.get("scale", 1.0) != scale:  # runs before the key were full runs
+            raise SystemExit(f"{run}: trained with budgets scaled by {out.get('scale', 1.0)}, "
+                             f"this report asks for {scale}; pass another --root (a --quick "
+                             "run's default is runs/baselines-quick)")
         if re_evaluate:  # the same model, scored by the current code (e.g. after a physics fix)
             out.update(_scores(run, env_id), evaluated_at=_commit())
             result_file.write_text(json.dumps(out))
@@ -106,7 +111,8 @@ def _run(algo, env_id, seed, root: Path, scale: float, env_kwargs=None, tag="",
 
         with open(run / "imitation.csv") as f:
             dagger = sum(float(r["wall_time_s"]) for r in csv.DictReader(f))
-    out = {"algo": algo, "env": env_id, "seed": seed, "timesteps": res["timesteps"],
+    out = {"algo": algo, "env": env_id, "seed": seed, "scale": scale,
+           "timesteps": res["timesteps"],
            "wall_time": res["wall_time"], "tag": tag, "imitate": imitate,
            "dagger_wall_time": dagger, **_scores(run, env_id), "evaluated_at": _commit()}
     result_file.write_text(json.dumps(out))
@@ -145,7 +151,8 @@ def _curves(env_id: str, root: Path, algos, seeds, out: Path, imitate: str | Non
     ax.set_xlabel("timesteps")
     ax.set_ylabel("mean episode return")
     ax.grid(alpha=0.3)
-    ax.legend()
+    if ax.get_legend_handles_labels()[0]:  # nothing drawn when no seed has run yet
+        ax.legend()
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)
@@ -230,9 +237,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--envs", nargs="+", default=DEFAULT_ENVS, choices=list(envs.ENV_IDS))
     p.add_argument("--algos", nargs="+", default=list(ALGOS), choices=ALGOS)
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4])
-    p.add_argument("--quick", action="store_true", help="one seed, a tenth of each budget")
-    p.add_argument("--root", default="runs/baselines")
-    p.add_argument("--doc", default="docs/baselines.md")
+    p.add_argument("--quick", action="store_true",
+                   help="one seed, a tenth of each budget (a smoke test: its runs and report go "
+                        "to runs/baselines-quick unless --root/--doc say otherwise)")
+    p.add_argument("--root", default=None,
+                   help="where the runs are trained and reused (default: runs/baselines, or "
+                        "runs/baselines-quick with --quick)")
+    p.add_argument("--doc", default=None,
+                   help="the report to write (default: docs/baselines.md, or ROOT/baselines.md "
+                        "with --quick); only its generated part is replaced")
     p.add_argument("--no-transfer", action="store_true")
     p.add_argument("--reuse-only", action="store_true",
                    help="train nothing: report the finished runs under --root (and say which "
@@ -260,8 +273,9 @@ def main(argv: list[str] | None = None) -> int:
 
     scale = 0.1 if args.quick else 1.0
     seeds = args.seeds[:1] if args.quick else args.seeds
-    root = Path(args.root)
-    doc = Path(args.doc)
+    root = Path(args.root or ("runs/baselines-quick" if args.quick else "runs/baselines"))
+    doc = Path(args.doc) if args.doc else (root / "baselines.md" if args.quick
+                                           else Path("docs/baselines.md"))
     started = time.time()
     load0 = os.getloadavg()[0]
     # this process adds ~1 once it trains: a load already near 1 means another job is running

@@ -412,7 +412,8 @@ def _write_bodies(out: Path, rows, steps: int, load: float | None = None) -> Non
 def _machine() -> str:
     try:
         model = next(line.split(":", 1)[1].strip() for line in
-                     open("/proc/cpuinfo").read().splitlines() if line.startswith("model name"))
+                     Path("/proc/cpuinfo").read_text().splitlines()
+                     if line.startswith("model name"))
     except (OSError, StopIteration):
         model = platform.processor()
     import numba
@@ -443,8 +444,12 @@ def _plot(path: Path, xs, ys, xlabel: str, title: str) -> None:
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m spinstrike.benchmarks.speed",
                                 description=__doc__.split("\n")[0])
-    p.add_argument("--quick", action="store_true")
-    p.add_argument("--out", default="docs", help="where speed.md and the plots go")
+    p.add_argument("--quick", action="store_true",
+                   help="smaller batches and fewer repetitions (a few minutes); prints only, "
+                        "unless --out is given")
+    p.add_argument("--out", type=Path, default=None,
+                   help="where speed.md and the plots go (default: docs for a full run; a "
+                        "--quick run only prints unless --out is given)")
     p.add_argument("--section", choices=["all", "bodies"], default="all",
                    help="bodies: only the bodies sweep (exact beside raw pymunk), which replaces "
                         "that section of speed.md and its plot")
@@ -452,12 +457,18 @@ def main(argv: list[str] | None = None) -> int:
                    help="pucks per scene in the bodies sweep (default: %(default)s)")
     args = p.parse_args(argv)
     quick = args.quick
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = args.out if args.out is not None else (None if quick else Path("docs"))
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
     body_steps = 10 if quick else BODY_STEPS
     if args.section == "bodies":
         load = os.getloadavg()[0]
-        _write_bodies(out, bodies_sweep(args.bodies, body_steps), body_steps, load)
+        rows = bodies_sweep(args.bodies, body_steps)
+        if out is None:
+            print("\n".join(_bodies_lines(rows, body_steps, load)))
+            print("(--quick: printed only; --out DIR writes the section and its plot)")
+            return 0
+        _write_bodies(out, rows, body_steps, load)
         print(f"wrote the bodies section of {out / 'speed.md'}")
         return 0
     big = 1024 if quick else 4096
@@ -506,6 +517,12 @@ def main(argv: list[str] | None = None) -> int:
         per_batch.append((b, t / b, c))
         print(f"batch {b:6d}: {t / b * 1e6:9.3f} us per element-step, contacts {c:.3f}")
     body_rows = bodies_sweep(args.bodies, body_steps)
+    if out is None:
+        print(f"native vector env (random) / SyncVectorEnv on pymunk: {vec_rand / sync_rate:.1f}x; "
+              f"/ CartPole-v1 vector env: {vec_rand / cart:.2f}x; single env exact / pymunk: "
+              f"{single_exact / single_pymunk:.2f}x")
+        print("(--quick: printed only; --out DIR writes speed.md and the plots)")
+        return 0
     _plot(out / "speed_batch.png", [b for b, _, _ in per_batch], [t for _, t, _ in per_batch],
           "batch size B", "world.step (RodSpinControl scene, exact): cost per element")
     _plot_bodies(out / "speed_bodies.png", body_rows)

@@ -1,11 +1,12 @@
 """The install paths a user takes, in a fresh virtual environment (slow: installs and compiles).
 
-wheel -> run -> editable -> run -> uninstall: a run writes nothing into site-packages (the
-compiled kernels go to ``SPINSTRIKE_CACHE_DIR``), the editable install that replaces the wheel
-imports and registers the envs, and the uninstall leaves nothing behind. Then, with the installed
-package made read-only, a run works, and after a kernel source changes (``step_element`` in
-``physics/kernels.py``, which the strike kernel in ``envs/fast.py`` inlines) the next run uses
-the changed kernel, not the cached one.
+wheel -> run -> run from the repository root -> editable -> run -> uninstall: a run writes nothing
+into site-packages (the compiled kernels go to ``SPINSTRIKE_CACHE_DIR``), the checkout's
+``spinstrike/`` that shadows the wheel from the repository root finds its subpackages, the editable
+install that replaces the wheel imports and registers the envs, and the uninstall leaves nothing
+behind. Then, with the installed package made read-only, a run works, and after a kernel source
+changes (``step_element`` in ``physics/kernels.py``, which the strike kernel in ``envs/fast.py``
+inlines) the next run uses the changed kernel, not the cached one.
 """
 
 from __future__ import annotations
@@ -71,6 +72,10 @@ def test_wheel_editable_uninstall_and_a_read_only_install(tmp_path):
     assert str(site) in first
     assert _files(site) == before, sorted(_files(site) - before)
     assert list((tmp_path / "cache").rglob("*.nbi")), "kernels are cached outside site-packages"
+
+    # the same wheel, run from the repository root (where the README's quick start leaves the
+    # user): the checkout's spinstrike/ comes first on sys.path and its subpackages are found
+    assert str(REPO) in _sh([str(py), "-c", RUN], env, REPO)
 
     # editable over the wheel: imports from the repository and registers the envs
     _sh(pip + ["-e", str(REPO)], env, tmp_path)

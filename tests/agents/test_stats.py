@@ -56,9 +56,9 @@ def test_cli_baselines_writes_iqm_table_and_curves_on_fixed_episodes(tmp_path, c
     assert (doc.parent / "baselines" / "PuckSpeed-v1.png").stat().st_size > 1000
     # --reuse-only trains nothing: the finished PPO run is reported, SAC is said not to be run
     doc.unlink()
-    assert main(["baselines", "--reuse-only", "--envs", "SpinStrike/PuckSpeed-v1", "--algos",
-                 "ppo", "sac", "--seeds", "0", "1", "--no-transfer", "--root", str(root),
-                 "--doc", str(doc)]) == 0
+    assert main(["baselines", "--reuse-only", "--quick", "--envs", "SpinStrike/PuckSpeed-v1",
+                 "--algos", "ppo", "sac", "--seeds", "0", "1", "--no-transfer", "--root",
+                 str(root), "--doc", str(doc)]) == 0
     text = doc.read_text()
     assert "| SAC | not run in this budget |" in text
     assert "| PPO | " in text and " | 1 | " in text
@@ -67,9 +67,9 @@ def test_cli_baselines_writes_iqm_table_and_curves_on_fixed_episodes(tmp_path, c
     stale = text.replace("| SAC | not run in this budget |", "| SAC | stale |")
     edited = "Intro by hand.\n\n" + stale + "\n## Why (by hand)\n\nAn analysis.\n"
     doc.write_text(edited)
-    assert main(["baselines", "--reuse-only", "--envs", "SpinStrike/PuckSpeed-v1", "--algos",
-                 "ppo", "sac", "--seeds", "0", "1", "--no-transfer", "--root", str(root),
-                 "--doc", str(doc)]) == 0
+    assert main(["baselines", "--reuse-only", "--quick", "--envs", "SpinStrike/PuckSpeed-v1",
+                 "--algos", "ppo", "sac", "--seeds", "0", "1", "--no-transfer", "--root",
+                 str(root), "--doc", str(doc)]) == 0
     again = doc.read_text()
     assert again.startswith("Intro by hand.\n\n" + BEGIN) and "| SAC | stale |" not in again
     assert again.endswith(END + "\n\n## Why (by hand)\n\nAn analysis.\n")
@@ -78,8 +78,9 @@ def test_cli_baselines_writes_iqm_table_and_curves_on_fixed_episodes(tmp_path, c
     result = root / "ppo-PuckSpeed-v1-s0" / "baseline.json"
     kept = json.loads(result.read_text())
     result.write_text(json.dumps({**kept, "mean": 999.0}))
-    reuse = ["baselines", "--reuse-only", "--envs", "SpinStrike/PuckSpeed-v1", "--algos", "ppo",
-             "--seeds", "0", "--no-transfer", "--root", str(root), "--doc", str(doc)]
+    reuse = ["baselines", "--reuse-only", "--quick", "--envs", "SpinStrike/PuckSpeed-v1",
+             "--algos", "ppo", "--seeds", "0", "--no-transfer", "--root", str(root),
+             "--doc", str(doc)]
     assert main(reuse) == 0 and "999.000" in doc.read_text()
     assert main([*reuse, "--re-evaluate"]) == 0 and "999.000" not in doc.read_text()
     scored = json.loads(result.read_text())
@@ -91,6 +92,17 @@ def test_cli_baselines_writes_iqm_table_and_curves_on_fixed_episodes(tmp_path, c
         assert main(reuse) == 0
         assert f"load average at start {load:.2f}" in doc.read_text()
         assert ("other jobs shared the cores" in doc.read_text()) is shared
+    # a full report never reuses a --quick run (a tenth of the budget) as if it were a full one
+    with pytest.raises(SystemExit, match=r"scaled by 0\.1, this report asks for 1\.0"):
+        main([r for r in reuse if r != "--quick"])
+    # a --quick run left to its defaults writes beside its runs, not over docs/baselines.md
+    user = tmp_path / "user"
+    user.mkdir()
+    monkeypatch.chdir(user)
+    assert main(["baselines", "--quick", "--reuse-only", "--envs", "SpinStrike/PuckSpeed-v1",
+                 "--algos", "ppo", "--no-transfer"]) == 0
+    assert (user / "runs" / "baselines-quick" / "baselines.md").is_file()
+    assert not (user / "docs").exists()
 
 
 def test_baselines_doc_markers(tmp_path):

@@ -25,3 +25,15 @@ def test_the_bodies_section_is_written_and_replaced(tmp_path):
         assert exact > 0 and p10 > 0
         assert abs(ratio - exact / p10) <= 0.01 + 0.01 * ratio
     assert (tmp_path / "speed_bodies.png").stat().st_size > 0
+
+
+def test_a_quick_run_only_prints(tmp_path, monkeypatch, capsys):
+    """``spinstrike bench speed --quick`` from a clone must not replace the committed
+    docs/speed.md with a quick run's table (as ``bench accuracy --quick`` does not)."""
+    from spinstrike.agents import cli
+
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["bench", "speed", "--section", "bodies", "--bodies", "8", "--quick"]) == 0
+    assert list(tmp_path.iterdir()) == []
+    out = capsys.readouterr().out
+    assert "| 8 |" in out and "printed only" in out
