@@ -120,13 +120,14 @@ def docs_media(folder: str | Path = "docs/images", seed: int = 2) -> list[str]:
            episodes=1, seed=seed, size=size, hold=0.0, env_kwargs={"max_episode_steps": 100})
     written.append(str(out))
     for env_id in envs.ENV_IDS:
+        if env_id == "SpinStrike/PuckSpeed-v0":  # deprecated; PuckSpeed-v1 draws the same table
+            continue
         env = gym.make(env_id, render_mode="rgb_array")  # 720 x 480, shown at half size
         policy = oracle_for(env_id)
         obs, _ = env.reset(seed=seed)
-        for _ in range(1 if env_id in ("SpinStrike/RodSpin-v0", "SpinStrike/PuckSpeed-v0")
-                       else 60):
+        for _ in range(60 if "Control" in env_id else 1):  # a strike, or 60 control steps
             obs, *_ = env.step(policy(env, obs))
-        out = folder / f"{env_id.split('/')[1].removesuffix('-v0').lower()}.png"
+        out = folder / f"{env_id.split('/')[1].split('-v')[0].lower()}.png"
         image = Image.fromarray(env.render())
         image.resize((image.width // 2, image.height // 2), Image.LANCZOS).save(out,
                                                                                optimize=True)
@@ -135,9 +136,27 @@ def docs_media(folder: str | Path = "docs/images", seed: int = 2) -> list[str]:
     return written
 
 
-if __name__ == "__main__":
+def main(argv: list[str] | None = None) -> int:
+    """``python -m spinstrike.agents.record [FOLDER]``: regenerate the README's media (a policy's
+    video is ``spinstrike record``)."""
+    import argparse
     import os
-    import sys
 
     os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
-    print("\n".join(docs_media(*sys.argv[1:2])))
+    p = argparse.ArgumentParser(
+        prog="python -m spinstrike.agents.record",
+        description="Regenerate the README's media (rodspin.gif, rodspincontrol.gif and a still "
+                    "of each env) from the renderer. To film a trained policy, use "
+                    "`spinstrike record RUN_DIR`.")
+    p.add_argument("folder", nargs="?", default="docs/images",
+                   help="where the images go (default: %(default)s)")
+    p.add_argument("--seed", type=int, default=2, help="episode seed (default: %(default)s)")
+    args = p.parse_args(argv)
+    print("\n".join(docs_media(args.folder, args.seed)))
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(main())

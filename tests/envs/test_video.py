@@ -531,3 +531,23 @@ def _gif_milliseconds(path):
     from PIL import Image, ImageSequence
 
     return sum(f.info["duration"] for f in ImageSequence.Iterator(Image.open(path)))
+
+
+def test_readme_media_command_writes_the_readme_images_and_help_writes_nothing(tmp_path):
+    """``python -m spinstrike.agents.record docs/images`` (the README's command) writes exactly
+    the images the README shows, the current ids' (no deprecated PuckSpeed-v0, no warning); its
+    ``--help`` prints usage instead of writing images into a folder named ``--help``."""
+    import re
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    readme = (Path(envs.__file__).resolve().parent.parent / "README.md").read_text()
+    shown = set(re.findall(r"docs/images/((?:rodspin|puckspeed)\w*\.(?:png|gif))", readme))
+    run = [sys.executable, "-W", "error::DeprecationWarning", "-m", "spinstrike.agents.record"]
+    out = subprocess.run([*run, "--help"], cwd=tmp_path, capture_output=True, text=True)
+    assert out.returncode == 0 and out.stdout.startswith("usage:")
+    assert list(tmp_path.iterdir()) == []
+    out = subprocess.run([*run, "images"], cwd=tmp_path, capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert {p.name for p in (tmp_path / "images").iterdir()} == shown
