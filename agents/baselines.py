@@ -233,7 +233,8 @@ DEFAULT_ENVS = [e for e in envs.ENV_IDS if e != "SpinStrike/PuckSpeed-v0"]
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="spinstrike baselines", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(prog="spinstrike baselines",
+                                description=" ".join(__doc__.split("\n\n")[0].split()))
     p.add_argument("--envs", nargs="+", default=DEFAULT_ENVS, choices=list(envs.ENV_IDS))
     p.add_argument("--algos", nargs="+", default=list(ALGOS), choices=ALGOS)
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4])

@@ -3,7 +3,7 @@
     spinstrike train    --algo ppo --env SpinStrike/RodSpin-v0 [--seed 0] [--timesteps N]
     spinstrike train    --algo ppo --env ID --imitate planner   (DAgger first, then PPO)
     spinstrike train    --backend rllib --env ID [--num-env-runners N] [--address ADDR]
-    spinstrike evaluate RUN_DIR | --oracle/--random --env ID   [--episodes 50]
+    spinstrike evaluate RUN_DIR | --oracle/--random/--planner --env ID [--episodes 50] [--json]
     spinstrike record   RUN_DIR | --oracle/--planner --env ID  [--out rollout.mp4|.gif] [--grid]
     spinstrike envs
     spinstrike cache    [--clear]
@@ -86,7 +86,8 @@ def _policy(args):
         for flag in ("oracle", "random", "planner"):
             if getattr(args, flag, False):
                 raise AgentConfigError(f"--{flag}: needs --env ID; ids: {list(envs.ENV_IDS)}")
-        raise AgentConfigError("give a run directory, or --oracle/--random with --env")
+        raise AgentConfigError("give a run directory, or --oracle, --random or --planner "
+                               "with --env ID")
     _check_env_id(args.env)
     if getattr(args, "random", False):
         return RandomPolicy(args.seed), args.env, {}, "random"
@@ -100,7 +101,8 @@ def _policy(args):
                                    f"(SpinStrike/RodSpinControl-v0, SpinStrike/PuckSpeedControl-v0)"
                                    f"; got {args.env!r}")
         return CEMPlanner(), args.env, {}, "planner"
-    raise AgentConfigError("give a run directory, or --oracle/--random with --env")
+    raise AgentConfigError("give a run directory, or --oracle, --random or --planner with "
+                           "--env ID")
 
 
 def cmd_train(args) -> int:
@@ -164,11 +166,22 @@ def cmd_evaluate(args) -> int:
     results = evaluate(env_id, policy if named else None, args.episodes, args.seed,
                        env_kwargs, baselines=True, name=name)
     out = Path(args.run_dir) if args.run_dir and not args.no_save else None
-    print(summarise(results, out, f"## {env_id}"))
-    if args.json:
-        print(json.dumps({r.policy: {"mean": r.mean, "std": r.std,
+    header = f"## {env_id}"
+    if out is not None:  # the run's own title (algorithm, seed, steps, time) stays on top
+        old = out / "summary.md"
+        title = old.read_text().splitlines()[0] if old.is_file() else ""
+        header = (f"{title if title.startswith('#') else header}\n\nRe-evaluated by "
+                  f"`spinstrike evaluate`: {args.episodes} episodes from seed {args.seed}.")
+    text = summarise(results, out, header)
+    if args.json:  # stdout is the JSON alone, for a pipe
+        print(json.dumps({r.policy: {"mean": r.mean, "std": r.std, "episodes": r.episodes,
                                      **({"hits": r.hits} if r.hits else {})}
                           for r in results}))
+    else:
+        print(text)
+    if out is not None:
+        print(f"wrote {out / 'summary.md'} and summary.json (--no-save leaves them)",
+              file=sys.stderr)
     return 0
 
 
@@ -241,7 +254,8 @@ def cmd_baselines(args) -> int:
 def build_parser() -> argparse.ArgumentParser:
     from spinstrike.agents.config import ALGOS
 
-    p = argparse.ArgumentParser(prog="spinstrike", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(prog="spinstrike", description=__doc__.replace("``", "`"),
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="command", required=True)
 
     t = sub.add_parser("train", help="train an SB3 agent from an rl-zoo3 hyperparameter file")
@@ -284,7 +298,8 @@ def build_parser() -> argparse.ArgumentParser:
     for name, func, helptext in (
             ("evaluate", cmd_evaluate, "mean +/- std return vs random and the oracle (control "
              "envs: and what their hits gained and lost)"),
-            ("record", cmd_record, "write an mp4 rollout")):
+            ("record", cmd_record, "film a run's policy, the oracle or the planner: an mp4 "
+             "(or a GIF) of every rendered frame")):
         e = sub.add_parser(name, help=helptext)
         e.add_argument("run_dir", nargs="?")
         e.add_argument("--env")
@@ -317,8 +332,11 @@ def build_parser() -> argparse.ArgumentParser:
     c.set_defaults(func=cmd_cache)
 
     b = sub.add_parser("bench", help="benchmarks: accuracy vs time, speed")
-    b.add_argument("which", choices=("accuracy", "speed"))
-    b.add_argument("rest", nargs=argparse.REMAINDER)
+    b.add_argument("which", choices=("accuracy", "speed"),
+                   help="accuracy: error against time per collision beside pymunk; speed: "
+                        "throughput beside pymunk and CartPole")
+    b.add_argument("rest", nargs=argparse.REMAINDER, metavar="...",
+                   help="the benchmark's own options (spinstrike bench accuracy --help)")
     b.set_defaults(func=cmd_bench)
 
     r = sub.add_parser("baselines", help="train the baseline matrix and write docs/baselines.md")

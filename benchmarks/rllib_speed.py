@@ -118,7 +118,7 @@ def measure(env_id: str, runners: int, envs: int, steps: int, repeats: int,
 
 
 def main(argv: list[str] | None = None) -> None:
-    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
     p.add_argument("--runners", type=int, default=2)
     p.add_argument("--envs", type=int, default=64)
     p.add_argument("--steps", type=int, default=8192, help="env steps per runner per sample")

@@ -1,6 +1,7 @@
 """Baselines plumbing on tiny budgets: every algorithm on every env trains, saves, loads and
 evaluates; the CLI runs end to end; videos have frames; runs resume; bad configs fail cleanly."""
 
+import json
 import subprocess
 import sys
 
@@ -49,8 +50,12 @@ def test_cli_train_evaluate_record_envs(tmp_path, capsys):
     assert "| agent |" in summary and "| random |" in summary and "| oracle |" in summary
     frames, seconds = imageio_ffmpeg.count_frames_and_secs(str(run / "rollout.mp4"))
     assert frames > 3 * 15 and seconds > 0
+    title = summary.splitlines()[0]
     assert main(["evaluate", str(run), "--episodes", "3", "--json"]) == 0
-    assert '"oracle"' in capsys.readouterr().out
+    report = json.loads(capsys.readouterr().out)  # stdout is the JSON alone (a pipe reads it)
+    assert list(report) == ["agent", "random", "oracle"] and report["oracle"]["episodes"] == 3
+    again = (run / "summary.md").read_text()  # the run's title stays; the new scores replace
+    assert again.splitlines()[0] == title and "Re-evaluated by `spinstrike evaluate`: 3" in again
     video = tmp_path / "oracle.mp4"
     assert main(["record", "--oracle", "--env", "SpinStrike/RodSpinControl-v0", "--out",
                  str(video), "--episodes", "1"]) == 0
@@ -175,3 +180,26 @@ def test_sigterm_during_training_says_resume_and_the_run_resumes(tmp_path):
     assert (tmp_path / "run" / "model.zip").exists()
     assert yaml.safe_load((tmp_path / "run" / "config.yml").read_text())["runs"][-1][
         "timesteps"] >= 100000
+
+
+def test_every_command_helps(capsys):
+    """``--help`` of the CLI and of each command exits 0 and says what each command and
+    argument is (the baselines description was once cut mid-sentence, ``bench``'s arguments
+    had none, the command list at the top showed no usage)."""
+    for argv in (["--help"], ["train", "--help"], ["evaluate", "--help"], ["record", "--help"],
+                 ["envs", "--help"], ["cache", "--help"], ["bench", "--help"],
+                 ["baselines", "--help"]):
+        with pytest.raises(SystemExit) as exit_:
+            main(argv)
+        assert exit_.value.code == 0, argv
+        out = capsys.readouterr().out
+        assert out.startswith("usage: spinstrike"), argv
+    main_help = subprocess.run([sys.executable, "-m", "spinstrike.agents.cli", "--help"],
+                               capture_output=True, text=True).stdout
+    assert "spinstrike evaluate RUN_DIR | --oracle/--random/--planner" in main_help
+    with pytest.raises(SystemExit):
+        main(["baselines", "--help"])
+    assert "learning-curve plots." in " ".join(capsys.readouterr().out.split())
+    with pytest.raises(SystemExit):
+        main(["bench", "--help"])
+    assert "the benchmark's own options" in capsys.readouterr().out

@@ -165,11 +165,11 @@ def test_cli_evaluate_planner_reports_its_hits(capsys, tmp_path):
     """``spinstrike evaluate --planner --env ID`` (the planner module's own example) scores the
     planner beside random and chase-and-hit, and for a control env says what the hits gained
     and lost; a one-strike env's report has no such columns."""
+    assert main(["evaluate", "--planner", "--env", CONTROL[1], "--episodes", "1"]) == 0
+    table = capsys.readouterr().out
     assert main(["evaluate", "--planner", "--env", CONTROL[1], "--episodes", "1",
                  "--json"]) == 0
-    text = capsys.readouterr().out
-    table, report = text.split("\n{", 1)
-    report = json.loads("{" + report)
+    report = json.loads(capsys.readouterr().out)  # the JSON alone
     assert list(report) == ["planner", "random", "oracle"]
     assert "| planner |" in table and "gained by hits / ep." in table
     for row in report.values():  # rewards are paid in steps with a hit only
@@ -180,7 +180,9 @@ def test_cli_evaluate_planner_reports_its_hits(capsys, tmp_path):
     assert report["planner"]["mean"] > 2 * report["oracle"]["mean"]
     assert main(["evaluate", "--oracle", "--env", "SpinStrike/RodSpin-v0", "--episodes", "2",
                  "--json"]) == 0
+    assert "hits" not in json.loads(capsys.readouterr().out)["oracle"]
+    assert main(["evaluate", "--oracle", "--env", "SpinStrike/RodSpin-v0", "--episodes", "2"]) == 0
     text = capsys.readouterr().out
-    assert "hits" not in text and "| oracle | 1.0000 |" in text
+    assert "gained by hits" not in text and "| oracle | 1.0000 |" in text
     assert main(["evaluate", "--planner", "--env", "SpinStrike/RodSpin-v0"]) == 2
     assert "--planner: drives the control envs only" in capsys.readouterr().err
