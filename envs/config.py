@@ -8,6 +8,7 @@ raises :class:`ConfigError` naming the field and what is allowed. Scenes ship in
 from __future__ import annotations
 
 import copy
+import re
 from typing import ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
@@ -189,17 +190,24 @@ def _positive_range(v: Range, unit: str) -> Range:
     return v
 
 
+#: a location part that names a member of a union type (``float``, ``literal['a','b']``, ...)
+#: rather than a field: pydantic reports one error per member it tried
+_UNION_MEMBER = re.compile(r"^(?:[a-z]+\[.*\]|float|int|str|bool|list|tuple|dict|none)$")
+
+
 def _format(err: ValidationError) -> str:
-    parts = []
+    """``<field>: <what is wrong> (got <input>)``, one per field; the members of a union
+    (``rod_inertia``: a name or a number) are said as one error, not one per member."""
+    found: dict[str, tuple[list[str], str]] = {}
     for e in err.errors():
-        loc = ".".join(str(p) for p in e["loc"]) or "config"
+        loc = ".".join(str(p) for p in e["loc"] if not _UNION_MEMBER.match(str(p))) or "config"
         msg = e["msg"].removeprefix("Value error, ")
         if e["type"] == "extra_forbidden":
             msg = "unknown argument"
-        elif e["type"] != "value_error" and "input" in e:
-            msg += f" (got {e['input']!r})"
-        parts.append(f"{loc}: {msg}")
-    return "; ".join(parts)
+        got = f" (got {e['input']!r})" if e["type"] != "value_error" and "input" in e else ""
+        msgs, _ = found.setdefault(loc, ([], got))
+        msgs.append(msg if not msgs else msg.removeprefix("Input should be "))
+    return "; ".join(f"{loc}: {', or '.join(msgs)}{got}" for loc, (msgs, got) in found.items())
 
 
 def parse_config(model: type[EnvConfig], config: dict | None, kwargs: dict) -> EnvConfig:
@@ -281,4 +289,6 @@ def build_scene(default: str, cfg: EnvConfig, body_overrides: dict[str, dict]) -
     try:
         return load_scene(data)
     except SceneError as exc:
-        raise ConfigError(f"scene: {exc}") from None
+        # a scene the user gave is named; one built from the defaults and keyword arguments
+        # is not (the field path, ``solver`` say, is the argument's name)
+        raise ConfigError(f"scene: {exc}" if cfg.scene is not None else str(exc)) from None

@@ -15,7 +15,7 @@ from typing import ClassVar
 import numpy as np
 
 from spinstrike.envs import fast
-from spinstrike.envs.config import ControlConfig, build_scene
+from spinstrike.envs.config import ConfigError, ControlConfig, build_scene
 from spinstrike.envs.core import (
     SpinStrikeEnv,
     SpinStrikeVectorEnv,
@@ -55,8 +55,8 @@ class _ControlTask(Task):
         self.world = World(build_scene(self.SCENE, cfg, overrides), batch_size)
         w = self.world
         if not w.walls or not w.driven[w.index("mallet")]:
-            raise ValueError("scene: a control env needs the 'walls' effect and a driven "
-                             "'mallet' body")
+            raise ConfigError("scene: a control env needs the 'walls' effect and a driven "
+                              "'mallet' body")
         self.im = w.index("mallet")
         self.it = w.index(self.TARGET)
         # the fused step's buffers (envs.fast): actions in; observation, reward, info out

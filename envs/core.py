@@ -30,7 +30,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from spinstrike.envs.config import EnvConfig, parse_config
+from spinstrike.envs.config import ConfigError, EnvConfig, parse_config
 from spinstrike.envs.layout import ObsField
 from spinstrike.envs.rendering import Frame, Renderer
 from spinstrike.envs.rng import UniformStream
@@ -184,7 +184,7 @@ class Task(ABC):
             w, h = self.cfg.obs_size
             return spaces.Box(0, 255, (h, w, 3), dtype=np.uint8)
         if self.GOAL is None:
-            raise ValueError(f"obs_mode: 'dict' needs a goal-conditioned env (goal='target'); "
+            raise ConfigError(f"obs_mode: 'dict' needs a goal-conditioned env (goal='target'); "
                              f"{type(self).__name__} has none")
         keep = np.ones(len(self.LAYOUT), bool)
         keep[self.GOAL] = False
@@ -268,7 +268,7 @@ class SpinStrikeEnv(gym.Env):
     def __init__(self, render_mode: str | None = None, config: dict | None = None,
                  **kwargs: Any) -> None:
         if render_mode not in (None, *self.metadata["render_modes"]):
-            raise ValueError(f"render_mode: must be one of {self.metadata['render_modes']} or "
+            raise ConfigError(f"render_mode: must be one of {self.metadata['render_modes']} or "
                              f"None (got {render_mode!r})")
         self.render_mode = render_mode
         self._config = dict(config or {}) | kwargs
@@ -388,7 +388,7 @@ def parse_autoreset_mode(value: Any) -> AutoresetMode:
         mode = _MODE_NAMES.get(value.replace("_", "").replace("-", "").lower())
         if mode is not None:
             return mode
-    raise ValueError(f"autoreset_mode: must be a gymnasium.vector.AutoresetMode or one of "
+    raise ConfigError(f"autoreset_mode: must be a gymnasium.vector.AutoresetMode or one of "
                      f"'next_step', 'same_step', 'disabled' (got {value!r})")
 
 
@@ -438,10 +438,10 @@ class SpinStrikeVectorEnv(VectorEnv):
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
                  **kwargs: Any) -> None:
         if render_mode not in (None, *self.metadata["render_modes"]):
-            raise ValueError(f"render_mode: must be one of {self.metadata['render_modes']} or "
+            raise ConfigError(f"render_mode: must be one of {self.metadata['render_modes']} or "
                              f"None (got {render_mode!r})")
         if int(num_envs) < 1:
-            raise ValueError(f"num_envs: must be >= 1 (got {num_envs})")
+            raise ConfigError(f"num_envs: must be >= 1 (got {num_envs})")
         self.autoreset_mode = parse_autoreset_mode(autoreset_mode)
         # per instance: the class-level dict is shared by every instance of the class
         self.metadata = dict(self.metadata, autoreset_mode=self.autoreset_mode)

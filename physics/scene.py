@@ -400,7 +400,11 @@ def _format_error(err: ValidationError) -> str:
             elif part not in SOLVERS:
                 loc += ("." if loc else "") + str(part)
         msg = e["msg"].removeprefix("Value error, ")
-        if e["type"] == "value_error":
+        if e["type"] == "union_tag_invalid":  # pydantic's words for an unknown solver mode
+            ctx = e["ctx"]
+            msg = (f"unknown {ctx['discriminator'].strip(chr(39))} {ctx['tag']!r}; allowed: "
+                   f"{ctx['expected_tags'].replace(chr(39), '')}")
+        elif e["type"] == "value_error":
             field, sep, rest = msg.partition(": ")
             if sep and _FIELD.fullmatch(field):  # our validators say "<field>: <message>"
                 loc, msg = (f"{loc}.{field}" if loc else field), rest

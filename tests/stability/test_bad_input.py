@@ -151,7 +151,13 @@ BAD_KWARGS = [
     ("SpinStrike/RodSpin-v0", {"restitution": "high"}, "restitution"),
     ("SpinStrike/RodSpin-v0", {"striker_mass": 0.0}, "striker_mass"),
     ("SpinStrike/RodSpin-v0", {"speed_range": [2.0, 1.0]}, "speed_range"),
-    ("SpinStrike/RodSpin-v0", {"rod_inertia": "heavy"}, "rod_inertia"),
+    ("SpinStrike/RodSpin-v0", {"rod_inertia": "heavy"},
+     "rod_inertia: Input should be 'capsule' or 'thin_rod', or a valid number (got 'heavy')"),
+    ("SpinStrike/RodSpin-v0", {"solver": "rk4"},
+     "solver: unknown mode 'rk4'; allowed: exact, fixed, pymunk"),
+    ("SpinStrike/RodSpin-v0", {"scene": "rod_spin", "solver": "rk4"}, "scene: solver: unknown"),
+    ("SpinStrike/RodSpinControl-v0", {"obs_mode": "dict"}, "obs_mode: 'dict' needs a goal"),
+    ("SpinStrike/RodSpin-v0", {"render_mode": "hologram"}, "render_mode: must be one of"),
     ("SpinStrike/RodSpin-v0", {"effects": ["gravity"]}, "effects"),
     ("SpinStrike/RodSpin-v0", {"randomize": {"colour": [0, 1]}}, "colour"),
     ("SpinStrike/RodSpin-v0", {"randomize": {"target_mass": [-1, 1]}}, "target_mass"),
@@ -180,9 +186,13 @@ def test_bad_env_arguments_are_one_config_error(env_id, kw, names):
     assert names in str(info.value)
 
 
-def test_bad_render_mode_is_a_value_error():
-    with pytest.raises(ValueError, match="render_mode"):
-        _make("SpinStrike/RodSpin-v0", render_mode="hologram")
+def test_bad_vector_env_arguments_are_config_errors():
+    for kw, names in (({"num_envs": 0}, "num_envs: must be >= 1"),
+                      ({"num_envs": 2, "render_mode": "hologram"}, "render_mode"),
+                      ({"num_envs": 2, "autoreset_mode": "sometimes"},
+                       "autoreset_mode")):
+        with pytest.raises(ConfigError, match=names):
+            gym.make_vec("SpinStrike/RodSpinControl-v0", **kw)
 
 
 @pytest.mark.parametrize("env_id", list(envs.ENV_IDS))
