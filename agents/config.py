@@ -15,6 +15,7 @@ is allowed, before anything is created on disk.
 from __future__ import annotations
 
 import inspect
+import math
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -90,6 +91,9 @@ def _schedule(value: Any, key: str):
                 start = float(value[4:])
             except ValueError:
                 raise AgentConfigError(f"{key}: 'lin_<number>' expected (got {value!r})") from None
+            if not (math.isfinite(start) and start > 0):
+                raise AgentConfigError(f"{key}: 'lin_<number>' needs a number > 0 (got "
+                                       f"{value!r})")
             return lambda progress: progress * start
         raise AgentConfigError(f"{key}: a number or 'lin_<number>' expected (got {value!r})")
     return value
@@ -172,6 +176,74 @@ def _convert_values(entry: dict, where: str) -> None:
                 pass
 
 
+def _integer(low: int, also: tuple = ()):
+    def check(v):
+        return v in also or (isinstance(v, (int, float)) and not isinstance(v, bool)
+                             and float(v).is_integer() and v >= low)
+    return check
+
+
+def _number(low: float, high: float = math.inf, low_open: bool = False):
+    def check(v):
+        return (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                and (v > low if low_open else v >= low) and v <= high)
+    return check
+
+
+def _flag(v) -> bool:
+    return isinstance(v, bool)
+
+
+#: SB3's numeric hyperparameters: how each is checked and what to say when it fails (SB3 itself
+#: fails late, deep in torch or its own code, or not at all: a negative learning rate raised in
+#: torch's optimiser, a string n_steps in a comparison)
+_VALUES: dict[str, tuple[Any, str]] = {
+    "n_steps": (_integer(1), "an integer >= 1"),
+    "batch_size": (_integer(1), "an integer >= 1"),
+    "n_epochs": (_integer(1), "an integer >= 1"),
+    "buffer_size": (_integer(1), "an integer >= 1"),
+    "learning_starts": (_integer(0), "an integer >= 0"),
+    "gradient_steps": (_integer(1, (-1,)), "an integer >= 1, or -1 (as many as env steps)"),
+    "policy_delay": (_integer(1), "an integer >= 1"),
+    "target_update_interval": (_integer(1), "an integer >= 1"),
+    "sde_sample_freq": (_integer(-1), "an integer >= -1"),
+    "seed": (_integer(0), "an integer >= 0"),
+    "verbose": (_integer(0), "an integer >= 0"),
+    "gamma": (_number(0.0, 1.0), "a number in [0, 1]"),
+    "gae_lambda": (_number(0.0, 1.0), "a number in [0, 1]"),
+    "tau": (_number(0.0, 1.0, low_open=True), "a number in (0, 1]"),
+    "vf_coef": (_number(0.0), "a number >= 0"),
+    "max_grad_norm": (_number(0.0, low_open=True), "a number > 0"),
+    "target_policy_noise": (_number(0.0), "a number >= 0"),
+    "target_noise_clip": (_number(0.0), "a number >= 0"),
+    "target_kl": (lambda v: v is None or _number(0.0, low_open=True)(v), "a number > 0 or null"),
+    "use_sde": (_flag, "true or false"),
+    "normalize_advantage": (_flag, "true or false"),
+    "optimize_memory_usage": (_flag, "true or false"),
+}
+_INTEGERS = {k for k, (check, what) in _VALUES.items() if what.startswith("an integer")}
+
+
+def _check_values(entry: dict, where: str) -> None:
+    """Refuse values SB3 would fail on late or misuse silently, naming the key and what is
+    allowed; integral floats (PyYAML reads ``1e5`` as a float) become ints."""
+    for key in ("learning_rate", "clip_range"):
+        value = entry.get(key)
+        if value is not None and not callable(value) and not _number(0.0, low_open=True)(value):
+            raise AgentConfigError(f"{where}.{key}: must be a number > 0 or 'lin_<number>' "
+                                   f"(got {value!r})")
+    ent = entry.get("ent_coef")
+    if ent is not None and not (_number(0.0)(ent) or (isinstance(ent, str)
+                                                       and ent.startswith("auto"))):
+        raise AgentConfigError(f"{where}.ent_coef: must be a number >= 0, or 'auto' / "
+                               f"'auto_<initial value>' for SAC (got {ent!r})")
+    for key, (check, what) in _VALUES.items():
+        if key in entry and not check(entry[key]):
+            raise AgentConfigError(f"{where}.{key}: must be {what} (got {entry[key]!r})")
+        if key in _INTEGERS and isinstance(entry.get(key), float):
+            entry[key] = int(entry[key])
+
+
 def load_agent_config(algo: str, env_id: str, path: str | Path | None = None,
                       overrides: dict | None = None) -> RunConfig:
     """Read and validate the entry for ``env_id`` in an rl-zoo3 hyperparameter file.
@@ -204,5 +276,6 @@ def load_agent_config(algo: str, env_id: str, path: str | Path | None = None,
     if not isinstance(env_kwargs, dict):
         raise AgentConfigError(f"{where}.env_kwargs: must be a mapping")
     _convert_values(entry, where)
+    _check_values(entry, where)
     return RunConfig(algo, env_id, n_timesteps, policy, n_envs, normalize, env_kwargs, entry,
                      str(path), raw)
