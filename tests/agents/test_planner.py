@@ -172,6 +172,7 @@ def test_cli_evaluate_planner_reports_its_hits(capsys, tmp_path):
     report = json.loads(capsys.readouterr().out)  # the JSON alone
     assert list(report) == ["planner", "random", "oracle"]
     assert "| planner |" in table and "gained by hits / ep." in table
+    assert "| oracle (chase-and-hit) |" in table  # as the README and baselines call it
     for row in report.values():  # rewards are paid in steps with a hit only
         hits = row["hits"]
         assert hits["gained"] + hits["lost"] == pytest.approx(row["mean"], abs=1e-9)
