@@ -14,15 +14,15 @@ works in a fresh process (and ``--gym-packages spinstrike`` in rl-zoo3).
 """
 
 from importlib.metadata import PackageNotFoundError, version
-from pathlib import Path
+from pathlib import Path as _Path
 
 # In a source checkout this folder holds only this file; the subpackages are the repository's
 # top-level folders. Python puts the current folder first on sys.path, so a `python -c` or
 # `python -m` run from the repository root imports this file even when the package is installed
 # as a wheel, and `spinstrike.envs` would not be found: point the subpackages at the checkout
 # (an installed package has them beside this file and is left alone).
-_root = Path(__file__).resolve().parent.parent
-if not (Path(__file__).resolve().parent / "envs").is_dir() and (
+_root = _Path(__file__).resolve().parent.parent
+if not (_Path(__file__).resolve().parent / "envs").is_dir() and (
         _root / "pyproject.toml").is_file() and (_root / "envs" / "__init__.py").is_file():
     __path__.append(str(_root))  # noqa: F821  (the package's own __path__)
 del _root
