@@ -154,7 +154,7 @@ BAD_KWARGS = [
     ("SpinStrike/RodSpin-v0", {"rod_inertia": "heavy"},
      "rod_inertia: Input should be 'capsule' or 'thin_rod', or a valid number (got 'heavy')"),
     ("SpinStrike/RodSpin-v0", {"solver": "rk4"},
-     "solver: unknown mode 'rk4'; allowed: exact, fixed, pymunk"),
+     "solver: unknown mode 'rk4'; allowed: 'exact', 'fixed', 'pymunk'"),
     ("SpinStrike/RodSpin-v0", {"scene": "rod_spin", "solver": "rk4"}, "scene: solver: unknown"),
     ("SpinStrike/RodSpinControl-v0", {"obs_mode": "dict"}, "obs_mode: 'dict' needs a goal"),
     ("SpinStrike/RodSpin-v0", {"render_mode": "hologram"}, "render_mode: must be one of"),
