@@ -27,5 +27,5 @@ def pytest_collection_modifyitems(config, items):
     a local Ray of 2 CPUs, or a two-node cluster, and two of them at once would fight for the
     machine's cores and Ray's session directory."""
     for item in items:
-        if item.get_closest_marker("rllib"):
-            item.add_marker(pytest.mark.xdist_group("ray"))
+        if item.get_closest_marker("rllib") or "tests/rllib/" in item.path.as_posix():
+            item.add_marker(pytest.mark.xdist_group("ray"))  # the slow RLlib run too
