@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import copy
 import re
-from typing import ClassVar, Literal
+from typing import Annotated, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
@@ -142,7 +142,7 @@ class RodSpinConfig(_StrikeConfig):
     reward_width: Number = Field(0.1, gt=0.0)
     rod_length: Number | None = Field(None, gt=0.0)
     rod_thickness: Number | None = Field(None, ge=0.0)
-    rod_inertia: Literal["capsule", "thin_rod"] | Number = "capsule"
+    rod_inertia: Literal["capsule", "thin_rod"] | Annotated[Number, Field(gt=0.0)] = "capsule"
 
     _target_spin = field_validator("target_spin")(lambda v: _positive_range(v, "rad/s"))
 
@@ -192,7 +192,8 @@ def _positive_range(v: Range, unit: str) -> Range:
 
 #: a location part that names a member of a union type (``float``, ``literal['a','b']``, ...)
 #: rather than a field: pydantic reports one error per member it tried
-_UNION_MEMBER = re.compile(r"^(?:[a-z]+\[.*\]|float|int|str|bool|list|tuple|dict|none)$")
+_UNION_MEMBER = re.compile(r"^(?:[a-z-]+\[.*\]|(?:constrained-)?(?:float|int|str|bool|list|tuple"
+                           r"|dict|none))$")
 
 
 def _format(err: ValidationError) -> str:
@@ -289,6 +290,4 @@ def build_scene(default: str, cfg: EnvConfig, body_overrides: dict[str, dict]) -
     try:
         return load_scene(data)
     except SceneError as exc:
-        # a scene the user gave is named; one built from the defaults and keyword arguments
-        # is not (the field path, ``solver`` say, is the argument's name)
-        raise ConfigError(f"scene: {exc}" if cfg.scene is not None else str(exc)) from None
+        raise ConfigError(f"scene: {exc}") from None
