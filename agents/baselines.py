@@ -2,7 +2,8 @@
 accuracy-transfer study; writes ``docs/baselines.md`` and learning-curve plots.
 
     spinstrike baselines            # the full matrix, 5 seeds (about 3 hours on 2 cores)
-    spinstrike baselines --quick    # one seed, a tenth of the budgets (a smoke test)
+    spinstrike baselines --quick    # one seed, a tenth of the budgets (a smoke test, in
+                                    # runs/baselines-quick: docs/ is left alone)
     spinstrike baselines --envs SpinStrike/RodSpin-v0 --algos ppo --seeds 0 1 2 3 4
 
 Runs live in ``runs/baselines/<algo>-<env>-s<seed>`` and finished ones are reused, so an
