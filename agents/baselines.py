@@ -38,6 +38,7 @@ import numpy as np
 
 from spinstrike import envs
 from spinstrike.agents.config import ALGOS, load_agent_config
+from spinstrike.benchmarks import cpu_model
 
 __all__ = ["main"]
 
@@ -48,12 +49,7 @@ TRANSFER_SOLVERS = {"exact": None, "fixed (1 substep)": {"mode": "fixed", "subst
 
 
 def _machine() -> str:
-    try:
-        model = next(line.split(":", 1)[1].strip() for line in
-                     Path("/proc/cpuinfo").read_text().splitlines()
-                     if line.startswith("model name"))
-    except (OSError, StopIteration):
-        model = platform.processor() or "unknown CPU"
+    model = cpu_model() or "unknown CPU"
     import stable_baselines3
     import torch
 

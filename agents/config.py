@@ -180,6 +180,7 @@ def _integer(low: int, also: tuple = ()):
     def check(v):
         return v in also or (isinstance(v, (int, float)) and not isinstance(v, bool)
                              and float(v).is_integer() and v >= low)
+    check.integer = True  # an integral float (PyYAML's 1e5) is stored as an int
     return check
 
 
@@ -221,7 +222,6 @@ _VALUES: dict[str, tuple[Any, str]] = {
     "normalize_advantage": (_flag, "true or false"),
     "optimize_memory_usage": (_flag, "true or false"),
 }
-_INTEGERS = {k for k, (check, what) in _VALUES.items() if what.startswith("an integer")}
 
 
 def _check_values(entry: dict, where: str) -> None:
@@ -240,7 +240,7 @@ def _check_values(entry: dict, where: str) -> None:
     for key, (check, what) in _VALUES.items():
         if key in entry and not check(entry[key]):
             raise AgentConfigError(f"{where}.{key}: must be {what} (got {entry[key]!r})")
-        if key in _INTEGERS and isinstance(entry.get(key), float):
+        if getattr(check, "integer", False) and isinstance(entry.get(key), float):
             entry[key] = int(entry[key])
 
 

@@ -36,6 +36,7 @@ from spinstrike import (
     envs,  # noqa: F401
     physics,
 )
+from spinstrike.benchmarks import cpu_model
 from spinstrike.benchmarks import startup as startup_study
 
 __all__ = ["main"]
@@ -410,12 +411,7 @@ def _write_bodies(out: Path, rows, steps: int, load: float | None = None) -> Non
 
 
 def _machine() -> str:
-    try:
-        model = next(line.split(":", 1)[1].strip() for line in
-                     Path("/proc/cpuinfo").read_text().splitlines()
-                     if line.startswith("model name"))
-    except (OSError, StopIteration):
-        model = platform.processor()
+    model = cpu_model()
     import numba
     import pymunk
 

@@ -185,7 +185,7 @@ class Task(ABC):
             return spaces.Box(0, 255, (h, w, 3), dtype=np.uint8)
         if self.GOAL is None:
             raise ConfigError(f"obs_mode: 'dict' needs a goal-conditioned env (goal='target'); "
-                             f"{type(self).__name__} has none")
+                              f"{type(self).__name__} has none")
         keep = np.ones(len(self.LAYOUT), bool)
         keep[self.GOAL] = False
         glow = np.array([f.low for f in self.ACHIEVED], np.float32)
@@ -269,7 +269,7 @@ class SpinStrikeEnv(gym.Env):
                  **kwargs: Any) -> None:
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ConfigError(f"render_mode: must be one of {self.metadata['render_modes']} or "
-                             f"None (got {render_mode!r})")
+                              f"None (got {render_mode!r})")
         self.render_mode = render_mode
         self._config = dict(config or {}) | kwargs
         self.cfg = parse_config(self.TASK.CONFIG, config, kwargs)
@@ -389,7 +389,7 @@ def parse_autoreset_mode(value: Any) -> AutoresetMode:
         if mode is not None:
             return mode
     raise ConfigError(f"autoreset_mode: must be a gymnasium.vector.AutoresetMode or one of "
-                     f"'next_step', 'same_step', 'disabled' (got {value!r})")
+                      f"'next_step', 'same_step', 'disabled' (got {value!r})")
 
 
 def _reset_mask(options: dict | None, n: int) -> np.ndarray | None:
@@ -439,7 +439,7 @@ class SpinStrikeVectorEnv(VectorEnv):
                  **kwargs: Any) -> None:
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ConfigError(f"render_mode: must be one of {self.metadata['render_modes']} or "
-                             f"None (got {render_mode!r})")
+                              f"None (got {render_mode!r})")
         if int(num_envs) < 1:
             raise ConfigError(f"num_envs: must be >= 1 (got {num_envs})")
         self.autoreset_mode = parse_autoreset_mode(autoreset_mode)

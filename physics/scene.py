@@ -402,8 +402,8 @@ def _format_error(err: ValidationError) -> str:
         msg = e["msg"].removeprefix("Value error, ")
         if e["type"] == "union_tag_invalid":  # pydantic's words for an unknown solver mode
             ctx = e["ctx"]
-            msg = (f"unknown {ctx['discriminator'].strip(chr(39))} {ctx['tag']!r}; allowed: "
-                   f"{ctx['expected_tags']}")
+            key = ctx["discriminator"].strip("'")
+            msg = f"unknown {key} {ctx['tag']!r}; allowed: {ctx['expected_tags']}"
         elif e["type"] == "value_error":
             field, sep, rest = msg.partition(": ")
             if sep and _FIELD.fullmatch(field):  # our validators say "<field>: <message>"
