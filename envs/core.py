@@ -342,8 +342,10 @@ class SpinStrikeEnv(gym.Env):
                                      self.cfg)
 
     def get_physics_state(self) -> dict:
-        """The full physical state (world arrays and the episode's task data), for replays."""
-        return {"world": self.task.world.get_state(), "task": self.task.snapshot()}
+        """The full physical state (world arrays, the episode's parameters, e.g. a
+        ``randomize`` draw, and its task data), for replays; pickling carries it."""
+        return {"world": self.task.world.get_state(parameters=True),
+                "task": self.task.snapshot()}
 
     def set_physics_state(self, state: dict) -> None:
         """Put back a state from :meth:`get_physics_state` (then ``step`` continues from it)."""

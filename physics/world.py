@@ -106,6 +106,11 @@ __all__ = ["Buffers", "Contacts", "State", "StepStats", "World"]
 #: batch size from which the parallel kernels are used
 PARALLEL_BATCH = 256
 
+#: the per-element parameters an edit can change: (snapshot key, World attribute)
+_PARAMETER_ARRAYS = [("mass", "_mass"), ("radius", "_radius"), ("half_length", "_half_length"),
+                     ("inertia", "_inertia"), ("table_friction", "_table_mu"),
+                     ("table_half_size", "_half"), ("materials", "_materials")]
+
 
 def _read_only(a: np.ndarray) -> np.ndarray:
     v = a.view()
@@ -579,26 +584,46 @@ class World:
         """Length of the last (or running) step, s."""
         return self._dt
 
-    def get_state(self) -> dict[str, np.ndarray]:
-        """A copy of the full physical state (state arrays, forces, time), for ``restore``."""
-        return {"state": self._state.copy(), "forces": self._forces.copy(),
+    def get_state(self, parameters: bool = False) -> dict[str, np.ndarray]:
+        """A copy of the full physical state (state arrays, forces, time), for ``restore``.
+
+        ``parameters=True`` adds the per-element parameters an edit changes (masses, moments,
+        sizes, materials, the table's friction and size), so that ``restore`` also undoes an
+        edit: what a snapshot of a randomised episode needs (an env's ``get_physics_state``)."""
+        snap = {"state": self._state.copy(), "forces": self._forces.copy(),
                 "time": self._time.copy()}
+        if parameters:
+            snap |= {key: getattr(self, name).copy() for key, name in _PARAMETER_ARRAYS}
+        return snap
 
     def restore(self, snapshot: dict[str, np.ndarray], env: Any = None) -> None:
-        """Put back a snapshot from ``get_state`` (all elements, or those in ``env``)."""
+        """Put back a snapshot from ``get_state`` (all elements, or those in ``env``); its
+        parameters too, if it has them."""
         rows = batch_rows(env, self.batch_size)
+        names = [("state", "_state"), ("forces", "_forces"), ("time", "_time")]
+        with_params = all(key in snapshot for key, _ in _PARAMETER_ARRAYS)
+        if with_params:
+            names += _PARAMETER_ARRAYS
         arrays = {}
-        for name, mine in (("state", self._state), ("forces", self._forces),
-                           ("time", self._time)):
-            value = np.asarray(snapshot[name])
+        for key, name in names:
+            mine = getattr(self, name)
+            value = np.asarray(snapshot[key])
             if value.shape != mine.shape:
-                raise SceneError(f"snapshot: {name} shape {value.shape} != {mine.shape}")
-            arrays[name] = as_batch(value, mine.shape, f"snapshot.{name}")
-        state, forces, time = arrays["state"], arrays["forces"], arrays["time"]
-        self._state[rows] = state[rows]
-        self._forces[rows] = forces[rows]
-        self._time[rows] = time[rows]
-        self._sync_backend(state=True)
+                raise SceneError(f"snapshot: {key} shape {value.shape} != {mine.shape}")
+            if name in ("_state", "_forces", "_time"):
+                value = as_batch(value, mine.shape, f"snapshot.{key}")
+            elif value.dtype.kind not in "iuf" or np.isnan(value).any():
+                # parameters may be inf (a static body's mass, an unbounded table)
+                raise SceneError(f"snapshot: {key} must be numbers, not NaN")
+            arrays[name] = value
+        for name, value in arrays.items():
+            getattr(self, name)[rows] = value[rows]
+        if with_params:
+            self._params[rows] = self._derive_params(self._mass[rows], self._inertia[rows],
+                                                     self._radius[rows],
+                                                     self._half_length[rows],
+                                                     self._table_mu[rows])
+        self._sync_backend(params=with_params, state=True)
 
     def load_element(self, other: World, b: int, env: Any = None) -> None:
         """Copy element ``b`` of ``other`` (same scene layout) into elements ``env`` of this
@@ -607,8 +632,7 @@ class World:
         if other.names != self.names or other.shapes != self.shapes:
             raise SceneError("load_element: the worlds' bodies differ")
         rows = batch_rows(env, self.batch_size)
-        for name in ("_mass", "_radius", "_half_length", "_inertia", "_table_mu", "_half",
-                     "_materials", "_state", "_forces", "_time"):
+        for name in [name for _, name in _PARAMETER_ARRAYS] + ["_state", "_forces", "_time"]:
             getattr(self, name)[rows] = getattr(other, name)[b]
         self._params[rows] = self._derive_params(self._mass[rows], self._inertia[rows],
                                                  self._radius[rows], self._half_length[rows],

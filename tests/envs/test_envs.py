@@ -285,6 +285,42 @@ def test_pickle_round_trip_continues_identically(env_id):
             assert np.array_equal(env.unwrapped.reset()[0], clone.reset()[0])
 
 
+#: a range for every parameter each env can randomise (masses log-uniform, the rest uniform)
+RANGES = {"striker_mass": [0.05, 0.5], "mallet_mass": [0.05, 0.5], "target_mass": [0.05, 0.5],
+          "restitution": [0.5, 1.0], "rod_length": [0.2, 0.8], "friction": [0.0, 0.4],
+          "table_friction": [0.0, 0.2]}
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_copies_and_saved_states_keep_the_episodes_randomised_parameters(env_id):
+    """A copy (deepcopy, pickle) or a state put into another env continues the same episode,
+    with the masses, sizes and materials drawn for it, not the scene's defaults."""
+    import copy
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*PuckSpeed-v0 is out of date")
+        allowed = gym.spec(env_id).make().unwrapped.cfg.RANDOMIZABLE
+        randomize = {k: RANGES[k] for k in allowed}
+        env, other = (gym.make(env_id, randomize=randomize) for _ in range(2))
+    env.reset(seed=1)
+    other.reset(seed=2)  # other draws
+    assert not np.array_equal(env.unwrapped.world.mass, other.unwrapped.world.mass)
+    other.unwrapped.set_physics_state(env.unwrapped.get_physics_state())
+    copies = [copy.deepcopy(env.unwrapped), pickle.loads(pickle.dumps(env.unwrapped)),
+              other.unwrapped]
+    for c in copies:
+        for name in ("mass", "inertia", "radius", "half_length"):
+            np.testing.assert_array_equal(getattr(c.world, name),
+                                          getattr(env.unwrapped.world, name))
+    for a in _actions(env.action_space, 3, seed=5):
+        o, r, t, *_ = env.unwrapped.step(a)
+        for c in copies:
+            oc, rc, tc, *_ = c.step(a)
+            assert np.array_equal(oc, o) and rc == r and tc == t
+        if t:
+            break
+
+
 def test_physics_state_replay():
     env = gym.make("SpinStrike/PuckSpeedControl-v0")
     env.reset(seed=2)

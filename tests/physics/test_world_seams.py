@@ -219,3 +219,25 @@ def test_a_strike_launch_that_would_overlap_is_refused_naming_the_pair():
     task._put_striker(np.full((1, 2), np.nan), np.zeros((1, 2)))
     with pytest.raises(SceneError, match="not finite"):
         task._simulate()
+
+
+@pytest.mark.parametrize("solver", ["exact", "pymunk"])
+def test_a_snapshot_with_parameters_undoes_an_edit(solver):
+    """``get_state(parameters=True)`` then ``restore``: the masses, sizes and materials of the
+    snapshot are what the next step simulates (a plain snapshot keeps the edit)."""
+    world = physics.World(dict(HEAD_ON, solver={"mode": solver}), batch_size=2)
+    reference = physics.World(dict(HEAD_ON, solver={"mode": solver}), batch_size=2)
+    snap, plain = world.get_state(parameters=True), world.get_state()
+    with world.edit(env=[1]) as e:
+        e.set_body("a", mass=7.0)
+        e.set_body("rod", length=0.2)
+        e.set_material("a", "b", restitution=0.3)
+    world.restore(plain)
+    assert world.mass[1, 0] == 7.0
+    world.restore(snap)
+    for name in ("mass", "inertia", "radius", "half_length"):
+        np.testing.assert_array_equal(getattr(world, name), getattr(reference, name))
+    for _ in range(40):
+        world.step(0.01)
+        reference.step(0.01)
+    np.testing.assert_array_equal(world.get_state()["state"], reference.get_state()["state"])
