@@ -8,13 +8,21 @@ raises :class:`ConfigError` naming the field and what is allowed. Scenes ship in
 from __future__ import annotations
 
 import copy
-import re
+import os
 from typing import Annotated, ClassVar, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from spinstrike.physics import EFFECTS, SceneError, load_scene
-from spinstrike.physics.scene import Integer, Number, Scene, packaged_scene, read_scene
+from spinstrike.physics import EFFECTS, SceneError, World, load_scene
+from spinstrike.physics.scene import (
+    UNION_MEMBER,
+    WALL_NAMES,
+    Integer,
+    Number,
+    Scene,
+    packaged_scene,
+    read_scene,
+)
 
 __all__ = [
     "ConfigError",
@@ -71,6 +79,11 @@ class EnvConfig(BaseModel):
     #: parameters ``randomize`` may name (set by subclasses)
     RANDOMIZABLE: ClassVar[tuple[str, ...]] = ()
 
+    @field_validator("scene", mode="before")
+    @classmethod
+    def _path(cls, v):
+        return os.fspath(v) if isinstance(v, os.PathLike) else v  # a pathlib.Path, as load_scene
+
     @field_validator("effects")
     @classmethod
     def _known_effects(cls, v):
@@ -98,6 +111,8 @@ class EnvConfig(BaseModel):
                 raise ValueError(f"{key}: needs low <= high (got [{lo}, {hi}])")
             if key.endswith("mass") and lo <= 0:
                 raise ValueError(f"{key}: masses must be > 0 (got [{lo}, {hi}])")
+            if key == "rod_length" and lo <= 0:
+                raise ValueError(f"{key}: must be > 0, as rod_length (got [{lo}, {hi}])")
             if key == "restitution" and not (0 <= lo and hi <= 1):
                 raise ValueError(f"restitution: must lie in [0, 1] (got [{lo}, {hi}])")
             if lo < 0:
@@ -146,6 +161,13 @@ class RodSpinConfig(_StrikeConfig):
 
     _target_spin = field_validator("target_spin")(lambda v: _positive_range(v, "rad/s"))
 
+    @model_validator(mode="after")
+    def _dict_needs_a_goal(self):
+        if self.obs_mode == "dict" and self.goal != "target":
+            raise ValueError("obs_mode: 'dict' needs goal='target' (with goal='max' there is no "
+                             "goal to relabel: use obs_mode='vector')")
+        return self
+
 
 class PuckSpeedConfig(_StrikeConfig):
     """``SpinStrike/PuckSpeed-v0``.
@@ -190,19 +212,16 @@ def _positive_range(v: Range, unit: str) -> Range:
     return v
 
 
-#: a location part that names a member of a union type (``float``, ``literal['a','b']``, ...)
-#: rather than a field: pydantic reports one error per member it tried
-_UNION_MEMBER = re.compile(r"^(?:[a-z-]+\[.*\]|(?:constrained-)?(?:float|int|str|bool|list|tuple"
-                           r"|dict|none))$")
-
-
 def _format(err: ValidationError) -> str:
     """``<field>: <what is wrong> (got <input>)``, one per field; the members of a union
     (``rod_inertia``: a name or a number) are said as one error, not one per member."""
     found: dict[str, tuple[list[str], str]] = {}
     for e in err.errors():
-        loc = ".".join(str(p) for p in e["loc"] if not _UNION_MEMBER.match(str(p))) or "config"
+        loc = ".".join(str(p) for p in e["loc"] if not UNION_MEMBER.match(str(p))) or "config"
         msg = e["msg"].removeprefix("Value error, ")
+        field, sep, rest = msg.partition(": ")
+        if loc == "config" and sep and field.isidentifier():  # a check across arguments
+            loc, msg = field, rest
         if e["type"] == "extra_forbidden":
             msg = "unknown argument"
         got = f" (got {e['input']!r})" if e["type"] != "value_error" and "input" in e else ""
@@ -220,6 +239,15 @@ def parse_config(model: type[EnvConfig], config: dict | None, kwargs: dict) -> E
     except ValidationError as exc:
         allowed = sorted(model.model_fields)
         raise ConfigError(f"{_format(exc)} [allowed arguments: {', '.join(allowed)}]") from None
+
+
+def build_world(scene: Scene, batch_size: int) -> World:
+    """The env's world; a scene the world refuses (bodies that overlap, or lie outside the
+    table) is a :class:`ConfigError` of the env's ``scene`` argument, as every other."""
+    try:
+        return World(scene, batch_size)
+    except SceneError as exc:
+        raise ConfigError(f"scene: {exc}") from None
 
 
 def load_packaged_scene(name: str) -> dict:
@@ -259,6 +287,46 @@ def _scene_data(source: str | dict) -> dict:
     return data
 
 
+def _drop_parameters_of_dropped_effects(data: dict, effects: list[str]) -> None:
+    """``effects=`` turns effects off: the scene's values for them (the packaged control scenes'
+    cloth friction, say) go too, instead of being refused as set for an unlisted effect. The
+    env's own arguments add their effect back first (``build_scene``), so none is dropped."""
+    if "table_friction" not in effects and "friction" in data.get("table", {}):
+        data["table"] = {k: v for k, v in data["table"].items() if k != "friction"}
+    mats = dict(data.get("materials", {}))
+    pairs = mats.get("pairs")
+    if "contact_friction" not in effects:
+        mats.pop("friction", None)
+        if isinstance(pairs, list):
+            pairs = [{k: v for k, v in p.items() if k != "friction"} if isinstance(p, dict)
+                     else p for p in pairs]
+    if "walls" not in effects and isinstance(pairs, list):  # pairs with the cushions go
+        walls = {"walls", *WALL_NAMES}
+        pairs = [p for p in pairs
+                 if not (isinstance(p, dict) and walls & set(p.get("bodies", ())))]
+    if pairs is not None:
+        mats["pairs"] = pairs
+    if mats:
+        data["materials"] = mats
+
+
+def _check_bodies(data: dict, body_overrides: dict[str, dict]) -> None:
+    """The scene's bodies are the env's own (``body_overrides`` names them), each once."""
+    names = [b["name"] for b in data.get("bodies", [])]
+    for name in names:
+        if names.count(name) > 1:
+            raise ConfigError(f"scene: bodies: the name {name!r} is used twice")
+    missing = [name for name in body_overrides if name not in names]
+    if missing:
+        raise ConfigError(f"scene: needs a body named {missing[0]!r} (has {sorted(names)})")
+    extra = [name for name in names if name not in body_overrides]
+    if extra:
+        raise ConfigError(
+            f"scene: bodies: {extra} are not this env's: it places, observes and rewards only "
+            f"{sorted(body_overrides)}, so other bodies would be moved at every reset (build "
+            f"larger scenes with spinstrike.physics.World)")
+
+
 def build_scene(default: str, cfg: EnvConfig, body_overrides: dict[str, dict]) -> Scene:
     """Packaged (or user) scene with the env's overrides applied, validated once."""
     data = load_packaged_scene(default) if cfg.scene is None else _scene_data(cfg.scene)
@@ -272,6 +340,8 @@ def build_scene(default: str, cfg: EnvConfig, body_overrides: dict[str, dict]) -
     if "table_friction" in cfg.randomize and "table_friction" not in effects:
         effects.append("table_friction")
     data["effects"] = effects
+    if cfg.effects is not None:
+        _drop_parameters_of_dropped_effects(data, effects)
     if cfg.solver is not None:
         data["solver"] = {"mode": cfg.solver} if isinstance(cfg.solver, str) else dict(cfg.solver)
     mats = dict(data.get("materials", {}))
@@ -282,10 +352,9 @@ def build_scene(default: str, cfg: EnvConfig, body_overrides: dict[str, dict]) -
     data["materials"] = mats
     if cfg.table_friction is not None:
         data["table"] = dict(data.get("table", {}), friction=cfg.table_friction)
+    _check_bodies(data, body_overrides)
     bodies = {b["name"]: b for b in data.get("bodies", [])}
     for name, changes in body_overrides.items():
-        if name not in bodies:
-            raise ConfigError(f"scene: needs a body named {name!r} (has {sorted(bodies)})")
         bodies[name].update({k: v for k, v in changes.items() if v is not None})
     try:
         return load_scene(data)

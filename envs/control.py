@@ -15,7 +15,7 @@ from typing import ClassVar
 import numpy as np
 
 from spinstrike.envs import fast
-from spinstrike.envs.config import ConfigError, ControlConfig, build_scene
+from spinstrike.envs.config import ConfigError, ControlConfig, build_scene, build_world
 from spinstrike.envs.core import (
     SpinStrikeEnv,
     SpinStrikeVectorEnv,
@@ -26,7 +26,6 @@ from spinstrike.envs.core import (
 from spinstrike.envs.fast import CONTROL_STEP, limit_force
 from spinstrike.envs.layout import SPEED_SCALE, SPIN_SCALE, control_layout, layout_table
 from spinstrike.envs.rendering import BodyDraw, Frame, Gauge, Marker, body_points
-from spinstrike.physics import World
 from spinstrike.physics.layout import FORCE
 
 __all__ = ["PuckSpeedControlEnv", "PuckSpeedControlVectorEnv", "RodSpinControlEnv",
@@ -52,7 +51,7 @@ class _ControlTask(Task):
         super().__init__(cfg, batch_size, single)
         self.render_fps = int(round(1.0 / cfg.dt))
         overrides = {"mallet": {"mass": cfg.mallet_mass}, self.TARGET: {"mass": cfg.target_mass}}
-        self.world = World(build_scene(self.SCENE, cfg, overrides), batch_size)
+        self.world = build_world(build_scene(self.SCENE, cfg, overrides), batch_size)
         w = self.world
         if not w.walls or not w.driven[w.index("mallet")]:
             raise ConfigError("scene: a control env needs the 'walls' effect and a driven "

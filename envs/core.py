@@ -196,12 +196,35 @@ class Task(ABC):
             "desired_goal": spaces.Box(glow, ghigh, dtype=np.float32),
         })
 
-    def observations(self) -> Any:
-        """Observations of every element in the configured mode (batched)."""
+    def _flat(self) -> np.ndarray:
+        """``observe()`` clipped to the layout's bounds, as float32 (the vector observation)."""
         flat = self.observe()
         if not self.OBS_CLIPPED:
             flat = np.clip(flat, self.obs_low, self.obs_high)
-        flat = flat.astype(np.float32)
+        return flat.astype(np.float32)
+
+    def goals(self, flat: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The achieved and desired goals ``[B, len(ACHIEVED)]`` exactly as a dict observation
+        shows them (clipped to their bounds, float32)."""
+        flat = self._flat() if flat is None else flat
+        lo = np.array([f.low for f in self.ACHIEVED], np.float32)
+        hi = np.array([f.high for f in self.ACHIEVED], np.float32)
+        return np.clip(self.achieved(), lo, hi).astype(np.float32), flat[:, self.GOAL]
+
+    def dict_reward(self, reward: np.ndarray) -> np.ndarray:
+        """In ``obs_mode='dict'`` the reward of the goals the observation shows, so that
+        ``compute_reward(achieved_goal, desired_goal, info)`` (HER's relabelling) equals the
+        reward ``step`` paid; it differs from the exact one by float32 rounding. Otherwise
+        ``reward`` as it is."""
+        if self.cfg.obs_mode != "dict":
+            return reward
+        achieved, desired = self.goals()
+        return self.goal_reward(achieved.astype(np.float64), desired.astype(np.float64),
+                                self.cfg)
+
+    def observations(self) -> Any:
+        """Observations of every element in the configured mode (batched)."""
+        flat = self._flat()
         mode = self.cfg.obs_mode
         if mode == "vector":
             return flat
@@ -209,11 +232,9 @@ class Task(ABC):
             return np.stack([self.pixels(b) for b in range(self.batch_size)])
         keep = np.ones(len(self.LAYOUT), bool)
         keep[self.GOAL] = False
-        lo = np.array([f.low for f in self.ACHIEVED], np.float32)
-        hi = np.array([f.high for f in self.ACHIEVED], np.float32)
-        return {"observation": flat[:, keep],
-                "achieved_goal": np.clip(self.achieved(), lo, hi).astype(np.float32),
-                "desired_goal": flat[:, self.GOAL]}
+        achieved, desired = self.goals(flat)
+        return {"observation": flat[:, keep], "achieved_goal": achieved,
+                "desired_goal": desired}
 
     def pixels(self, b: int) -> np.ndarray:
         """Element ``b``'s pixel observation: its plain frame at ``obs_size``."""
@@ -338,8 +359,8 @@ class SpinStrikeEnv(gym.Env):
         Bound as ``compute_reward`` only in dict mode: SB3 takes any env with a
         ``compute_reward`` for a goal env.
         """
-        return self.task.goal_reward(np.asarray(achieved_goal), np.asarray(desired_goal),
-                                     self.cfg)
+        return self.task.goal_reward(np.asarray(achieved_goal, dtype=np.float64),
+                                     np.asarray(desired_goal, dtype=np.float64), self.cfg)
 
     def get_physics_state(self) -> dict:
         """The full physical state (world arrays, the episode's parameters, e.g. a
@@ -453,6 +474,7 @@ class SpinStrikeVectorEnv(VectorEnv):
         self.max_episode_steps = max_episode_steps
         self.cfg = parse_config(self.TASK.CONFIG, config, kwargs)
         self.task = self.TASK(self.cfg, self.num_envs)
+        self.metadata["render_fps"] = self.task.render_fps  # as the single env's (a control dt)
         self.single_action_space = self.task.action_space
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.single_observation_space = self.task.observation_space()

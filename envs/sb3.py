@@ -92,7 +92,8 @@ class SB3VecEnv(VecEnv):
     def env_method(self, method_name: str, *args, indices=None, **kwargs) -> list[Any]:
         if method_name == "compute_reward":  # HER, on a goal-conditioned env
             achieved, desired = args[0], args[1]
-            result = self.venv.task.goal_reward(np.asarray(achieved), np.asarray(desired),
+            result = self.venv.task.goal_reward(np.asarray(achieved, dtype=np.float64),
+                                                np.asarray(desired, dtype=np.float64),
                                                 self.venv.cfg)
             return [result for _ in self._get_indices(indices)]
         method = getattr(self.venv, method_name)

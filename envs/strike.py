@@ -16,7 +16,13 @@ from typing import ClassVar
 import numpy as np
 
 from spinstrike.envs import fast
-from spinstrike.envs.config import PuckSpeedConfig, RodSpinConfig, build_scene
+from spinstrike.envs.config import (
+    ConfigError,
+    PuckSpeedConfig,
+    RodSpinConfig,
+    build_scene,
+    build_world,
+)
 from spinstrike.envs.core import SpinStrikeEnv, SpinStrikeVectorEnv, Task, check_actions
 from spinstrike.envs.layout import ObsField, layout_table
 from spinstrike.envs.rendering import (
@@ -28,7 +34,7 @@ from spinstrike.envs.rendering import (
     body_points,
     strike_times,
 )
-from spinstrike.physics import SceneError, World
+from spinstrike.physics import SceneError
 from spinstrike.physics.layout import ANGLE, OMEGA, STATE_COLUMNS, VX, VY, X, Y
 from spinstrike.physics.solvers import TRACE_DROPPED, TRACE_ENTRIES
 
@@ -73,8 +79,10 @@ class _StrikeTask(Task):
     def __init__(self, cfg, batch_size: int, single: bool = False) -> None:
         super().__init__(cfg, batch_size, single)
         scene = build_scene(self.SCENE, cfg, self._body_overrides(cfg))
-        self.world = World(self._park_striker(scene), batch_size)
+        self.world = build_world(self._park_striker(scene), batch_size)
         w = self.world
+        if w.walls:
+            self._check_room(cfg)
         if "walls" in w.effects or "table_friction" in w.effects:
             self._free = False
         else:
@@ -101,6 +109,24 @@ class _StrikeTask(Task):
         self._zero_result()
 
     GOAL_WIDTH: ClassVar[int] = 1
+
+    def _check_room(self, cfg) -> None:
+        """On a walled table every launch must start inside the cushions: the striker starts
+        up to twice the target's reach plus its own size from the target's centre (which
+        lies within 0.1 m of the table's)."""
+        w = self.world
+        it, js = w.index(self.TARGET), w.index("striker")
+        half_length = w.half_length[0, it]
+        if "rod_length" in cfg.randomize:
+            half_length = max(half_length, 0.5 * cfg.randomize["rod_length"][1])
+        reach, rs = half_length + w.radius[0, it], w.radius[0, js]
+        need = 0.1 * math.sqrt(2) + 2 * (reach + rs) + START_MARGIN + rs
+        half = w.table_half_size[0]
+        if (half < need).any():
+            raise ConfigError(
+                f"scene: table: size {[2 * float(h) for h in half]} m is too small for a strike "
+                f"env with walls: a launch may start up to {need:.3g} m from the table's centre, "
+                f"so each side needs at least {2 * need:.3g} m (or drop the 'walls' effect)")
 
     def _park_striker(self, scene):
         """The scene's striker position is only a parking place (every reset and strike places
@@ -235,6 +261,7 @@ class _StrikeTask(Task):
         self._launch(a.reshape(self.batch_size, len(self.ACTIONS)))
         sim = self._simulate()
         reward, terms = self._reward()
+        reward = self.dict_reward(reward)
         info = {**sim, **terms, **self._result_info()}
         if self.record_trace:
             self.clip = self._record_clip()

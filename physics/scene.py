@@ -389,29 +389,41 @@ SOLVERS: tuple[str, ...] = tuple(m.model_fields["mode"].default
                                  for m in (ExactSolver, FixedSolver, PymunkSolver))
 
 
+#: a location part that names a member of a union type (``float``, ``literal['a','b']``, ...)
+#: rather than a field: pydantic reports one error per member it tried
+UNION_MEMBER = re.compile(r"^(?:[a-z-]+\[.*\]|(?:constrained-)?(?:float|int|str|bool|list|tuple"
+                          r"|dict|none))$")
+
+
 def _format_error(err: ValidationError) -> str:
-    """One line per error: ``<field path>: <what is wrong and what is allowed> (got <input>)``."""
-    lines = []
+    """One line per field: ``<field path>: <what is wrong and what is allowed> (got <input>)``;
+    the members of a union (``inertia``: a number or ``thin_rod``) are said as one error."""
+    found: dict[str, tuple[list[str], str]] = {}
     for e in err.errors():
         loc = ""
         for part in e["loc"]:
             if isinstance(part, int):
                 loc += f"[{part}]"
-            elif part not in SOLVERS:
+            elif part not in SOLVERS and not UNION_MEMBER.match(str(part)):
                 loc += ("." if loc else "") + str(part)
         msg = e["msg"].removeprefix("Value error, ")
+        got = ""
         if e["type"] == "union_tag_invalid":  # pydantic's words for an unknown solver mode
             ctx = e["ctx"]
             key = ctx["discriminator"].strip("'")
             msg = f"unknown {key} {ctx['tag']!r}; allowed: {ctx['expected_tags']}"
+        elif e["type"] == "union_tag_not_found":  # a solver block without its mode
+            key = e["ctx"]["discriminator"].strip("'")
+            msg = f"needs {key!r}, one of {', '.join(map(repr, SOLVERS))}"
         elif e["type"] == "value_error":
             field, sep, rest = msg.partition(": ")
             if sep and _FIELD.fullmatch(field):  # our validators say "<field>: <message>"
                 loc, msg = (f"{loc}.{field}" if loc else field), rest
         elif "input" in e and not isinstance(e["input"], dict):
-            msg = f"{msg} (got {e['input']!r})"
-        lines.append(f"{loc or 'scene'}: {msg}")
-    return "; ".join(lines)
+            got = f" (got {e['input']!r})"
+        msgs, _ = found.setdefault(loc or "scene", ([], got))
+        msgs.append(msg if not msgs else msg.removeprefix("Input should be "))
+    return "; ".join(f"{loc}: {', or '.join(msgs)}{got}" for loc, (msgs, got) in found.items())
 
 
 #: the package that ships the scenes (``configs/scenes/*.yaml`` in the repository)

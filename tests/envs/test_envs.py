@@ -416,7 +416,7 @@ def test_scene_by_packaged_name_or_path_is_the_default_scene(tmp_path, monkeypat
     rng = np.random.default_rng(0)
     actions = rng.uniform(-1, 1, (40, 2)).astype(np.float32)
     runs = []
-    for kwargs in ({}, {"scene": "rod_control"}, {"scene": str(path)}):
+    for kwargs in ({}, {"scene": "rod_control"}, {"scene": str(path)}, {"scene": path}):
         env = gym.make("SpinStrike/RodSpinControl-v0", **kwargs)
         obs, _ = env.reset(seed=3)
         out = [obs]
@@ -424,5 +424,94 @@ def test_scene_by_packaged_name_or_path_is_the_default_scene(tmp_path, monkeypat
             out.append(env.step(a)[0])
         runs.append(np.array(out))
         env.close()
-    np.testing.assert_array_equal(runs[0], runs[1])
-    np.testing.assert_array_equal(runs[0], runs[2])
+    for run in runs[1:]:  # a pathlib.Path too, as physics.load_scene takes
+        np.testing.assert_array_equal(runs[0], run)
+
+
+@pytest.mark.parametrize("env_id", STRIKE_IDS)
+def test_goal_conditioned_reward_is_what_compute_reward_gives(env_id):
+    """HER relabels with ``compute_reward(achieved_goal, desired_goal, info)``: it must give the
+    reward ``step`` paid, to the bit, as SB3's check_env asks (it compared a float64 reward of
+    the exact state with one of the float32 goals and failed on about half the seeds)."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*PuckSpeed-v0 is out of date")
+        env = gym.make(env_id, obs_mode="dict")
+        vec = gym.make_vec(env_id, num_envs=8, obs_mode="dict")
+    rng = np.random.default_rng(0)
+    vec.reset(seed=0)
+    for seed in range(40):
+        obs, info = env.reset(seed=seed)
+        action = rng.uniform(-1, 1, 3).astype(np.float32)
+        obs, reward, *_, info = env.step(action)
+        assert reward == env.unwrapped.compute_reward(obs["achieved_goal"], obs["desired_goal"],
+                                                      info)
+    obs, rewards, *_ = vec.step(rng.uniform(-1, 1, (8, 3)).astype(np.float32))
+    relabelled = env.unwrapped.compute_reward(obs["achieved_goal"], obs["desired_goal"], {})
+    np.testing.assert_array_equal(rewards, relabelled)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warnings.filterwarnings("ignore", message=".*PuckSpeed-v0 is out of date")
+        for _ in range(10):  # SB3's checker draws its own actions
+            sb3_check_env(gym.make(env_id, obs_mode="dict").unwrapped)
+
+
+def test_dict_mode_needs_a_goal():
+    with pytest.raises(ConfigError, match="obs_mode: 'dict' needs goal='target'"):
+        gym.make("SpinStrike/RodSpin-v0", obs_mode="dict", goal="max")
+
+
+def test_scenes_the_env_cannot_run_are_refused_when_it_is_made():
+    """A user's scene that an env would break part-way (bodies it would move at every reset, a
+    walled table too small for a launch) or that the world refuses (overlaps) is a ConfigError
+    from ``gym.make``, naming what is wrong."""
+    from spinstrike.envs.config import load_packaged_scene
+
+    control = load_packaged_scene("rod_control")
+    extra = dict(control["bodies"][0], name="post", position=[0.5, 0.3])
+    with pytest.raises(ConfigError, match=r"bodies: \['post'\] are not this env's"):
+        gym.make("SpinStrike/RodSpinControl-v0",
+                 scene=dict(control, bodies=[*control["bodies"], extra]))
+    with pytest.raises(ConfigError, match="the name 'rod' is used twice"):
+        gym.make("SpinStrike/RodSpinControl-v0",
+                 scene=dict(control, bodies=[*control["bodies"], control["bodies"][0]]))
+    with pytest.raises(ConfigError, match="scene: bodies: 'rod' and 'mallet' overlap"):
+        gym.make("SpinStrike/RodSpinControl-v0", scene=dict(
+            control, bodies=[dict(b, position=[0.0, 0.0]) for b in control["bodies"]]))
+    strike = load_packaged_scene("rod_spin")
+    parked = [dict(b, position=[0.0, 0.25]) if b["name"] == "striker" else b
+              for b in strike["bodies"]]  # the packaged parking place, (0, 1), is off the table
+    walled = dict(strike, bodies=parked, table={"size": [1.0, 0.6]},
+                  effects=["rotation", "walls"])
+    with pytest.raises(ConfigError, match=r"table: size \[1.0, 0.6\] m is too small"):
+        gym.make("SpinStrike/RodSpin-v0", scene=walled)
+    # a table with room: every launch starts inside the cushions, episode after episode
+    env = gym.make("SpinStrike/RodSpin-v0", scene=dict(walled, table={"size": [2.2, 2.2]}),
+                   randomize={"rod_length": [0.2, 0.8]})
+    for seed, action in enumerate(_actions(env.action_space, 40, seed=1)):
+        env.reset(seed=seed)
+        _, reward, terminated, _, _ = env.step(action)
+        assert terminated and np.isfinite(reward)
+
+
+def test_effects_argument_turns_the_scenes_effect_parameters_off():
+    """``effects=`` without ``table_friction`` turns the packaged scene's cloth friction off
+    (before: refused, naming a table.friction the user never set); an explicit argument wins."""
+    env = gym.make("SpinStrike/RodSpinControl-v0", effects=["rotation", "walls"])
+    assert not env.unwrapped.world.table_friction
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    env = gym.make("SpinStrike/RodSpinControl-v0", effects=["rotation", "walls"],
+                   table_friction=0.05)
+    assert env.unwrapped.world.table_friction
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_vector_env_reports_the_single_envs_render_fps(env_id):
+    kwargs = {"dt": 0.05} if "Control" in env_id else {}
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*PuckSpeed-v0 is out of date")
+        single = gym.make(env_id, **kwargs)
+        vec = gym.make_vec(env_id, num_envs=2, **kwargs)
+    assert vec.metadata["render_fps"] == single.metadata["render_fps"]
+    if kwargs:
+        assert single.metadata["render_fps"] == 20

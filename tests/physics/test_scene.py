@@ -86,6 +86,11 @@ INVALID = [
     (_set("materials.pairs", [{"bodies": ["rod", "walls"], "restitution": 2}]),
      ["materials.pairs[0].restitution", "less than or equal to 1"]),
     (_set("unknown_key", 1), ["unknown_key", "Extra inputs"]),
+    # pydantic's wording, said as the scene's: a solver block without its mode; a union's
+    # members (a number, or 'thin_rod') in one message, not one field path per member
+    (_set("solver", {"tolerance": 1e-6}), ["solver: needs 'mode', one of 'exact', 'fixed'"]),
+    (_set("bodies.0.inertia", "solid"),
+     ["bodies[0].inertia: Input should be a valid number, or 'thin_rod' (got 'solid')"]),
 ]
 
 

@@ -174,7 +174,7 @@ BAD_KWARGS = [
     ("SpinStrike/PuckSpeed-v0", {"target_speed": [0, 1]}, "target_speed"),
     ("SpinStrike/RodSpinControl-v0", {"dt": 0.0}, "dt"),
     ("SpinStrike/RodSpinControl-v0", {"max_force": -1.0}, "max_force"),
-    ("SpinStrike/PuckSpeedControl-v0", {"effects": ["rotation"]}, "table_friction"),
+    ("SpinStrike/PuckSpeedControl-v0", {"effects": ["rotation"]}, "needs the 'walls' effect"),
     ("SpinStrike/PuckSpeedControl-v0", {"config": {"mallet_mass": math.nan}}, "mallet_mass"),
 ]
 
