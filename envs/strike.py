@@ -8,6 +8,7 @@ reward is computed from the target's spin or velocity after the last contact.
 
 from __future__ import annotations
 
+import itertools
 import math
 from abc import abstractmethod
 from dataclasses import dataclass
@@ -107,6 +108,38 @@ class _StrikeTask(Task):
         self._clip_reward = 0.0
         self._clip_frames_cache: list[Frame] | None = None
         self._zero_result()
+        self._check_observable()
+
+    def _check_observable(self) -> None:
+        """Refuse arguments that would set a parameter the observation cannot show: beyond a
+        field's bounds the clipped value makes different tasks look alike (a rod_length of 12
+        and of 20 both observed as a half length of 5). Element 0 is reset at each corner of the
+        ``randomize`` ranges (the fixed values in all) and put back."""
+        keys = [k for k in self.CONFIG.RANDOMIZABLE if k in self.cfg.randomize]
+        w = self.world
+        saved = w.get_state(parameters=True), self.snapshot()
+        env = np.zeros(1, dtype=np.int64)
+        skip = np.zeros(len(self.LAYOUT), dtype=bool)
+        skip[self.GOAL] = True  # drawn by the env within its bounds
+        try:
+            for corner in itertools.product((0.0, 1.0), repeat=len(keys)):
+                u = np.full((1, self.UNIFORMS), 0.5)
+                for key, x in zip(keys, corner, strict=True):
+                    u[0, self.CONFIG.RANDOMIZABLE.index(key)] = x
+                self.reset(env, u)
+                flat = self.observe()[0]
+                for i, f in enumerate(self.LAYOUT):
+                    if not skip[i] and not f.low <= flat[i] <= f.high:
+                        drawn = {k: self.cfg.randomize[k][int(x)] for k, x in zip(keys, corner,
+                                                                                   strict=True)}
+                        raise ConfigError(
+                            f"observation: the arguments make {f.name} ({f.doc}) {flat[i]:.4g},"
+                            f" outside its bounds [{f.low:g}, {f.high:g}], where every value "
+                            f"would look alike to the agent"
+                            + (f" (randomize drew {drawn})" if drawn else ""))
+        finally:
+            w.restore(saved[0])
+            self.restore(saved[1])
 
     GOAL_WIDTH: ClassVar[int] = 1
 

@@ -515,3 +515,26 @@ def test_vector_env_reports_the_single_envs_render_fps(env_id):
     assert vec.metadata["render_fps"] == single.metadata["render_fps"]
     if kwargs:
         assert single.metadata["render_fps"] == 20
+
+
+@pytest.mark.parametrize("env_id,kwargs,field", [
+    ("SpinStrike/RodSpin-v0", {"rod_length": 12.0}, "half_length"),
+    ("SpinStrike/RodSpin-v0", {"randomize": {"rod_length": [4.0, 30.0]}}, "half_length"),
+    ("SpinStrike/RodSpin-v0", {"striker_mass": 1000.0, "target_mass": 1e-4}, "log_mass_ratio"),
+    ("SpinStrike/PuckSpeed-v1", {"friction": 10.0}, "friction"),
+    ("SpinStrike/PuckSpeed-v1", {"randomize": {"target_mass": [1e-9, 1.0]}}, "log_mass_ratio"),
+])
+def test_arguments_the_observation_cannot_show_are_refused(env_id, kwargs, field):
+    """Beyond an observation field's bounds the clipped value made different tasks look alike
+    (rod_length 12 and 20 both observed as a half length of 5), silently."""
+    with pytest.raises(ConfigError, match=f"observation: the arguments make {field} "):
+        gym.make(env_id, **kwargs)
+
+
+def test_arguments_at_the_observations_bounds_are_taken():
+    env = gym.make("SpinStrike/RodSpin-v0", rod_length=10.0,
+                   randomize={"rod_length": [0.2, 10.0], "striker_mass": [0.01, 1.0]})
+    for seed in range(3):
+        obs, _ = env.reset(seed=seed)
+        assert env.observation_space.contains(obs)
+        assert obs[3] == pytest.approx(env.unwrapped.world.half_length[0, 0])
