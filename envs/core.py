@@ -305,6 +305,8 @@ class SpinStrikeEnv(gym.Env):
         self._stream = UniformStream(1, self.TASK.UNIFORMS)
         self._stream_seeded = False
         self._started = False
+        #: the last step ended the episode (terminated): the next must be a reset
+        self._ended = False
         if self.cfg.obs_mode == "dict":
             self.compute_reward = self._goal_reward
 
@@ -313,7 +315,7 @@ class SpinStrikeEnv(gym.Env):
         return {"render_mode": self.render_mode, "config": self._config,
                 "physics": self.get_physics_state(), "stream": self._stream,
                 "np_random": self._np_random, "stream_seeded": self._stream_seeded,
-                "started": self._started}
+                "started": self._started, "ended": self._ended}
 
     def __setstate__(self, state: dict) -> None:
         self.__init__(render_mode=state["render_mode"], config=state["config"])
@@ -322,6 +324,7 @@ class SpinStrikeEnv(gym.Env):
         self._np_random = state["np_random"]
         self._stream_seeded = state["stream_seeded"]
         self._started = state["started"]
+        self._ended = state.get("ended", False)
 
     @property
     def world(self):
@@ -336,6 +339,7 @@ class SpinStrikeEnv(gym.Env):
         env = np.zeros(1, dtype=np.int64)
         info = self.task.reset(env, self._stream.draw(env))
         self._started = True
+        self._ended = False
         if self.render_mode == "rgb_array_list":
             self._frames = [self.task.frame(0)]
         elif self.render_mode == "human":
@@ -345,7 +349,11 @@ class SpinStrikeEnv(gym.Env):
     def step(self, action):
         if not self._started:
             raise gym.error.ResetNeeded("call reset() before step()")
+        if self._ended:  # a one-strike env would strike again and pay again
+            raise gym.error.ResetNeeded("the episode ended (terminated=True): call reset() "
+                                        "before step()")
         reward, terminated, info = self.task.step(action, batch_info=False)
+        self._ended = bool(terminated[0])
         obs = _take(self.task.observations(), 0)
         if self.render_mode == "rgb_array_list":
             self._frames += self.task.step_frames()
@@ -373,6 +381,7 @@ class SpinStrikeEnv(gym.Env):
         self.task.world.restore(state["world"])
         self.task.restore(state["task"])
         self._started = True
+        self._ended = False
 
     def render(self):
         """``rgb_array``: the current frame; ``rgb_array_list``: the frames since the last call

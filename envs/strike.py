@@ -132,11 +132,7 @@ class _StrikeTask(Task):
                     if not skip[i] and not f.low <= flat[i] <= f.high:
                         drawn = {k: self.cfg.randomize[k][int(x)] for k, x in zip(keys, corner,
                                                                                    strict=True)}
-                        raise ConfigError(
-                            f"observation: the arguments make {f.name} ({f.doc}) {flat[i]:.4g},"
-                            f" outside its bounds [{f.low:g}, {f.high:g}], where every value "
-                            f"would look alike to the agent"
-                            + (f" (randomize drew {drawn})" if drawn else ""))
+                        raise ConfigError(self._unobservable(f, flat[i], drawn))
         finally:
             w.restore(saved[0])
             self.restore(saved[1])
@@ -160,6 +156,21 @@ class _StrikeTask(Task):
                 f"scene: table: size {[2 * float(h) for h in half]} m is too small for a strike "
                 f"env with walls: a launch may start up to {need:.3g} m from the table's centre, "
                 f"so each side needs at least {2 * need:.3g} m (or drop the 'walls' effect)")
+
+    #: the arguments that set each observed parameter (else the scene sets it)
+    _SET_BY: ClassVar[dict[str, tuple[str, ...]]] = {
+        "log_mass_ratio": ("striker_mass", "target_mass"), "half_length": ("rod_length",),
+        "restitution": ("restitution",), "friction": ("friction",)}
+
+    def _unobservable(self, field: ObsField, value: float, drawn: dict) -> str:
+        """The message for a parameter the observation would clip, naming what set it."""
+        args = [a for a in self._SET_BY.get(field.name, ())
+                if getattr(self.cfg, a, None) is not None or a in self.cfg.randomize]
+        side = f"above its bound {field.high:g}" if value > field.high else \
+            f"below its bound {field.low:g}"
+        return (f"{', '.join(args) or 'scene'}: would make the observed {field.name} "
+                f"({field.doc}) {value:.8g}, {side}, where the clipped value looks the same for "
+                f"every task" + (f" (at the randomize draw {drawn})" if drawn else ""))
 
     def _park_striker(self, scene):
         """The scene's striker position is only a parking place (every reset and strike places

@@ -141,7 +141,8 @@ def _make(env_id, **kw):
         warnings.simplefilter("ignore")
         env = gym.make(env_id, **kw)
         env.reset(seed=0)
-        env.step(env.action_space.sample())
+        if env.step(env.action_space.sample())[2]:  # a used env, in an episode
+            env.reset()
         return env
 
 
