@@ -399,7 +399,12 @@ def _format_error(err: ValidationError) -> str:
     """One line per field: ``<field path>: <what is wrong and what is allowed> (got <input>)``;
     the members of a union (``inertia``: a number or ``thin_rod``) are said as one error."""
     found: dict[str, tuple[list[str], str]] = {}
-    for e in err.errors():
+    errors = err.errors()
+    for e in errors:
+        if e["type"] == "too_short" and any(
+                len(o["loc"]) > len(e["loc"]) and o["loc"][:len(e["loc"])] == e["loc"]
+                for o in errors):
+            continue  # "bodies: at least 1 item": only because an item inside failed
         loc = ""
         for part in e["loc"]:
             if isinstance(part, int):

@@ -101,6 +101,14 @@ def test_invalid_value_names_field(scene, needles):
     message = str(info.value)
     for needle in needles:
         assert needle in message, f"{needle!r} not in {message!r}"
+    # one error: pydantic 2.14 added "bodies: Tuple should have at least 1 item ... not 0" to
+    # every error of a body, as if the list were empty
+    assert "at least 1 item" not in message or "bodies" not in scene
+
+
+def test_an_empty_body_list_is_still_refused():
+    with pytest.raises(SceneError, match="bodies: Tuple should have at least 1 item"):
+        load_scene({"bodies": []})
 
 
 def test_static_body_must_not_move():
