@@ -406,13 +406,52 @@ def main() -> None:
         r = longrun.run(**kw)
         print(label, r, flush=True)
         long_results.append((label, r))
+    doc = render(results, long_results)
+    section = render_readme(results, long_results) if readme is not None else ""
+    if not args.full:  # keep the last --full run's row rather than drop it
+        doc = keep_full_run(doc, args.out, _doc_row, "|---" * 11 + "|")
+        if readme is not None:
+            section = keep_full_run(section, readme, _readme_run, "Long runs (")
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(render(results, long_results))
+    args.out.write_text(doc)
     print(f"wrote {args.out}")
     if readme is not None:
-        readme.write_text(replace_readme_section(readme.read_text(),
-                                                 render_readme(results, long_results)))
+        readme.write_text(replace_readme_section(readme.read_text(), section))
         print(f"wrote the stability section of {readme}")
+
+
+def _doc_row(text: str) -> str | None:
+    """The full run's table row in docs/stability.md, whole, or None."""
+    for line in text.splitlines():
+        if line.startswith(f"| {FULL_RUN[0]} |"):
+            return line
+    return None
+
+
+def _readme_run(text: str) -> str | None:
+    """The full run's part of the README's long-runs line (``**label**: ...``), or None."""
+    m = re.search(re.escape(f"**{FULL_RUN[0]}**") + r": [^;\n]*?(?=; |\.\n|\.$)", text)
+    return m.group(0) if m else None
+
+
+def keep_full_run(new: str, old_file: Path, find, anchor: str) -> str:
+    """``new`` with the full run's entry of ``old_file`` (as ``find`` finds it) put back: as
+    the last row of the long-runs table (``anchor`` its separator line) or, for the README, the
+    last entry of its long-runs line (``anchor`` that line's start). Unchanged when the old file
+    has no such entry."""
+    kept = find(old_file.read_text()) if old_file.exists() else None
+    if kept is None:
+        return new
+    lines = new.split("\n")
+    i = next(k for k, line in enumerate(lines) if line.startswith(anchor))
+    if anchor.startswith("|"):  # after the table's last row
+        j = i + 1
+        while j < len(lines) and lines[j].startswith("| "):
+            j += 1
+        lines.insert(j, kept)
+    else:
+        lines[i] = lines[i].removesuffix(".") + "; " + kept + "."
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":

@@ -106,3 +106,26 @@ def test_readme_render_round_trip_keeps_the_rest_of_the_readme():
     assert replace_readme_section(out, render_readme(results, long)) == out
     with pytest.raises(ValueError, match="stability:begin"):
         replace_readme_section("no markers\n", "x")
+
+
+def test_regenerating_without_full_keeps_the_full_runs_row(tmp_path):
+    """The documented command (no --full) dropped the 10^6-step single-world row from both
+    documents; it now keeps the last --full run's row (run on copies, as a user would)."""
+    import shutil
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from tests.stability.report import FULL_RUN
+
+    root = Path(__file__).resolve().parents[2]
+    shutil.copy(DOC, tmp_path / "stability.md")
+    shutil.copy(README, tmp_path / "README.md")
+    subprocess.run([sys.executable, "-m", "tests.stability.report", "--out",
+                    str(tmp_path / "stability.md"), "--readme", str(tmp_path / "README.md")],
+                   cwd=root, check=True, capture_output=True, timeout=600)
+    label = FULL_RUN[0]
+    for name, old in (("stability.md", DOC), ("README.md", README)):
+        kept = [line for line in (tmp_path / name).read_text().splitlines() if label in line]
+        assert kept, f"{name} lost the row of {label!r}"
+        assert kept == [line for line in old.read_text().splitlines() if label in line]
