@@ -176,7 +176,7 @@ def sweep(env_ids=("SpinStrike/RodSpinControl-v0", "SpinStrike/PuckSpeedControl-
     kwargs = {"max_episode_steps": steps}
     lines = ["# The CEM planner", "",
              f"Produced by `python -m spinstrike.agents.planner` (`agents/planner.py`): "
-             f"{episodes} episodes of {steps} steps ({steps * 0.02:.0f} s) per cell, seeds "
+             f"{episodes} episodes of {steps} steps ({steps * 0.02:g} s) per cell, seeds "
              f"{seed}..{seed + episodes - 1}, the same for every cell; {os.cpu_count()} shared "
              f"cores (load average at start {os.getloadavg()[0]:.2f}). Return: mean over the "
              "episodes. Cost: CPU time (`time.process_time`) per decision, in ms; every "

@@ -487,9 +487,12 @@ def report(ms: list[Measurement], effects: list[dict] | None, argv: Sequence[str
     lines += ["## Reference cases", ""]
     for name in cases:
         case = get_case(name)
-        srcs = sorted({v.source for v in case.variants})
-        names = "; ".join(v.name for v in case.variants)
-        lines.append(f"- `{name}` ({len(case.variants)} variants: {names}): {case.title}. "
+        measured = {m.variant for m in ms if m.case == name}  # a --quick run measures some
+        variants = [v for v in case.variants if v.name in measured]
+        srcs = sorted({v.source for v in variants})
+        names = "; ".join(v.name for v in variants)
+        of = "" if len(variants) == len(case.variants) else f" of {len(case.variants)}"
+        lines.append(f"- `{name}` ({len(variants)}{of} variants: {names}): {case.title}. "
                      f"Answer: {'; '.join(srcs)}.")
     lines.append("")
     return "\n".join(lines)

@@ -258,6 +258,11 @@ def test_main_quick_writes_markdown_and_plot(tmp_path):
     assert "python -m spinstrike.benchmarks.accuracy" in text
     assert "cores" in text and "pymunk 7" in text
     assert (tmp_path / "accuracy.png").stat().st_size > 10_000
+    # the reference cases list what this (quick) run measured, not every variant
+    for name in ("seed", "tunnel"):
+        n = len(get_case(name).variants)
+        if n > accuracy.QUICK_VARIANTS:
+            assert f"`{name}` ({accuracy.QUICK_VARIANTS} of {n} variants: " in text
 
 
 def test_cases_are_listed_in_report_order():
