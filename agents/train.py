@@ -243,6 +243,14 @@ def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, 
     return model, wall
 
 
+def _check_env_kwargs(env_id: str, env_kwargs: dict) -> None:
+    """Build the env once with ``env_kwargs``: its own validation (a ConfigError naming the
+    argument) speaks before anything about the run folder."""
+    import gymnasium as gym
+
+    gym.make(env_id, **env_kwargs).close()
+
+
 def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int = 0,
           timesteps: int | None = None, out: str | Path | None = None,
           n_envs: int | None = None, device: str = "cpu", resume: bool = False,
@@ -296,6 +304,7 @@ def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int
             imitation = None
     name = f"{algo}-{env_id.split('/')[-1]}-s{seed}"
     run_dir = Path(out) if out is not None else Path("runs") / name
+    _check_env_kwargs(env_id, cfg.env_kwargs)  # a bad argument first, before "out exists"
     work = _work_dir(run_dir, resume, force)
     from spinstrike.agents.imitate import _sigterm_exits
 

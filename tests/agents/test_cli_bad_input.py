@@ -77,6 +77,9 @@ CASES = [
     ("out-exists-without-force",
      lambda t: ["train", "--out", _fake_run(t, "done")],
      ["out:", "done exists", "--force"]),
+    ("bad-env-kwarg-and-out-exists",  # the argument's error first (it said "out ... exists")
+     lambda t: ["train", "--out", _fake_run(t, "done"), "--env-kwargs", "{restitution: 2}"],
+     ["restitution", "less than or equal to 1"]),
     ("resume-without-checkpoint",
      lambda t: ["train", "--resume", "--out", _fake_run(t, "nockpt")],
      ["resume:", "nockpt", "no checkpoint"]),
