@@ -36,6 +36,11 @@ from spinstrike.agents.train import TrainResult, _work_dir, finish_run, plot_lea
 __all__ = ["load_rllib_policy", "module_policy", "ppo_config", "train_rllib"]
 
 
+#: the rl-zoo3 PPO keys ppo_config translates (of policy_kwargs: net_arch only)
+_TRANSLATED = {"n_steps", "batch_size", "n_epochs", "learning_rate", "gamma", "gae_lambda",
+               "clip_range", "ent_coef", "vf_coef", "policy_kwargs"}
+
+
 def ppo_config(cfg: RunConfig, seed: int, num_env_runners: int):
     """RLlib's ``PPOConfig`` for an rl-zoo3 PPO entry, on the native vector env."""
     from ray.rllib.algorithms.ppo import PPOConfig
@@ -44,6 +49,19 @@ def ppo_config(cfg: RunConfig, seed: int, num_env_runners: int):
     from spinstrike.envs.rllib import configure
 
     h = dict(cfg.model_kwargs)
+    unused = sorted(set(h) - _TRANSLATED) + [
+        f"policy_kwargs.{k}" for k in sorted(set(h.get("policy_kwargs") or {}) - {"net_arch"})]
+    if unused:  # said, not silently dropped (config.yml still records them)
+        print(f"warning: --backend rllib does not use {', '.join(unused)} (RLlib's defaults "
+              "apply)", file=sys.stderr)
+    lr = h.get("learning_rate", 3e-4)
+    if callable(lr):  # rl-zoo3's lin_<value>: linear to 0 over the run, as RLlib's schedule
+        lr = [[0, float(lr(1.0))], [int(cfg.n_timesteps), 0.0]]
+    else:
+        lr = float(lr)
+    if callable(h.get("clip_range")):
+        raise AgentConfigError("clip_range: a 'lin_' schedule is not supported by --backend "
+                               "rllib (RLlib's clip_param is a number)")
     runners = max(int(num_env_runners), 1)
     per_runner = max(1, math.ceil(cfg.n_envs / runners))
     n_steps = int(h.get("n_steps", 2048))
@@ -56,7 +74,7 @@ def ppo_config(cfg: RunConfig, seed: int, num_env_runners: int):
               .training(train_batch_size_per_learner=batch,
                         minibatch_size=int(h.get("batch_size", 64)),
                         num_epochs=int(h.get("n_epochs", 10)),
-                        lr=float(h.get("learning_rate", 3e-4)), gamma=float(h.get("gamma", 0.99)),
+                        lr=lr, gamma=float(h.get("gamma", 0.99)),
                         lambda_=float(h.get("gae_lambda", 0.95)),
                         clip_param=float(h.get("clip_range", 0.2)),
                         entropy_coeff=float(h.get("ent_coef", 0.0)),
@@ -161,7 +179,9 @@ def train_rllib(env_id: str, *, config: str | Path | None = None, seed: int = 0,
     work = _work_dir(run_dir, False, force)
     started = False
     if not ray.is_initialized():
-        ray.init(address=address, include_dashboard=False, log_to_driver=False)
+        # address None: a new local Ray, as documented (Ray itself would join any cluster
+        # running on this machine, e.g. another job's)
+        ray.init(address=address or "local", include_dashboard=False, log_to_driver=False)
         started = True
     try:
         policy, steps, wall = _learn(algo_config, cfg, work, seed=seed, address=address,

@@ -248,6 +248,11 @@ def _check_env_kwargs(env_id: str, env_kwargs: dict) -> None:
     argument) speaks before anything about the run folder."""
     import gymnasium as gym
 
+    steps = env_kwargs.get("max_episode_steps")
+    if steps is not None and (isinstance(steps, bool) or not isinstance(steps, int)
+                              or steps < 1):  # gymnasium's own check is a bare assert
+        raise AgentConfigError(f"env_kwargs: max_episode_steps: must be an int >= 1 "
+                               f"(got {steps!r})")
     gym.make(env_id, **env_kwargs).close()
 
 

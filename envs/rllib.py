@@ -34,7 +34,7 @@ import gymnasium as gym
 from gymnasium.vector import AutoresetMode
 
 from spinstrike.envs import ENV_IDS
-from spinstrike.envs.config import EnvConfig, parse_config
+from spinstrike.envs.config import ConfigError, EnvConfig, parse_config
 
 __all__ = ["check_env_config", "configure", "make_env", "register_envs"]
 
@@ -74,7 +74,7 @@ def check_env_config(env_id: str, env_config: Any = None) -> EnvConfig:
     for key, value in (("num_envs", num_envs), ("max_episode_steps", steps)):
         if value is not None and (isinstance(value, bool) or not isinstance(value, int)
                                   or value < 1):
-            raise ValueError(f"env_config[{key!r}]: must be an int >= 1 (got {value!r})")
+            raise ConfigError(f"env_config[{key!r}]: must be an int >= 1 (got {value!r})")
     return parse_config(_config_class(env_id), cfg, {})
 
 
@@ -97,6 +97,10 @@ def configure(config, env_id: str, env_config: dict | None = None, *,
     single envs). Returns ``config``."""
     env_config = dict(env_config or {})
     check_env_config(env_id, env_config)
+    if "num_envs" in env_config and num_envs_per_env_runner is not None:
+        raise ConfigError("env_config['num_envs']: RLlib sets each runner's envs from "
+                          f"num_envs_per_env_runner ({num_envs_per_env_runner}; the CLI's "
+                          "--n-envs); drop num_envs")
     register_envs()
     config.environment(env_id, env_config=env_config)
     runners: dict[str, Any] = {"gym_env_vectorize_mode": ("vector_entry_point" if vectorize

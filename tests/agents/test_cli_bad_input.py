@@ -77,6 +77,9 @@ CASES = [
     ("out-exists-without-force",
      lambda t: ["train", "--out", _fake_run(t, "done")],
      ["out:", "done exists", "--force"]),
+    ("max-episode-steps-zero",  # was gymnasium's bare AssertionError, a traceback
+     lambda t: ["train", "--env-kwargs", "{max_episode_steps: 0}"],
+     ["max_episode_steps: must be an int >= 1", "(got 0)"]),
     ("bad-env-kwarg-and-out-exists",  # the argument's error first (it said "out ... exists")
      lambda t: ["train", "--out", _fake_run(t, "done"), "--env-kwargs", "{restitution: 2}"],
      ["restitution", "less than or equal to 1"]),

@@ -274,10 +274,40 @@ def test_cli_train_backend_rllib_writes_the_run_folder(tmp_path):
     assert f"{agent['mean']:.4f}" in evaluated.stdout
 
 
-def test_cli_backend_rllib_bad_input_exits_2_before_writing(tmp_path):
+@pytest.mark.parametrize("kwargs,key", [("{no_such_key: 1}", "no_such_key"),
+                                        ("{num_envs: 3}", "num_envs"),  # was: after Ray
+                                        ("{max_episode_steps: 0}", "max_episode_steps")])
+def test_cli_backend_rllib_bad_input_exits_2_before_writing(tmp_path, kwargs, key):
     out = tmp_path / "run"
     cmd = [sys.executable, "-m", "spinstrike.agents.cli", "train", "--backend", "rllib",
-           "--env", STRIKE, "--env-kwargs", "{no_such_key: 1}", "--out", str(out)]
+           "--env", "SpinStrike/RodSpinControl-v0", "--env-kwargs", kwargs, "--out", str(out)]
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
-    assert done.returncode == 2 and "no_such_key" in done.stderr
+    assert done.returncode == 2 and key in done.stderr and "Traceback" not in done.stderr
+    assert "Started a local Ray" not in done.stderr
     assert not out.exists() and not Path(str(out) + ".partial").exists()
+
+
+def test_cli_backend_rllib_starts_its_own_ray_beside_a_running_cluster(tmp_path):
+    """Without --address the CLI starts a local Ray, as documented: Ray's default joined any
+    cluster on the machine (another job's) and died with an IndexError when it went away. Also
+    PuckSpeed-v1's packaged entry, whose lin_ learning rate crashed the translation."""
+    from ray.cluster_utils import Cluster
+
+    if ray.is_initialized():
+        ray.shutdown()
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1,
+                                                            "include_dashboard": False})
+    try:
+        out = tmp_path / "run"
+        env = dict(os.environ, SDL_VIDEODRIVER="dummy", SDL_AUDIODRIVER="dummy",
+                   MPLBACKEND="Agg")
+        cmd = [sys.executable, "-m", "spinstrike.agents.cli", "train", "--backend", "rllib",
+               "--env", "SpinStrike/PuckSpeed-v1", "--num-env-runners", "1", "--timesteps",
+               "256", "--n-envs", "4", "--eval-episodes", "2", "--no-video", "--out", str(out)]
+        done = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=900)
+        assert done.returncode == 0, done.stderr[-3000:]
+        assert "Connecting to existing Ray cluster" not in done.stderr
+        assert "does not use policy_kwargs.log_std_init" in done.stderr
+        assert (out / "summary.md").is_file()
+    finally:
+        cluster.shutdown()
