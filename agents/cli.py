@@ -129,25 +129,13 @@ def cmd_train(args) -> int:
                        imitate=args.imitate, imitate_rounds=args.imitate_rounds,
                        imitate_episodes=args.imitate_episodes)
     print(f"run: {result['run_dir']}  ({result['timesteps']} steps, {result['wall_time']:.1f} s)")
-    control = _is_control_env(args.env)
+    from spinstrike.agents.evaluate import policy_label
+
     for name, (mean, std) in result.get("evaluations", {}).items():
-        if control and name == "oracle":  # the control envs' reference, as the docs call it
-            name = "oracle (chase-and-hit)"
-        print(f"  {name:>7s}: {mean:.4f} +/- {std:.4f}")
+        print(f"  {policy_label(name, 'Control' in args.env):>7s}: {mean:.4f} +/- {std:.4f}")
     if "video" in result:
         print(f"video: {result['video']}")
     return 0
-
-
-def _is_control_env(env_id: str) -> bool:
-    """Whether ``env_id`` (checked by the parser) is one of the control envs."""
-    import gymnasium as gym
-
-    try:
-        entry = gym.spec(env_id).entry_point
-    except gym.error.Error:
-        return False
-    return str(entry).startswith("spinstrike.envs.control:")
 
 
 def _train_rllib(args) -> dict:

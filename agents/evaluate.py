@@ -50,11 +50,20 @@ class Evaluation:
     returns: list[float]
     hits: dict[str, float] | None = None
 
+    @property
+    def label(self) -> str:
+        """The policy's name as the tables print it (``hits`` is counted on control envs)."""
+        return policy_label(self.policy, control=self.hits is not None)
+
     def line(self) -> str:
-        # a control env's reference is the scripted chase-and-hit, as the docs call it
-        name = "oracle (chase-and-hit)" if self.hits and self.policy == "oracle" else self.policy
-        return (f"{name:>8s}: {self.mean:.4f} +/- {self.std:.4f} "
+        return (f"{self.label:>8s}: {self.mean:.4f} +/- {self.std:.4f} "
                 f"over {self.episodes} episodes")
+
+
+def policy_label(policy: str, control: bool) -> str:
+    """A control env's reference is the scripted chase-and-hit, as the docs call it; the
+    one-strike envs' is the closed-form oracle."""
+    return "oracle (chase-and-hit)" if control and policy == "oracle" else policy
 
 
 def run_episodes(policy: Policy, env_id: str, episodes: int, seed: int = 1000,
@@ -173,9 +182,7 @@ def summarise(results: list[Evaluation], path: str | Path | None = None,
     for r in results:
         cells = "".join(f" {r.hits[k]:.2f} |" if r.hits else " - |" for k in HIT_COLUMNS) \
             if hits else ""
-        # a control env's reference is the scripted chase-and-hit, as the docs call it
-        name = "oracle (chase-and-hit)" if hits and r.policy == "oracle" else r.policy
-        lines.append(f"| {name} | {r.mean:.4f} | {r.std:.4f} | {r.episodes} |" + cells)
+        lines.append(f"| {r.label} | {r.mean:.4f} | {r.std:.4f} | {r.episodes} |" + cells)
     if hits:
         lines += ["", "Control envs pay only in steps in which the mallet touches the target: "
                   "what those steps gained and lost, per episode (gained + lost = the mean "

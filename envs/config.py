@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import copy
 import os
+from collections.abc import Iterator
 from typing import Annotated, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
@@ -20,6 +21,7 @@ from spinstrike.physics.scene import (
     Integer,
     Number,
     Scene,
+    join_by_field,
     packaged_scene,
     read_scene,
 )
@@ -215,7 +217,11 @@ def _positive_range(v: Range, unit: str) -> Range:
 def _format(err: ValidationError) -> str:
     """``<field>: <what is wrong> (got <input>)``, one per field; the members of a union
     (``rod_inertia``: a name or a number) are said as one error, not one per member."""
-    found: dict[str, tuple[list[str], str]] = {}
+    return join_by_field(_field_errors(err))
+
+
+def _field_errors(err: ValidationError) -> Iterator[tuple[str, str, str]]:
+    """``(field, message, got)`` of each pydantic error, in the env arguments' terms."""
     for e in err.errors():
         loc = ".".join(str(p) for p in e["loc"] if not UNION_MEMBER.match(str(p))) or "config"
         msg = e["msg"].removeprefix("Value error, ")
@@ -225,9 +231,7 @@ def _format(err: ValidationError) -> str:
         if e["type"] == "extra_forbidden":
             msg = "unknown argument"
         got = f" (got {e['input']!r})" if e["type"] != "value_error" and "input" in e else ""
-        msgs, _ = found.setdefault(loc, ([], got))
-        msgs.append(msg if not msgs else msg.removeprefix("Input should be "))
-    return "; ".join(f"{loc}: {', or '.join(msgs)}{got}" for loc, (msgs, got) in found.items())
+        yield loc, msg, got
 
 
 def parse_config(model: type[EnvConfig], config: dict | None, kwargs: dict) -> EnvConfig:

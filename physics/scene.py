@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -395,10 +396,24 @@ UNION_MEMBER = re.compile(r"^(?:[a-z-]+\[.*\]|(?:constrained-)?(?:float|int|str|
                           r"|dict|none))$")
 
 
-def _format_error(err: ValidationError) -> str:
-    """One line per field: ``<field path>: <what is wrong and what is allowed> (got <input>)``;
-    the members of a union (``inertia``: a number or ``thin_rod``) are said as one error."""
+def join_by_field(errors: Iterable[tuple[str, str, str]]) -> str:
+    """``(field, message, got)`` errors as ``<field>: <message><got>``, one per field: the
+    messages pydantic gives for the members of a union (``inertia``: a number or ``thin_rod``)
+    are joined by ", or " into one."""
     found: dict[str, tuple[list[str], str]] = {}
+    for loc, msg, got in errors:
+        msgs, _ = found.setdefault(loc, ([], got))
+        msgs.append(msg if not msgs else msg.removeprefix("Input should be "))
+    return "; ".join(f"{loc}: {', or '.join(msgs)}{got}" for loc, (msgs, got) in found.items())
+
+
+def _format_error(err: ValidationError) -> str:
+    """One line per field: ``<field path>: <what is wrong and what is allowed> (got <input>)``
+    (:func:`join_by_field`)."""
+    return join_by_field(_field_errors(err))
+
+
+def _field_errors(err: ValidationError) -> Iterator[tuple[str, str, str]]:
     errors = err.errors()
     for e in errors:
         if e["type"] == "too_short" and any(
@@ -426,9 +441,7 @@ def _format_error(err: ValidationError) -> str:
                 loc, msg = (f"{loc}.{field}" if loc else field), rest
         elif "input" in e and not isinstance(e["input"], dict):
             got = f" (got {e['input']!r})"
-        msgs, _ = found.setdefault(loc or "scene", ([], got))
-        msgs.append(msg if not msgs else msg.removeprefix("Input should be "))
-    return "; ".join(f"{loc}: {', or '.join(msgs)}{got}" for loc, (msgs, got) in found.items())
+        yield loc or "scene", msg, got
 
 
 #: the package that ships the scenes (``configs/scenes/*.yaml`` in the repository)
