@@ -28,7 +28,14 @@ from spinstrike.physics.scene import (
     load_scene,
     packaged_scenes,
 )
-from spinstrike.physics.world import Buffers, Contacts, State, StepStats, World
+from spinstrike.physics.world import (
+    Buffers,
+    Contacts,
+    SimulationError,
+    State,
+    StepStats,
+    World,
+)
 
 __all__ = [
     "EFFECTS",
@@ -43,6 +50,7 @@ __all__ = [
     "PymunkSolver",
     "Scene",
     "SceneError",
+    "SimulationError",
     "State",
     "StepStats",
     "World",

@@ -20,6 +20,7 @@ cached) once.
 
 from __future__ import annotations
 
+import math
 from collections import namedtuple
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -51,6 +52,7 @@ from spinstrike.physics.layout import (
     F_STATE,
     F_TIME,
     F_TOI,
+    FALLBACK_NONFINITE,
     FCFG_SIZE,
     FORCE_COLUMNS,
     H_B,
@@ -75,6 +77,7 @@ from spinstrike.physics.layout import (
     PARAM_COLUMNS,
     REC_COLUMNS,
     STAT_COLUMNS,
+    STAT_FALLBACK,
     STATE_COLUMNS,
 )
 from spinstrike.physics.solvers import exact_element, exact_many_element, fixed_element
@@ -163,7 +166,9 @@ def step_element(v, b, dt, fixed, rotation, contact_friction, table_friction, ja
     """Advance element b of a world's views by dt seconds with the world's solver, from
     statistics zeroed here; the clock advances too. ``fixed`` to ``jam`` are the world's
     compile-time flags (:data:`FLAGS`); ``trace``: the solvers' trace hook (``solvers.Trace``),
-    passed through (None: nothing recorded, the hook compiled away)."""
+    passed through (None: nothing recorded, the hook compiled away). Returns the element's
+    ``fallback`` statistic (``layout.FALLBACK``), checked last for a state that is no longer
+    finite (``FALLBACK_NONFINITE``: inputs beyond what float64 carries, e.g. 1e160 m/s)."""
     v.stats[b, :] = 0
     v.clock[b] += dt
     _fixed_if(fixed, v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,
@@ -179,6 +184,11 @@ def step_element(v, b, dt, fixed, rotation, contact_friction, table_friction, ja
              v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE], rotation, contact_friction,
              table_friction, jam, v.cpair[b], v.crec[b], v.stats[b], v.toi[b], v.kind[b],
              v.changed[b], v.rest[b], v.fbuf, v.ibuf, b, trace)
+    for i in range(v.S.shape[1]):
+        for k in range(v.S.shape[2]):
+            if not math.isfinite(v.S[b, i, k]):
+                v.stats[b, STAT_FALLBACK] = FALLBACK_NONFINITE
+    return v.stats[b, STAT_FALLBACK]
 
 
 @jit
@@ -210,12 +220,15 @@ def n_blocks(n):
 
 @jit
 def step_body(fbuf, ibuf, start, stop, fixed, rotation, cf, tf, jam):
-    """Step elements ``start..stop-1`` of a world by its ``dt`` (``fcfg``)."""
+    """Step elements ``start..stop-1`` of a world by its ``dt`` (``fcfg``); return the worst
+    ``fallback`` statistic among them (``layout.FALLBACK``, ordered by severity)."""
     literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam)
     v = unpack(fbuf, ibuf)
     dt = v.fcfg[CF_DT]
+    worst = 0
     for b in range(start, stop):
-        step_element(v, b, dt, fixed, rotation, cf, tf, jam)
+        worst = max(worst, step_element(v, b, dt, fixed, rotation, cf, tf, jam))
+    return worst
 
 
 @jit_parallel
@@ -223,8 +236,11 @@ def step_parallel(fbuf, ibuf, fixed, rotation, cf, tf, jam):
     """:func:`step_body` over the whole batch in parallel threads, a block of elements a task."""
     literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam)
     n = ibuf[H_B]
+    worst = 0
     for k in numba.prange(n_blocks(n)):
-        step_body(fbuf, ibuf, k * BLOCK, min(n, (k + 1) * BLOCK), fixed, rotation, cf, tf, jam)
+        worst = max(worst, step_body(fbuf, ibuf, k * BLOCK, min(n, (k + 1) * BLOCK), fixed,
+                                     rotation, cf, tf, jam))
+    return worst
 
 
 @dataclass(frozen=True, eq=False)  # compared and hashed by identity: World.run looks it up
@@ -271,8 +287,8 @@ class BatchKernel:
         return entry
 
 
-def _backend_step(world) -> None:
-    world._step_backend()
+def _backend_step(world) -> int:
+    return world._step_backend()
 
 
 #: the world's own step (``World.step``)

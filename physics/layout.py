@@ -119,6 +119,13 @@ STATS = Table("statistics", "events", "iterations", "fallback", "contacts", "sub
 STAT_EVENTS, STAT_ITERATIONS, STAT_FALLBACK, STAT_CONTACTS, STAT_SUBSTEPS = STATS
 STAT_COLUMNS = len(STATS)
 
+#: what the ``fallback`` statistic holds (values, not columns): the step ran as designed; the
+#: exact solver settled the rest of the step with fixed substeps; it did, but needed more than
+#: its cap of substeps, so the no-tunnelling bound did not hold; the state is no longer finite
+#: (checked after every step: ``World.step`` raises ``SimulationError``)
+FALLBACK = Table("fallback", "none", "settled", "capped", "nonfinite", prefix="FALLBACK_")
+FALLBACK_NONE, FALLBACK_SETTLED, FALLBACK_CAPPED, FALLBACK_NONFINITE = FALLBACK
+
 #: outcome of a time-of-impact search (values, not columns)
 SEARCH = Table("search outcome", "none", "contact", "checkpoint")
 NONE, CONTACT, CHECKPOINT = SEARCH

@@ -16,8 +16,9 @@ comes to rest on it, ``_rest_on_cushions``):
   the event loop,
   and the rest of the step is *settled* by the fixed-step contact solver below, with substeps
   short enough that no pair closes by more than half the depth at which its overlap is still
-  seen (``_settle_substeps``). The element is
-  flagged (``stats[:, STAT_FALLBACK]``), never hung, never left overlapping.
+  seen (``_settle_substeps``), at most ``MAX_SETTLE_SUBSTEPS``. The element is flagged
+  (``stats[:, STAT_FALLBACK]``: ``FALLBACK_SETTLED``, or ``FALLBACK_CAPPED`` where the cap was
+  reached and the no-overlap bound no longer holds), never hung.
 
 ``fixed``: ``substeps`` symplectic-Euler substeps; after each, pairs that overlap (or are within
 ``slop``) and approach get impulses from that (overlapped) pose, ``iterations`` sweeps, then
@@ -73,6 +74,8 @@ from spinstrike.physics.layout import (
     CAL_STAMP,
     CAL_WATCH_SIZE,
     CHECKPOINT,
+    FALLBACK_CAPPED,
+    FALLBACK_SETTLED,
     FRICTION,
     FRICTION_DECEL,
     FX,
@@ -593,8 +596,25 @@ def _settle_substeps(S, Pm, F, PA, PB, T, settle_substep):
         closing = _speed_bound(S, Pm, F, a, T) + _speed_bound(S, Pm, F, b, T)
         if closing > 0.0 and 0.5 * size / closing < h:
             h = 0.5 * size / closing
-    steps = math.ceil(T / h)
-    return max(1, min(steps, MAX_SETTLE_SUBSTEPS))
+    steps = T / h
+    return steps if steps >= 1.0 else 1.0  # not rounded nor capped (see _settle); NaN: 1
+
+
+@jit
+def _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, sweeps, tol, rotation,
+            contact_friction, table_friction, cpair, crec, stats, changed, jam, trace):
+    """Settle the rest of the step (``t_now..dt``) with the fixed solver and flag the element:
+    ``FALLBACK_SETTLED``, or ``FALLBACK_CAPPED`` where the substeps the no-tunnelling bound needs
+    (:func:`_settle_substeps`) exceed ``MAX_SETTLE_SUBSTEPS`` and the capped ones are longer, so
+    a pair may have passed through another (forces or speeds ~10^6 times what the bodies' sizes
+    allow in the step: a force of 10^14 N on a 0.3 kg disk in a 20 ms step)."""
+    needed = _settle_substeps(S, Pm, F, PA, PB, dt - t_now, settle_substep)
+    capped = needed > MAX_SETTLE_SUBSTEPS
+    substeps = MAX_SETTLE_SUBSTEPS if capped else int(math.ceil(needed))
+    fixed_element(S, Pm, F, hw, PA, PB, MAT, dt - t_now, substeps, sweeps, tol, t_now, rotation,
+                  contact_friction, table_friction, cpair, crec, stats, changed, sweeps, jam,
+                  trace)
+    stats[STAT_FALLBACK] = FALLBACK_CAPPED if capped else FALLBACK_SETTLED
 
 
 @jit
@@ -659,11 +679,9 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
         if events >= max_events or resting >= zeno_impacts:
             _end_rests(F, rest)
             if t_now < dt:
-                substeps = _settle_substeps(S, Pm, F, PA, PB, dt - t_now, settle_substep)
-                fixed_element(S, Pm, F, hw, PA, PB, MAT, dt - t_now, substeps, sweeps, tol,
-                              t_now, rotation, contact_friction, table_friction, cpair, crec,
-                              stats, changed, sweeps, jam, trace)
-                stats[STAT_FALLBACK] = 1
+                _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, sweeps, tol,
+                        rotation, contact_friction, table_friction, cpair, crec, stats, changed,
+                        jam, trace)
             break
     _end_rests(F, rest)
     stats[STAT_EVENTS] += events
@@ -822,12 +840,9 @@ def exact_many_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_itera
         trace)
     _end_rests(F, rest)
     if settle:
-        sweeps = _int(MAX_SWEEPS)
-        substeps = _settle_substeps(S, Pm, F, PA, PB, dt - t_now, settle_substep)
-        fixed_element(S, Pm, F, hw, PA, PB, MAT, dt - t_now, substeps, sweeps, tol, t_now,
-                      rotation, contact_friction, table_friction, cpair, crec, stats, changed,
-                      sweeps, jam, trace)
-        stats[STAT_FALLBACK] = 1
+        _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, _int(MAX_SWEEPS), tol,
+                rotation, contact_friction, table_friction, cpair, crec, stats, changed, jam,
+                trace)
     stats[STAT_EVENTS] += events
     stats[STAT_ITERATIONS] += iterations
 

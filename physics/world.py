@@ -19,6 +19,7 @@ what a user reads is what the kernels simulate.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -45,6 +46,10 @@ from spinstrike.physics.layout import (
     CI_SUBSTEPS,
     CI_TABLE_FRICTION,
     CI_ZENO_IMPACTS,
+    FALLBACK_CAPPED,
+    FALLBACK_NONE,
+    FALLBACK_NONFINITE,
+    FALLBACK_SETTLED,
     FLOAT_FIELDS,
     FRICTION,
     FRICTION_DECEL,
@@ -100,8 +105,9 @@ from spinstrike.physics.scene import (
     validate_solver,
 )
 from spinstrike.physics.shapes import radius_of_gyration
+from spinstrike.physics.solvers import MAX_SETTLE_SUBSTEPS
 
-__all__ = ["Buffers", "Contacts", "State", "StepStats", "World"]
+__all__ = ["Buffers", "Contacts", "SimulationError", "State", "StepStats", "World"]
 
 #: batch size from which the parallel kernels are used
 PARALLEL_BATCH = 256
@@ -179,6 +185,10 @@ class StepStats:
         contacts: impulses applied.
         fallback: the exact solver settled the rest of the step with fixed substeps (a run of
             resting bounces, or ``max_events`` reached).
+        capped: that settling needed more substeps than its cap (``MAX_SETTLE_SUBSTEPS``,
+            10^6), so the bound that keeps bodies from passing through each other did not hold
+            (``World.step`` warns): forces or speeds about 10^6 times what the bodies' sizes
+            allow within a step (a force of 10^14 N on a 0.3 kg disk in a 20 ms step).
     """
 
     events: np.ndarray
@@ -186,6 +196,17 @@ class StepStats:
     substeps: np.ndarray
     contacts: np.ndarray
     fallback: np.ndarray
+    capped: np.ndarray
+
+
+class SimulationError(SceneError):
+    """A step left a world's state no longer finite (NaN or infinite): inputs beyond what
+    float64 carries, such as a speed of 1e160 m/s or a force of 1e200 N. ``elements``: the batch
+    elements concerned. The world keeps that state; ``restore`` a snapshot or ``reset``."""
+
+    def __init__(self, message: str, elements: np.ndarray) -> None:
+        super().__init__(message)
+        self.elements = elements
 
 
 class World:
@@ -718,9 +739,36 @@ class World:
         self._fcfg[CF_DT] = self._dt = value
 
     def step(self, dt: float) -> Contacts:
-        """Advance every element by ``dt`` seconds; return the contacts resolved."""
-        self.run(STEP, dt=dt)
+        """Advance every element by ``dt`` seconds; return the contacts resolved.
+
+        Raises :class:`SimulationError` if an element's state is no longer finite after the
+        step; warns (``RuntimeWarning``) if the exact solver's settling hit its cap of substeps
+        (``last_step.capped``).
+        """
+        if self.run(STEP, dt=dt) >= FALLBACK_CAPPED:
+            self._report_fallback()
         return self.last_contacts
+
+    def _report_fallback(self) -> None:
+        """Raise or warn for the elements the last step left non-finite or capped."""
+        code = self._stats[:, STAT_FALLBACK]
+        bad = np.flatnonzero(code == FALLBACK_NONFINITE)
+        if bad.size:
+            rows = np.isfinite(self._state[bad]).all(axis=2)  # [elements, bodies]
+            bodies = [self.names[i] for i in np.flatnonzero(~rows.all(axis=0))]
+            raise SimulationError(
+                f"step: the state of element(s) {_few(bad)} is no longer finite (bodies "
+                f"{bodies}): a speed or force too large for float64 (speeds from about 1e150 "
+                f"m/s overflow, and forces that produce them). The world keeps that state: "
+                f"restore a snapshot or reset it", bad)
+        capped = np.flatnonzero(code == FALLBACK_CAPPED)
+        warnings.warn(
+            f"step: element(s) {_few(capped)}: the exact solver's settling needed more than its "
+            f"cap of {MAX_SETTLE_SUBSTEPS:,} substeps, so bodies may have passed through each "
+            f"other in this step (last_step.capped); forces and speeds this large (the largest "
+            f"force set is {np.abs(self._forces[capped]).max():.3g} N) are beyond what the "
+            f"step length can resolve: use a shorter step or smaller forces",
+            RuntimeWarning, stacklevel=3)
 
     @property
     def backend(self):
@@ -728,22 +776,31 @@ class World:
         ``space(b)`` is element b's ``pymunk.Space``."""
         return self._backend
 
-    def _step_backend(self) -> None:
-        """``STEP`` on the pymunk backend (the compiled element steps zero their own rows)."""
+    def _step_backend(self) -> int:
+        """``STEP`` on the pymunk backend (the compiled element steps zero their own rows);
+        returns the worst ``fallback`` statistic, as the compiled step does."""
         self._stats[:] = 0
         self._backend.step(self.dt)
         self._time += self.dt
+        finite = np.isfinite(self._state).all(axis=(1, 2))
+        if finite.all():
+            return FALLBACK_NONE
+        self._stats[~finite, STAT_FALLBACK] = FALLBACK_NONFINITE
+        return FALLBACK_NONFINITE
 
     @property
     def last_step(self) -> StepStats:
         """Cost accounting of the last step, per element (see :class:`StepStats`)."""
         if self._last_step is None:
             st = self._stats.copy()
-            fallback = st[:, STAT_FALLBACK].astype(bool)
-            st.flags.writeable = fallback.flags.writeable = False  # and so their columns
+            code = st[:, STAT_FALLBACK]
+            fallback = (code == FALLBACK_SETTLED) | (code == FALLBACK_CAPPED)
+            capped = code == FALLBACK_CAPPED
+            for a in (st, fallback, capped):  # st: and so its columns
+                a.flags.writeable = False
             self.__dict__["_last_step"] = StepStats(
                 st[:, STAT_EVENTS], st[:, STAT_ITERATIONS], st[:, STAT_SUBSTEPS],
-                st[:, STAT_CONTACTS], fallback)
+                st[:, STAT_CONTACTS], fallback, capped)
         return self._last_step
 
     @property
@@ -792,6 +849,13 @@ class World:
         orbital = r[..., 0] * v[..., 1] - r[..., 1] * v[..., 0]
         return (self._finite_mass() * orbital).sum(-1) + (
             self._finite_inertia() * self._state[..., OMEGA]).sum(-1)
+
+
+def _few(elements: np.ndarray, shown: int = 8) -> str:
+    """Element indices for a message: all of a few, else the first ``shown`` and a count."""
+    if elements.size <= shown:
+        return str(elements.tolist())
+    return f"{elements[:shown].tolist()[:-1]} ... ({elements.size} in all)"
 
 
 @jit
