@@ -312,6 +312,9 @@ def _drop_parameters_of_dropped_effects(data: dict, effects: list[str]) -> None:
         mats["pairs"] = pairs
     if mats:
         data["materials"] = mats
+    if "rotation" not in effects and isinstance(data.get("bodies"), list):
+        data["bodies"] = [{k: v for k, v in b.items() if k not in ("inertia", "omega")}
+                          if isinstance(b, dict) else b for b in data["bodies"]]
 
 
 def _check_bodies(data: dict, body_overrides: dict[str, dict]) -> None:

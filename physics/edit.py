@@ -164,6 +164,9 @@ class WorldEdit:
             raise SceneError(f"{name}: a disk has radius only (no length or thickness)")
         if shape == "rod" and radius is not None:
             raise SceneError(f"{name}.radius: a rod has length and thickness, not radius")
+        if inertia is not None and not w.rotation:
+            raise SceneError(f"{name}.inertia: is set but the scene does not list the "
+                             "'rotation' effect")
         values = {}
         for field, value, strict in (("mass", mass, True), ("radius", radius, True),
                                      ("length", length, True), ("thickness", thickness, False),

@@ -338,6 +338,8 @@ class Scene(_Model):
                          "is set but the scene does not list the 'rotation' effect")
                 _require(not body.pivot, f"bodies[{i}].pivot",
                          "a pivot needs the 'rotation' effect")
+                _require(body.inertia is None, f"bodies[{i}].inertia",
+                         "is set but the scene does not list the 'rotation' effect")
         if "walls" in effects:
             _require(self.table.size is not None, "table.size",
                      "the 'walls' effect needs a table size [width, height] (m)")

@@ -503,6 +503,19 @@ def test_effects_argument_turns_the_scenes_effect_parameters_off():
     env = gym.make("SpinStrike/RodSpinControl-v0", effects=["rotation", "walls"],
                    table_friction=0.05)
     assert env.unwrapped.world.table_friction
+    # without rotation, a scene's moments of inertia go too (a scene with an inertia and no
+    # rotation is refused, as physics.load_scene refuses it)
+    from spinstrike.envs.config import load_packaged_scene
+
+    control = load_packaged_scene("puck_control")
+    spun = dict(control, bodies=[dict(b, inertia=1e-4) for b in control["bodies"]])
+    env = gym.make("SpinStrike/PuckSpeedControl-v0", scene=spun, effects=["walls"])
+    assert not env.unwrapped.world.rotation
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    with pytest.raises(ConfigError, match=r"bodies\[0\]\.inertia: is set but the scene does "
+                                          r"not list the 'rotation' effect"):
+        gym.make("SpinStrike/PuckSpeedControl-v0", scene=dict(spun, effects=["walls"]))
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)

@@ -81,6 +81,7 @@ INVALID = [
     (_set("bodies.1.name", "wall_left"), ["bodies[1].name", "reserved"]),
     (_set("bodies.1.position", [0.7, 0.0]), ["bodies[1].position", "inside the table"]),
     (_set("bodies.1.omega", 1.0) | {"effects": ["walls"]}, ["bodies[1].omega", "rotation"]),
+    (_set("bodies.0.inertia", 0.01) | {"effects": ["walls"]}, ["bodies[0].inertia", "rotation"]),
     (_set("materials.pairs", [{"bodies": ["rod", "ghost"], "restitution": 0.5}]),
      ["materials.pairs[0].bodies", "ghost"]),
     (_set("materials.pairs", [{"bodies": ["rod", "walls"], "restitution": 2}]),

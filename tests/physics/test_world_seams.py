@@ -160,6 +160,16 @@ def test_setters_refuse_non_numbers(value):
         world.set_body("a", mass=value)
 
 
+def test_an_inertia_without_the_rotation_effect_is_refused():
+    """effects.py lists inertia as a rotation parameter: set where nothing rotates, it is
+    refused as the scene refuses it (it used to be accepted and ignored)."""
+    world = physics.World(dict(HEAD_ON, effects=["walls"]))
+    with pytest.raises(SceneError, match="a.inertia: is set but the scene does not list the "
+                                         "'rotation' effect"):
+        world.set_body("a", inertia=1.0)
+    physics.World(HEAD_ON).set_body("a", inertia=1.0)  # with rotation: accepted
+
+
 def test_scene_numbers_are_strict():
     with pytest.raises(SceneError, match=r"bodies\[0\]\.mass"):
         physics.World({"bodies": [{"name": "a", "shape": "disk", "radius": 0.1, "mass": "1"}]})
