@@ -5,6 +5,7 @@
     spinstrike train    --backend rllib --env ID [--num-env-runners N] [--address ADDR]
     spinstrike evaluate RUN_DIR | --oracle/--random/--planner --env ID [--episodes 50] [--json]
     spinstrike record   RUN_DIR | --oracle/--planner --env ID  [--out rollout.mp4|.gif] [--grid]
+    spinstrike record   --scene break [--seconds 3] [--dt 0.02]   (a physics scene, no policy)
     spinstrike envs
     spinstrike cache    [--clear]
     spinstrike bench    accuracy|speed [--quick]
@@ -18,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import shlex
 import sys
@@ -202,6 +204,8 @@ def cmd_record(args) -> int:
     from spinstrike.agents.config import AgentConfigError
     from spinstrike.agents.record import record
 
+    if args.scene is not None:
+        return _record_scene(args)
     _check_episodes("--episodes", args.episodes)
     policy, env_id, env_kwargs, name = _policy(args)
     out = args.out or (str(Path(args.run_dir) / "rollout.mp4") if args.run_dir
@@ -214,6 +218,33 @@ def cmd_record(args) -> int:
     w, h = result["size"]
     print(f"video: {result['path']} ({result['frames']} frames at {result['fps']} fps, "
           f"{w}x{h})")
+    return 0
+
+
+def _record_scene(args) -> int:
+    """``spinstrike record --scene S``: film a physics scene as it evolves (no policy)."""
+    from spinstrike import physics
+    from spinstrike.agents.config import AgentConfigError
+    from spinstrike.agents.record import record_world
+
+    others = [flag for flag, on in (("RUN_DIR", args.run_dir), ("--env", args.env),
+                                    ("--oracle", args.oracle), ("--planner", args.planner),
+                                    ("--grid", args.grid)) if on]
+    if others:
+        raise AgentConfigError(f"--scene: films a physics scene with no policy; it does not "
+                               f"take {', '.join(others)}")
+    for flag, value in (("--seconds", args.seconds), ("--dt", args.dt)):
+        if not (math.isfinite(value) and value > 0):
+            raise AgentConfigError(f"{flag}: must be a number > 0 (got {value})")
+    out = args.out or f"{Path(str(args.scene)).stem}.mp4"
+    if Path(out).suffix.lower() not in (".mp4", ".gif"):
+        raise AgentConfigError(f"--out: must end in .mp4 or .gif (got {out!r})")
+    world = physics.World(args.scene)
+    result = record_world(world, out, seconds=args.seconds, dt=args.dt,
+                          size=_size(args.size) if args.size else (720, 480))
+    w, h = result["size"]
+    print(f"video: {result['path']} ({result['frames']} frames at {result['fps']:g} fps, "
+          f"{w}x{h}; {result['contacts']} contacts)")
     return 0
 
 
@@ -323,6 +354,14 @@ def build_parser() -> argparse.ArgumentParser:
                            help="tile the episodes in one video, played side by side")
             e.add_argument("--size", help="WIDTHxHEIGHT of an episode's frames (default: the "
                            "env's render_size, 720x480)")
+            e.add_argument("--scene", help="film a physics scene instead (a packaged scene's "
+                           "name, e.g. break, or a YAML path): a frame per --dt step for "
+                           "--seconds, no policy")
+            e.add_argument("--seconds", type=float, default=3.0,
+                           help="--scene: simulated seconds (default: %(default)s)")
+            e.add_argument("--dt", type=float, default=0.02,
+                           help="--scene: step, s; the video plays in real time "
+                           "(default: %(default)s)")
         e.set_defaults(func=func)
 
     s = sub.add_parser("envs", help="list the environments")

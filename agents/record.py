@@ -17,7 +17,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from spinstrike import envs  # noqa: F401
+from spinstrike import envs, physics
 from spinstrike.envs.recording import VideoWriter, tile
 
 __all__ = ["record"]
@@ -99,11 +99,92 @@ def record(policy, env_id: str, path: str | Path, episodes: int = 3, seed: int =
             "returns": [run.total for run in runs], "size": writer.size}
 
 
+def record_world(world, path: str | Path, seconds: float = 3.0, dt: float = 0.02,
+                 element: int = 0, size: tuple[int, int] = (720, 480),
+                 trail: float = 0.3) -> dict:
+    """Film one element of a physics ``World`` (``physics.World``: any scene, any number of
+    bodies) for ``seconds``, a frame after each step of ``dt`` seconds, played in real time
+    (``1 / dt`` frames per second), to ``path`` (``.mp4`` or ``.gif``).
+
+    A frame shows the table and cushions, every body with a spin arrow, the last ``trail``
+    seconds of each body's path, an arrow at each contact of the step (scaled by its impulse,
+    fading over the next frames) and a line with the time, the kinetic energy and the
+    contacts so far. The world is stepped in place (its state is the film's last frame).
+
+    Returns:
+        ``{"path", "frames", "fps", "size", "contacts"}``.
+    """
+    from spinstrike.envs.rendering import BodyDraw, Frame, Marker, Renderer, body_points
+
+    if not (math.isfinite(seconds) and seconds > 0):
+        raise ValueError(f"seconds: must be a number > 0 (got {seconds!r})")
+    if not (math.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt: must be a number > 0 s (got {dt!r})")
+    b = element
+    if isinstance(b, bool) or not isinstance(b, int | np.integer) or not 0 <= b < world.batch_size:
+        raise ValueError(f"element: must be in [0, {world.batch_size}) (got {element!r})")
+    n = world.n_bodies
+    half = world.table_half_size[b]
+    walls = bool(world.walls)
+    if np.isfinite(half).all():
+        view = tuple(1.04 * half)
+    else:  # an unbounded table: the bodies' extent now, with room to move
+        reach = world.half_length[b] + world.radius[b]
+        extent = np.abs(world.state.positions[b]).max(axis=0) + reach.max()
+        view = (max(extent[0], 1.5 * extent[1]) * 1.5, max(extent[1], extent[0] / 1.5) * 1.5)
+    renderer = Renderer(size, view)
+    fps = 1.0 / dt
+    keep = max(1, int(round(trail / dt)))
+    paths: list[deque] = []
+    markers: list[Marker] = []
+    total = 0
+    writer = VideoWriter(path, fps)
+
+    def bodies() -> list[BodyDraw]:
+        st = world.state
+        return [BodyDraw(world.names[i] if world.names[i] in ("rod", "puck", "mallet",
+                                                              "striker") else "other",
+                         *st.positions[b, i], st.angles[b, i], world.radius[b, i],
+                         world.half_length[b, i], st.omegas[b, i], *st.velocities[b, i])
+                for i in range(n)]
+
+    def frame() -> np.ndarray:
+        drawn = bodies()
+        points = [body_points(d) for d in drawn]
+        while len(paths) < len(points):
+            paths.append(deque(maxlen=keep))
+        for path_, p in zip(paths, points, strict=True):
+            path_.append(p)
+        trails = [[step[k] for step in path_] for path_ in paths for k in range(len(path_[0]))]
+        energy = float(world.kinetic_energy()[b])
+        text = f"t = {float(world.time[b]):.2f} s   E = {energy:.3f} J   contacts {total}"
+        return renderer.draw(Frame(drawn, tuple(half), walls, text=text, trails=trails,
+                                   markers=list(markers), smooth=True))
+
+    try:
+        writer.write(frame())
+        for _ in range(max(1, int(round(seconds / dt)))):
+            contacts = world.step(dt)
+            mine = contacts.batch == b
+            total += int(mine.sum())
+            markers = [Marker(m.x, m.y, m.nx, m.ny, m.j, m.fade * 0.6) for m in markers
+                       if m.fade > 0.1]
+            for a, c, point, normal, j in zip(contacts.body_a[mine], contacts.body_b[mine],
+                                              contacts.point[mine], contacts.normal[mine],
+                                              contacts.impulse[mine], strict=True):
+                markers.append(Marker.on(int(c), int(a), int(c), point, normal, float(j)))
+            writer.write(frame())
+    finally:
+        writer.close()
+    return {"path": str(writer.path), "frames": writer.frames, "fps": fps,
+            "size": writer.size, "contacts": total}
+
+
 def docs_media(folder: str | Path = "docs/images", seed: int = 2) -> list[str]:
     """Regenerate the README's media from this renderer: ``rodspin.gif`` (one oracle strike in
-    slow motion, overlays and all), ``rodspincontrol.gif`` (two seconds of chase-and-hit), and a
-    still of each env (``<env>.png``: a strike's last frame, or a control step's, at half of
-    720 x 480)."""
+    slow motion, overlays and all), ``rodspincontrol.gif`` (two seconds of chase-and-hit),
+    ``break.gif`` (docs/design.md: the packaged break scene, 1.8 s), and a still of each env
+    (``<env>.png``: a strike's last frame, or a control step's, at half of 720 x 480)."""
     from PIL import Image
 
     from spinstrike.agents.oracle import oracle_for
@@ -118,6 +199,9 @@ def docs_media(folder: str | Path = "docs/images", seed: int = 2) -> list[str]:
     out = folder / "rodspincontrol.gif"
     record(oracle_for("SpinStrike/RodSpinControl-v0"), "SpinStrike/RodSpinControl-v0", out,
            episodes=1, seed=seed, size=size, hold=0.0, env_kwargs={"max_episode_steps": 100})
+    written.append(str(out))
+    out = folder / "break.gif"  # docs/design.md: the many-body solver
+    record_world(physics.World("break"), out, seconds=1.8, size=(640, 340), trail=0.2)
     written.append(str(out))
     for env_id in envs.ENV_IDS:
         if env_id == "SpinStrike/PuckSpeed-v0":  # deprecated; PuckSpeed-v1 draws the same table
@@ -145,9 +229,10 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
     p = argparse.ArgumentParser(
         prog="python -m spinstrike.agents.record",
-        description="Regenerate the README's media (rodspin.gif, rodspincontrol.gif and a still "
-                    "of each env) from the renderer. To film a trained policy, use "
-                    "`spinstrike record RUN_DIR`.")
+        description="Regenerate the README's media (rodspin.gif, rodspincontrol.gif, "
+                    "break.gif and a still of each env) from the renderer. To film a trained "
+                    "policy, use `spinstrike record RUN_DIR`; a physics scene, `spinstrike "
+                    "record --scene`.")
     p.add_argument("folder", nargs="?", default="docs/images",
                    help="where the images go (default: %(default)s)")
     p.add_argument("--seed", type=int, default=2, help="episode seed (default: %(default)s)")

@@ -527,6 +527,33 @@ def test_cli_records_a_grid_and_a_gif(tmp_path, capsys):
     assert _gif_milliseconds(gif) == round((sum(lengths) + 3 * 15) * 100 / 30) * 10
 
 
+def test_cli_films_a_physics_scene(tmp_path, capsys):
+    """``spinstrike record --scene``: a packaged scene by name (the break, sixteen bodies) or a
+    user's YAML, a frame per step played in real time, the contacts it counts those the world's
+    own steps resolve."""
+    from spinstrike import physics
+
+    gif = tmp_path / "break.gif"
+    assert main(["record", "--scene", "break", "--seconds", "0.4", "--size", "320x180",
+                 "--out", str(gif)]) == 0
+    world = physics.World("break")
+    contacts = sum(len(world.step(0.02)) for _ in range(20))
+    assert contacts > 0  # the striker reaches the rack at ~0.18 s
+    assert f"21 frames at 50 fps, 320x180; {contacts} contacts" in capsys.readouterr().out
+    assert _gif_milliseconds(gif) == 21 * 20  # the first frame, then one per 20 ms step
+    scene = tmp_path / "two.yaml"
+    scene.write_text("bodies:\n"
+                     "  - {name: a, shape: disk, radius: 0.05, mass: 1, position: [-0.3, 0],"
+                     " velocity: [2, 0]}\n"
+                     "  - {name: b, shape: rod, length: 0.3, thickness: 0.02, mass: 1}\n")
+    video = tmp_path / "two.mp4"
+    assert main(["record", "--scene", str(scene), "--seconds", "0.3", "--dt", "0.01",
+                 "--out", str(video)]) == 0
+    assert "31 frames at 100 fps, 720x480; 1 contacts" in capsys.readouterr().out
+    frames = _decode(video)
+    assert len(frames) == 31 and not np.array_equal(frames[0], frames[-1])
+
+
 def _gif_milliseconds(path):
     from PIL import Image, ImageSequence
 
@@ -535,15 +562,18 @@ def _gif_milliseconds(path):
 
 def test_readme_media_command_writes_the_readme_images_and_help_writes_nothing(tmp_path):
     """``python -m spinstrike.agents.record docs/images`` (the README's command) writes exactly
-    the images the README shows, the current ids' (no deprecated PuckSpeed-v0, no warning); its
-    ``--help`` prints usage instead of writing images into a folder named ``--help``."""
+    the images the README and docs/design.md show, the current ids' (no deprecated
+    PuckSpeed-v0, no warning); its ``--help`` prints usage instead of writing images into a
+    folder named ``--help``."""
     import re
     import subprocess
     import sys
     from pathlib import Path
 
-    readme = (Path(envs.__file__).resolve().parent.parent / "README.md").read_text()
-    shown = set(re.findall(r"docs/images/((?:rodspin|puckspeed)\w*\.(?:png|gif))", readme))
+    root = Path(envs.__file__).resolve().parent.parent
+    docs = (root / "README.md").read_text() + (root / "docs" / "design.md").read_text()
+    shown = set(re.findall(r"images/((?:rodspin|puckspeed|break)\w*\.(?:png|gif))", docs))
+    assert "break.gif" in shown  # docs/design.md's many-body break
     run = [sys.executable, "-W", "error::DeprecationWarning", "-m", "spinstrike.agents.record"]
     out = subprocess.run([*run, "--help"], cwd=tmp_path, capture_output=True, text=True)
     assert out.returncode == 0 and out.stdout.startswith("usage:")
