@@ -31,7 +31,13 @@ import numpy as np
 import yaml
 
 from spinstrike.agents.config import AgentConfigError, RunConfig, load_agent_config
-from spinstrike.agents.train import TrainResult, _work_dir, finish_run, plot_learning_curve
+from spinstrike.agents.train import (
+    TrainResult,
+    _refuse_render_mode,
+    _work_dir,
+    finish_run,
+    plot_learning_curve,
+)
 
 __all__ = ["load_rllib_policy", "module_policy", "ppo_config", "train_rllib"]
 
@@ -162,6 +168,7 @@ def train_rllib(env_id: str, *, config: str | Path | None = None, seed: int = 0,
         cfg.env_kwargs = {**cfg.env_kwargs, **env_kwargs}
     if cfg.normalize:
         raise AgentConfigError("normalize: not supported with --backend rllib")
+    _refuse_render_mode(cfg.env_kwargs)
     if not isinstance(seed, int) or seed < 0:
         raise AgentConfigError(f"seed: must be an integer >= 0 (got {seed!r})")
     if not isinstance(num_env_runners, int) or num_env_runners < 0:

@@ -243,11 +243,22 @@ def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, 
     return model, wall
 
 
+def _refuse_render_mode(env_kwargs: dict) -> None:
+    """A training run's env kwargs hold no ``render_mode``: its evaluation renders nothing and
+    its video sets ``rgb_array_list`` (given twice, ``gym.make`` raised a TypeError after
+    training)."""
+    if "render_mode" in env_kwargs:
+        raise AgentConfigError(f"env_kwargs: render_mode is not an env argument of a training "
+                               f"run (got {env_kwargs['render_mode']!r}; the evaluation renders "
+                               f"nothing, the video uses rgb_array_list): drop it")
+
+
 def _check_env_kwargs(env_id: str, env_kwargs: dict) -> None:
     """Build the env once with ``env_kwargs``: its own validation (a ConfigError naming the
     argument) speaks before anything about the run folder."""
     import gymnasium as gym
 
+    _refuse_render_mode(env_kwargs)
     steps = env_kwargs.get("max_episode_steps")
     if steps is not None and (isinstance(steps, bool) or not isinstance(steps, int)
                               or steps < 1):  # gymnasium's own check is a bare assert

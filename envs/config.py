@@ -234,9 +234,20 @@ def _field_errors(err: ValidationError) -> Iterator[tuple[str, str, str]]:
         yield loc, msg, got
 
 
+#: Gymnasium's own arguments of ``gym.make`` / ``gym.make_vec``, never keys of an env's config
+#: (an RLlib env_config may hold them: ``spinstrike.envs.rllib`` passes them to Gymnasium)
+GYM_ARGUMENTS = ("render_mode", "max_episode_steps")
+
+
 def parse_config(model: type[EnvConfig], config: dict | None, kwargs: dict) -> EnvConfig:
     """Merge a ``config`` dict and keyword arguments (keywords win) and validate them."""
     merged = dict(config or {})
+    for key in GYM_ARGUMENTS:
+        if key in merged:
+            raise ConfigError(
+                f"config[{key!r}]: {key} is Gymnasium's argument, not a config key: pass "
+                f"gym.make(id, {key}=...) (an RLlib env_config may hold it: "
+                f"spinstrike.envs.rllib passes it to gym.make)")
     merged.update(kwargs)
     try:
         return model.model_validate(merged)

@@ -13,7 +13,8 @@ What it takes care of (each a way the plain ``register_env`` line goes wrong):
   process that unpickles it imports ``spinstrike`` itself, which registers the ids there too.
 * **env_config**: passed to the env as its config; :func:`configure` (and :func:`check_env_config`)
   parses it in the driver first, so a bad key raises the env's ``ConfigError`` before any runner
-  starts. ``max_episode_steps`` is taken out and given to Gymnasium.
+  starts. Gymnasium's own arguments are taken out and given to ``gym.make``:
+  ``max_episode_steps``, and ``render_mode`` (what RLlib's video callbacks set).
 * **Vector envs**: with ``gym_env_vectorize_mode="vector_entry_point"`` (what :func:`configure`
   sets unless ``vectorize=False``) RLlib calls the creator with ``env_config | {"num_envs": N}``;
   the creator then returns the native vector env (one batched world) in ``NEXT_STEP`` autoreset
@@ -34,17 +35,16 @@ import gymnasium as gym
 from gymnasium.vector import AutoresetMode
 
 from spinstrike.envs import ENV_IDS
-from spinstrike.envs.config import ConfigError, EnvConfig, parse_config
+from spinstrike.envs.config import GYM_ARGUMENTS, ConfigError, EnvConfig, parse_config
 
 __all__ = ["check_env_config", "configure", "make_env", "register_envs"]
 
 
-def _split(env_config: Any) -> tuple[dict, int | None, int | None]:
-    """(the env's own config, num_envs, max_episode_steps) from an RLlib env_config."""
+def _split(env_config: Any) -> tuple[dict, dict]:
+    """(the env's own config, Gymnasium's arguments) from an RLlib env_config: ``num_envs``
+    (set by RLlib for a vector env), ``max_episode_steps`` and ``render_mode``."""
     cfg = dict(env_config or {})
-    num_envs = cfg.pop("num_envs", None)
-    steps = cfg.pop("max_episode_steps", None)
-    return cfg, num_envs, steps
+    return cfg, {k: cfg.pop(k) for k in ("num_envs", *GYM_ARGUMENTS) if k in cfg}
 
 
 def make_env(env_id: str, env_config: Any = None) -> gym.Env | gym.vector.VectorEnv:
@@ -52,30 +52,42 @@ def make_env(env_id: str, env_config: Any = None) -> gym.Env | gym.vector.Vector
     native vector env in ``NEXT_STEP`` autoreset mode."""
     import spinstrike.envs  # noqa: F401  (a runner process: registers the ids there)
 
-    cfg, num_envs, steps = _split(env_config)
-    limit = {} if steps is None else {"max_episode_steps": int(steps)}
+    cfg, args = _split(env_config)
+    num_envs = args.pop("num_envs", None)
+    if "max_episode_steps" in args:
+        args["max_episode_steps"] = int(args["max_episode_steps"])
     if num_envs is None:
-        return gym.make(env_id, config=cfg, **limit)
+        return gym.make(env_id, config=cfg, **args)
     return gym.make_vec(env_id, num_envs=int(num_envs), vectorization_mode="vector_entry_point",
-                        autoreset_mode=AutoresetMode.NEXT_STEP, config=cfg, **limit)
+                        autoreset_mode=AutoresetMode.NEXT_STEP, config=cfg, **args)
 
 
-def _config_class(env_id: str) -> type[EnvConfig]:
+def _env_class(env_id: str, vector: bool = False) -> type:
     if env_id not in ENV_IDS:
         raise ValueError(f"env: must be one of {sorted(ENV_IDS)} (got {env_id!r})")
-    module, name = gym.spec(env_id).entry_point.split(":")
-    return getattr(importlib.import_module(module), name).TASK.CONFIG
+    spec = gym.spec(env_id)
+    module, name = (spec.vector_entry_point if vector else spec.entry_point).split(":")
+    return getattr(importlib.import_module(module), name)
 
 
-def check_env_config(env_id: str, env_config: Any = None) -> EnvConfig:
+def check_env_config(env_id: str, env_config: Any = None, *, vector: bool = False) -> EnvConfig:
     """Parse ``env_config`` as the env ``env_id`` would (in this process): raises the env's
-    ``ConfigError`` naming a bad key or value. Returns the parsed config."""
-    cfg, num_envs, steps = _split(env_config)
-    for key, value in (("num_envs", num_envs), ("max_episode_steps", steps)):
+    ``ConfigError`` naming a bad key or value. ``vector``: for the native vector env (also when
+    ``env_config`` holds ``num_envs``), whose ``render_mode`` can only be ``"rgb_array"``.
+    Returns the parsed config."""
+    cfg, args = _split(env_config)
+    for key in ("num_envs", "max_episode_steps"):
+        value = args.get(key)
         if value is not None and (isinstance(value, bool) or not isinstance(value, int)
                                   or value < 1):
             raise ConfigError(f"env_config[{key!r}]: must be an int >= 1 (got {value!r})")
-    return parse_config(_config_class(env_id), cfg, {})
+    env_class = _env_class(env_id, vector or "num_envs" in args)
+    modes = env_class.metadata["render_modes"]
+    if args.get("render_mode") not in (None, *modes):
+        kind = "the native vector env" if vector or "num_envs" in args else "the env"
+        raise ConfigError(f"env_config['render_mode']: must be one of {modes} or None for "
+                          f"{kind} (got {args['render_mode']!r})")
+    return parse_config(env_class.TASK.CONFIG, cfg, {})
 
 
 def register_envs() -> list[str]:
@@ -96,7 +108,7 @@ def configure(config, env_id: str, env_config: dict | None = None, *,
     native vector env, one batched world per runner; else Gymnasium's ``SyncVectorEnv`` of
     single envs). Returns ``config``."""
     env_config = dict(env_config or {})
-    check_env_config(env_id, env_config)
+    check_env_config(env_id, env_config, vector=vectorize)
     if "num_envs" in env_config and num_envs_per_env_runner is not None:
         raise ConfigError("env_config['num_envs']: RLlib sets each runner's envs from "
                           f"num_envs_per_env_runner ({num_envs_per_env_runner}; the CLI's "

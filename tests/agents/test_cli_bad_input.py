@@ -80,6 +80,9 @@ CASES = [
     ("max-episode-steps-zero",  # was gymnasium's bare AssertionError, a traceback
      lambda t: ["train", "--env-kwargs", "{max_episode_steps: 0}"],
      ["max_episode_steps: must be an int >= 1", "(got 0)"]),
+    ("render-mode-in-env-kwargs",  # was a TypeError when the video was written, after training
+     lambda t: ["train", "--env-kwargs", "{render_mode: rgb_array}"],
+     ["env_kwargs: render_mode is not an env argument of a training run", "'rgb_array'"]),
     ("bad-env-kwarg-and-out-exists",  # the argument's error first (it said "out ... exists")
      lambda t: ["train", "--out", _fake_run(t, "done"), "--env-kwargs", "{restitution: 2}"],
      ["restitution", "less than or equal to 1"]),

@@ -351,6 +351,25 @@ def test_config_dict_and_kwargs_and_errors():
         envs.strike.RodSpinEnv(render_mode="ascii")
 
 
+@pytest.mark.parametrize("key,value", [("render_mode", "rgb_array"), ("max_episode_steps", 5)])
+@pytest.mark.parametrize("vector", [False, True], ids=["single", "vector"])
+def test_gymnasium_arguments_in_the_config_dict_say_where_they_go(key, value, vector):
+    """One rule: render_mode and max_episode_steps are gym.make's own arguments, never config
+    keys (an RLlib env_config may hold them: spinstrike.envs.rllib hands them to gym.make). In
+    the config dict they were an 'unknown argument', although the README lists render_mode
+    among the arguments a config dict holds."""
+    with pytest.raises(ConfigError, match=rf"config\['{key}'\]: {key} is Gymnasium's "
+                                          rf"argument.*gym.make\(id, {key}=\.\.\.\)"):
+        if vector:
+            gym.make_vec("SpinStrike/RodSpin-v0", 2, vectorization_mode="vector_entry_point",
+                         config={key: value})
+        else:
+            gym.make("SpinStrike/RodSpin-v0", config={key: value})
+    # where they belong they work
+    env = gym.make("SpinStrike/RodSpin-v0", **{key: value})
+    assert (env.render_mode if key == "render_mode" else env.spec.max_episode_steps) == value
+
+
 @pytest.mark.parametrize("solver", [{"mode": "fixed", "substeps": 4}, {"mode": "pymunk"}])
 def test_envs_run_on_other_solvers(solver):
     for env_id in ENV_IDS:

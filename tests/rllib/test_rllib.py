@@ -311,3 +311,63 @@ def test_cli_backend_rllib_starts_its_own_ray_beside_a_running_cluster(tmp_path)
         assert (out / "summary.md").is_file()
     finally:
         cluster.shutdown()
+
+
+def _render_after_sampling(runner):
+    """In a runner: sample a few steps, then the frames of its env's ``render()``."""
+    runner.sample(num_timesteps=4, random_actions=True)
+    return runner.env.unwrapped.render()
+
+
+def test_render_mode_in_env_config_renders_in_a_runner(local_ray):
+    """RLlib's creator gets env_config alone, and RLlib's video callbacks put render_mode
+    there: a runner's env renders (was: ``ConfigError render_mode: unknown argument``)."""
+    config = tiny(configure(PPOConfig(), STRIKE, {"render_mode": "rgb_array"}), runners=1,
+                  envs=2)
+    algo = config.build_algo()
+    try:
+        (frames,) = algo.env_runner_group.foreach_env_runner(_render_after_sampling,
+                                                             local_env_runner=False)
+    finally:
+        algo.stop()
+    assert len(frames) == 2  # one per element of the runner's native vector env
+    for frame in frames:
+        assert frame.shape == (480, 720, 3) and frame.dtype == np.uint8 and frame.std() > 0
+
+
+def test_render_mode_in_env_config_of_single_envs_and_refused_modes():
+    """vectorize=False (Gymnasium's SyncVectorEnv of single envs) takes every single-env mode;
+    the native vector env renders rgb_array only, refused in the driver like any bad key."""
+    from ray.rllib.env.single_agent_env_runner import SingleAgentEnvRunner
+
+    config = configure(PPOConfig(), STRIKE, {"render_mode": "rgb_array_list"},
+                       vectorize=False).env_runners(num_envs_per_env_runner=2)
+    runner = SingleAgentEnvRunner(config=config)
+    try:
+        strikes = _render_after_sampling(runner)
+    finally:
+        runner.stop()
+    assert len(strikes) == 2 and all(len(frames) > 1 for frames in strikes)  # whole strikes
+    assert not ray.is_initialized()
+    with pytest.raises(ConfigError, match=r"render_mode'\]: must be one of \['rgb_array'\].*"
+                                          r"native vector env \(got 'rgb_array_list'\)"):
+        configure(PPOConfig(), STRIKE, {"render_mode": "rgb_array_list"})
+    with pytest.raises(ConfigError, match=r"render_mode'\]: must be one of"):
+        configure(PPOConfig(), STRIKE, {"render_mode": "ascii"}, vectorize=False)
+
+
+@pytest.mark.parametrize("args,words", [
+    # the CLI's evaluation and video set their own render_mode
+    (["--env-kwargs", "{render_mode: rgb_array}"], ["env_kwargs: render_mode is not an env"]),
+], ids=["render-mode"])
+def test_cli_backend_rllib_refuses_before_ray_starts(tmp_path, args, words):
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "spinstrike.agents.cli", "train", "--backend", "rllib",
+           "--env", STRIKE, "--timesteps", "500", "--no-video", "--out", str(out), *args]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    errors = [line for line in done.stderr.splitlines() if line.startswith("error: ")]
+    assert done.returncode == 2 and len(errors) == 1, done.stderr[-3000:]
+    for word in words:
+        assert word in errors[0], errors[0]
+    assert "Traceback" not in done.stderr and "Started a local Ray" not in done.stderr
+    assert not out.exists() and not Path(str(out) + ".partial").exists()
