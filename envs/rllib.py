@@ -21,8 +21,9 @@ What it takes care of (each a way the plain ``register_env`` line goes wrong):
   mode, the mode RLlib's ``SingleAgentEnvRunner`` assumes (in SAME_STEP it would take every
   episode's first step for a reset).
 
-The RLlib names are the Gymnasium ids (``"SpinStrike/RodSpin-v0"``, ...). Importing this module
-does not import Ray; :func:`register_envs` and :func:`configure` do.
+The RLlib names are the Gymnasium ids (``"SpinStrike/RodSpin-v0"``, ...); ``configure`` also takes
+the ``"spinstrike:SpinStrike/RodSpin-v0"`` form and drops the prefix. Importing this module does
+not import Ray; :func:`register_envs` and :func:`configure` do.
 """
 
 from __future__ import annotations
@@ -38,6 +39,9 @@ from spinstrike.envs import ENV_IDS
 from spinstrike.envs.config import GYM_ARGUMENTS, ConfigError, EnvConfig, parse_config
 
 __all__ = ["check_env_config", "configure", "make_env", "register_envs"]
+
+#: the prefix of Gymnasium's module-qualified ids (``"spinstrike:SpinStrike/RodSpin-v0"``)
+PREFIX = "spinstrike:"
 
 
 def _split(env_config: Any) -> tuple[dict, dict]:
@@ -62,10 +66,17 @@ def make_env(env_id: str, env_config: Any = None) -> gym.Env | gym.vector.Vector
                         autoreset_mode=AutoresetMode.NEXT_STEP, config=cfg, **args)
 
 
+def _bare_id(env_id: str) -> str:
+    """``env_id`` without the ``spinstrike:`` prefix; an unknown id raises ``ConfigError``."""
+    bare = env_id.removeprefix(PREFIX) if isinstance(env_id, str) else env_id
+    if bare not in ENV_IDS:
+        raise ConfigError(f"env: must be one of {sorted(ENV_IDS)}, with or without the "
+                          f"{PREFIX!r} prefix (got {env_id!r})")
+    return bare
+
+
 def _env_class(env_id: str, vector: bool = False) -> type:
-    if env_id not in ENV_IDS:
-        raise ValueError(f"env: must be one of {sorted(ENV_IDS)} (got {env_id!r})")
-    spec = gym.spec(env_id)
+    spec = gym.spec(_bare_id(env_id))
     module, name = (spec.vector_entry_point if vector else spec.entry_point).split(":")
     return getattr(importlib.import_module(module), name)
 
@@ -106,7 +117,9 @@ def configure(config, env_id: str, env_config: dict | None = None, *,
     key raises ``ConfigError`` now, not in the runners), registers the ids, and sets
     ``environment(env_id, env_config)`` and the runners' vectorisation (``vectorize``: the
     native vector env, one batched world per runner; else Gymnasium's ``SyncVectorEnv`` of
-    single envs). Returns ``config``."""
+    single envs). ``env_id`` may carry the ``spinstrike:`` prefix (dropped). Returns
+    ``config``."""
+    env_id = _bare_id(env_id)
     env_config = dict(env_config or {})
     check_env_config(env_id, env_config, vector=vectorize)
     if "num_envs" in env_config and num_envs_per_env_runner is not None:

@@ -356,6 +356,23 @@ def test_render_mode_in_env_config_of_single_envs_and_refused_modes():
         configure(PPOConfig(), STRIKE, {"render_mode": "ascii"}, vectorize=False)
 
 
+def test_configure_takes_the_spinstrike_prefixed_id():
+    """The README's module-qualified id (``spinstrike:SpinStrike/...``) works in configure as in
+    gym.make (was: ``ValueError env: must be one of [...]``); RLlib's name is the bare id."""
+    from ray.rllib.env.single_agent_env_runner import SingleAgentEnvRunner
+
+    config = configure(PPOConfig(), "spinstrike:" + CONTROL, {"max_episode_steps": 5})
+    assert config.env == CONTROL
+    runner = SingleAgentEnvRunner(config=config.env_runners(num_envs_per_env_runner=2))
+    try:
+        episodes = runner.sample(num_timesteps=12, random_actions=True)
+    finally:
+        runner.stop()
+    assert [len(e) for e in episodes if e.is_done] == [5, 5]
+    with pytest.raises(ConfigError, match="with or without the 'spinstrike:' prefix"):
+        configure(PPOConfig(), "gymnasium:" + CONTROL)
+
+
 @pytest.mark.parametrize("args,words", [
     # the CLI's evaluation and video set their own render_mode
     (["--env-kwargs", "{render_mode: rgb_array}"], ["env_kwargs: render_mode is not an env"]),
