@@ -9,7 +9,8 @@ SB3 runs::
 
 The hyperparameters come from the same rl-zoo3 file as SB3's (``configs/agents/ppo.yml``),
 translated: ``n_envs`` envs in all (split over the env runners, one native vector env each),
-``n_steps * n_envs`` steps per update, ``batch_size`` minibatches, ``n_epochs``,
+``n_steps * n_envs`` steps per update, ``batch_size`` minibatches (at most the update: RLlib
+refuses a larger one, so does this module, before Ray starts), ``n_epochs``,
 ``learning_rate``, ``gamma``, ``gae_lambda``, ``clip_range``, ``ent_coef``, ``net_arch``.
 Evaluation, summary, learning curve and video are SB3 runs' own code
 (``agents.evaluate``, ``agents.record``, ``agents.train.plot_learning_curve``), run on the
@@ -72,13 +73,20 @@ def ppo_config(cfg: RunConfig, seed: int, num_env_runners: int):
     per_runner = max(1, math.ceil(cfg.n_envs / runners))
     n_steps = int(h.get("n_steps", 2048))
     batch = n_steps * per_runner * runners
+    minibatch = int(h.get("batch_size", 64))
+    if minibatch > batch:  # RLlib's PPO refuses it (SB3 trains on one short minibatch)
+        split = (f"; n_envs {cfg.n_envs} over {runners} runners, {per_runner} each"
+                 if per_runner * runners != cfg.n_envs else "")
+        raise AgentConfigError(
+            f"batch_size: must be <= n_steps * n_envs, the env steps per update, with --backend "
+            f"rllib (got batch_size {minibatch} > {n_steps} * {per_runner * runners} = "
+            f"{batch}{split}): raise --n-envs or n_steps, or lower batch_size")
     net = (h.get("policy_kwargs") or {}).get("net_arch", [64, 64])
     if isinstance(net, dict):  # SB3's {pi: [...], vf: [...]}
         net = net.get("pi", [64, 64])
     config = (PPOConfig()
               .env_runners(num_env_runners=int(num_env_runners), rollout_fragment_length=n_steps)
-              .training(train_batch_size_per_learner=batch,
-                        minibatch_size=int(h.get("batch_size", 64)),
+              .training(train_batch_size_per_learner=batch, minibatch_size=minibatch,
                         num_epochs=int(h.get("n_epochs", 10)),
                         lr=lr, gamma=float(h.get("gamma", 0.99)),
                         lambda_=float(h.get("gae_lambda", 0.95)),

@@ -374,9 +374,16 @@ def test_configure_takes_the_spinstrike_prefixed_id():
 
 
 @pytest.mark.parametrize("args,words", [
+    # RLlib's minibatch (batch_size) must fit in the train batch (n_steps * n_envs): was
+    # RLlib's ValueError traceback after Ray started
+    (["--n-envs", "3", "--num-env-runners", "0"],
+     ["batch_size: must be <= n_steps * n_envs", "batch_size 256 > 64 * 3 = 192",
+      "raise --n-envs or n_steps, or lower batch_size"]),
+    (["--n-envs", "1", "--num-env-runners", "2"],  # 1 env per runner: 2 in all
+     ["batch_size 256 > 64 * 2 = 128", "n_envs 1 over 2 runners, 1 each"]),
     # the CLI's evaluation and video set their own render_mode
     (["--env-kwargs", "{render_mode: rgb_array}"], ["env_kwargs: render_mode is not an env"]),
-], ids=["render-mode"])
+], ids=["minibatch", "minibatch-over-runners", "render-mode"])
 def test_cli_backend_rllib_refuses_before_ray_starts(tmp_path, args, words):
     out = tmp_path / "run"
     cmd = [sys.executable, "-m", "spinstrike.agents.cli", "train", "--backend", "rllib",
