@@ -20,6 +20,9 @@ What it takes care of (each a way the plain ``register_env`` line goes wrong):
   the creator then returns the native vector env (one batched world) in ``NEXT_STEP`` autoreset
   mode, the mode RLlib's ``SingleAgentEnvRunner`` assumes (in SAME_STEP it would take every
   episode's first step for a reset).
+* **Observations**: RLlib's default model (Ray 2.60's catalog) encodes a flat vector only:
+  :func:`configure` refuses ``obs_mode`` ``"dict"`` and ``"pixels"`` unless told that the config
+  brings its own (``default_encoders=False``).
 
 The RLlib names are the Gymnasium ids (``"SpinStrike/RodSpin-v0"``, ...); ``configure`` also takes
 the ``"spinstrike:SpinStrike/RodSpin-v0"`` form and drops the prefix. Importing this module does
@@ -111,21 +114,50 @@ def register_envs() -> list[str]:
     return list(ENV_IDS)
 
 
+#: the image sizes (width x height) RLlib's default CNN has layers for (Ray 2.60:
+#: ``ray.rllib.models.utils.get_filter_config``)
+DEFAULT_CNN_SIZES = ((42, 42), (64, 64), (84, 84), (96, 96))
+
+
+def _check_default_encoders(cfg: EnvConfig) -> None:
+    """Refuse the observations RLlib's default model cannot encode. Its catalog (Ray 2.60,
+    ``Catalog._get_encoder_config``) has an MLP for a flat Box and a CNN for an image Box of one
+    of :data:`DEFAULT_CNN_SIZES` with float pixels (its layers are float: SpinStrike's uint8
+    pixels fail in the first convolution), and nothing for a Dict."""
+    hint = ("use obs_mode 'vector'; from Python, with your own RLModule or an env-to-module "
+            "connector that {what}, pass configure(..., default_encoders=False)")
+    if cfg.obs_mode == "dict":
+        raise ConfigError("obs_mode: 'dict' has no encoder in RLlib's default model (it takes "
+                          "a flat vector); " + hint.format(what="flattens it "
+                                                           "(FlattenObservations)"))
+    if cfg.obs_mode == "pixels":
+        *most, last = [f"{w}x{h}" for w, h in DEFAULT_CNN_SIZES]
+        sizes = f"{', '.join(most)} or {last}"
+        raise ConfigError(f"obs_mode: 'pixels' (obs_size {list(cfg.obs_size)}, uint8) does not "
+                          f"work with RLlib's default model: its CNN takes float images of "
+                          f"{sizes} pixels only; " + hint.format(what="converts them"))
+
+
 def configure(config, env_id: str, env_config: dict | None = None, *,
-              num_envs_per_env_runner: int | None = None, vectorize: bool = True):
+              num_envs_per_env_runner: int | None = None, vectorize: bool = True,
+              default_encoders: bool = True):
     """Point an RLlib ``AlgorithmConfig`` at a SpinStrike env: checks ``env_config`` here (a bad
     key raises ``ConfigError`` now, not in the runners), registers the ids, and sets
     ``environment(env_id, env_config)`` and the runners' vectorisation (``vectorize``: the
     native vector env, one batched world per runner; else Gymnasium's ``SyncVectorEnv`` of
-    single envs). ``env_id`` may carry the ``spinstrike:`` prefix (dropped). Returns
-    ``config``."""
+    single envs). ``env_id`` may carry the ``spinstrike:`` prefix (dropped).
+    ``default_encoders``: the config uses RLlib's default model, so an ``obs_mode`` it cannot
+    encode (``"dict"``, ``"pixels"``) is refused here; pass False with your own RLModule, or a
+    connector that turns the observations into what it takes. Returns ``config``."""
     env_id = _bare_id(env_id)
     env_config = dict(env_config or {})
-    check_env_config(env_id, env_config, vector=vectorize)
+    parsed = check_env_config(env_id, env_config, vector=vectorize)
     if "num_envs" in env_config and num_envs_per_env_runner is not None:
         raise ConfigError("env_config['num_envs']: RLlib sets each runner's envs from "
                           f"num_envs_per_env_runner ({num_envs_per_env_runner}; the CLI's "
                           "--n-envs); drop num_envs")
+    if default_encoders:
+        _check_default_encoders(parsed)
     register_envs()
     config.environment(env_id, env_config=env_config)
     runners: dict[str, Any] = {"gym_env_vectorize_mode": ("vector_entry_point" if vectorize

@@ -373,6 +373,22 @@ def test_configure_takes_the_spinstrike_prefixed_id():
         configure(PPOConfig(), "gymnasium:" + CONTROL)
 
 
+@pytest.mark.parametrize("env_config,words", [
+    ({"obs_mode": "dict"}, "obs_mode: 'dict' has no encoder in RLlib's default model"),
+    ({"obs_mode": "pixels", "obs_size": [84, 84]},
+     r"obs_mode: 'pixels' \(obs_size \[84, 84\], uint8\) does not work"),
+])
+def test_configure_refuses_observations_rllibs_default_model_cannot_encode(env_config, words):
+    """Were RLlib's errors in every runner (no Dict encoder; no CNN layers for most sizes, and
+    uint8 pixels against float layers at the sizes it has), then an IndexError in the driver.
+    A config that brings its own model or connector says so."""
+    with pytest.raises(ConfigError, match=words):
+        configure(PPOConfig(), STRIKE, env_config)
+    config = configure(PPOConfig(), STRIKE, env_config, default_encoders=False)
+    assert config.env_config == env_config
+    assert not ray.is_initialized()
+
+
 @pytest.mark.parametrize("args,words", [
     # RLlib's minibatch (batch_size) must fit in the train batch (n_steps * n_envs): was
     # RLlib's ValueError traceback after Ray started
@@ -381,9 +397,14 @@ def test_configure_takes_the_spinstrike_prefixed_id():
       "raise --n-envs or n_steps, or lower batch_size"]),
     (["--n-envs", "1", "--num-env-runners", "2"],  # 1 env per runner: 2 in all
      ["batch_size 256 > 64 * 2 = 128", "n_envs 1 over 2 runners, 1 each"]),
+    # observations RLlib's default model cannot encode: were a failure in every runner, then
+    # an IndexError in the driver
+    (["--env-kwargs", "{obs_mode: dict}"], ["obs_mode: 'dict' has no encoder", "'vector'"]),
+    (["--env-kwargs", "{obs_mode: pixels, obs_size: [64, 48]}"],
+     ["obs_mode: 'pixels' (obs_size [64, 48], uint8)", "42x42, 64x64, 84x84 or 96x96"]),
     # the CLI's evaluation and video set their own render_mode
     (["--env-kwargs", "{render_mode: rgb_array}"], ["env_kwargs: render_mode is not an env"]),
-], ids=["minibatch", "minibatch-over-runners", "render-mode"])
+], ids=["minibatch", "minibatch-over-runners", "obs-dict", "obs-pixels", "render-mode"])
 def test_cli_backend_rllib_refuses_before_ray_starts(tmp_path, args, words):
     out = tmp_path / "run"
     cmd = [sys.executable, "-m", "spinstrike.agents.cli", "train", "--backend", "rllib",
