@@ -187,8 +187,10 @@ def train_rllib(env_id: str, *, config: str | Path | None = None, seed: int = 0,
     except ImportError:
         raise AgentConfigError("backend: rllib needs Ray RLlib: pip install "
                                "'spinstrike[rllib]'") from None
-    # the env's config is checked here, before Ray starts or the disk is touched
+    # the env's config is checked here, before Ray starts or the disk is touched; the env is
+    # built once (as the SB3 backend does: its errors come before the run folder's)
     algo_config = ppo_config(cfg, seed, num_env_runners)
+    _compile_kernels(env_id, cfg.env_kwargs)
     name = f"ppo-rllib-{env_id.split('/')[-1]}-s{seed}"
     run_dir = Path(out) if out is not None else Path("runs") / name
     work = _work_dir(run_dir, False, force)
@@ -216,6 +218,21 @@ def train_rllib(env_id: str, *, config: str | Path | None = None, seed: int = 0,
     return finish_run(result, policy, env_id, run_dir, cfg.env_kwargs,
                       f"## PPO (RLlib) on {env_id} (seed {seed}, {steps} steps, {wall:.0f} s)",
                       evaluate=evaluate, eval_episodes=eval_episodes, video=video)
+
+
+def _compile_kernels(env_id: str, env_kwargs: dict) -> None:
+    """Build the runners' env here once (the native vector env; reset, one step). On a cold
+    kernel cache this compiles the kernels in the driver, which says so on one line (the
+    runners' output is not shown), and the runners load them from the cache; on a warm one it
+    takes about half a second."""
+    from spinstrike.envs.rllib import make_env
+
+    env = make_env(env_id, {**env_kwargs, "num_envs": 1})
+    try:
+        env.reset(seed=0)
+        env.step(np.zeros(env.action_space.shape, env.action_space.dtype))
+    finally:
+        env.close()
 
 
 def _learn(algo_config, cfg: RunConfig, work: Path, *, seed, address, num_env_runners,

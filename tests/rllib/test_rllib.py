@@ -416,3 +416,23 @@ def test_cli_backend_rllib_refuses_before_ray_starts(tmp_path, args, words):
         assert word in errors[0], errors[0]
     assert "Traceback" not in done.stderr and "Started a local Ray" not in done.stderr
     assert not out.exists() and not Path(str(out) + ".partial").exists()
+
+
+def test_cli_backend_rllib_says_it_compiles_the_kernels_before_ray_starts(tmp_path):
+    """On a cold kernel cache the driver builds the env first: its one-line compile notice
+    reaches the user before Ray starts, and the runners load the kernels from the cache (was:
+    the runners compiled silently, their output being off, and the first iteration stalled).
+    No runner process here (the notice's place is the point): 30-50 s on 2 busy cores."""
+    out = tmp_path / "run"
+    env = dict(os.environ, SDL_VIDEODRIVER="dummy", SDL_AUDIODRIVER="dummy", MPLBACKEND="Agg",
+               SPINSTRIKE_CACHE_DIR=str(tmp_path / "empty-cache"))
+    env.pop("SPINSTRIKE_QUIET", None)
+    cmd = [sys.executable, "-m", "spinstrike.agents.cli", "train", "--backend", "rllib",
+           "--env", STRIKE, "--num-env-runners", "0", "--timesteps", "64", "--n-envs", "4",
+           "--no-eval", "--no-video", "--out", str(out)]
+    done = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    notice = "spinstrike: compiling the physics kernels for this machine"
+    assert done.stderr.count(notice) == 1, done.stderr[-3000:]
+    assert done.stderr.index(notice) < done.stderr.index("Started a local Ray")
+    assert any((tmp_path / "empty-cache").rglob("*.nbi"))
