@@ -9,8 +9,11 @@
 
 What it takes care of (each a way the plain ``register_env`` line goes wrong):
 
-* **Runner processes**: the creator is a function of this module (pickled by reference): a runner
-  process that unpickles it imports ``spinstrike`` itself, which registers the ids there too.
+* **Runner processes**: the creator is pickled by value; on its first call in a runner process it
+  imports ``spinstrike`` from the files the driver imported (which registers the ids there too).
+  Ray puts the driver's working directory first on the runners' ``sys.path``, so from the root
+  of a checkout a plain import would find the checkout, not the installed package the driver
+  runs. A runner without those files (another node laid out differently) imports it as usual.
 * **env_config**: passed to the env as its config; :func:`configure` (and :func:`check_env_config`)
   parses it in the driver first, so a bad key raises the env's ``ConfigError`` before any runner
   starts. Gymnasium's own arguments are taken out and given to ``gym.make``:
@@ -31,8 +34,8 @@ not import Ray; :func:`register_envs` and :func:`configure` do.
 
 from __future__ import annotations
 
-import functools
 import importlib
+import os
 from typing import Any
 
 import gymnasium as gym
@@ -104,13 +107,46 @@ def check_env_config(env_id: str, env_config: Any = None, *, vector: bool = Fals
     return parse_config(env_class.TASK.CONFIG, cfg, {})
 
 
+def _creator(env_id: str, init_file: str):
+    """RLlib's creator of ``env_id``. A closure, so Ray pickles it by value: a runner process
+    unpickles it without importing ``spinstrike``, and its first call imports the package from
+    ``init_file`` (the driver's ``spinstrike/__init__.py``) when that file exists there, else
+    as usual. (Ray puts the driver's working directory first on a runner's ``sys.path``: from the
+    root of a checkout a plain import finds the checkout, while the driver runs the installed
+    package.) Nothing here may refer to this module's globals: they would be imported."""
+
+    def create(env_config):
+        import os
+        import sys
+
+        if "spinstrike" not in sys.modules and os.path.isfile(init_file):
+            import importlib.util
+
+            spec = importlib.util.spec_from_file_location(
+                "spinstrike", init_file, submodule_search_locations=[os.path.dirname(init_file)])
+            module = importlib.util.module_from_spec(spec)
+            sys.modules["spinstrike"] = module
+            try:
+                spec.loader.exec_module(module)
+            except BaseException:
+                del sys.modules["spinstrike"]
+                raise
+        from spinstrike.envs.rllib import make_env as make
+
+        return make(env_id, env_config)
+
+    return create
+
 def register_envs() -> list[str]:
     """Register every SpinStrike id with RLlib (``ray.tune.registry.register_env``) under its
     Gymnasium id; returns the names."""
     from ray.tune.registry import register_env
 
+    import spinstrike
+
+    init_file = os.path.abspath(spinstrike.__file__)
     for env_id in ENV_IDS:
-        register_env(env_id, functools.partial(make_env, env_id))
+        register_env(env_id, _creator(env_id, init_file))
     return list(ENV_IDS)
 
 

@@ -436,3 +436,29 @@ def test_cli_backend_rllib_says_it_compiles_the_kernels_before_ray_starts(tmp_pa
     assert done.stderr.count(notice) == 1, done.stderr[-3000:]
     assert done.stderr.index(notice) < done.stderr.index("Started a local Ray")
     assert any((tmp_path / "empty-cache").rglob("*.nbi"))
+
+
+def test_runners_import_the_drivers_spinstrike_from_a_checkouts_root(local_ray, tmp_path,
+                                                                       monkeypatch):
+    """Ray puts the driver's working directory first on the runners' sys.path. From the root
+    of another SpinStrike checkout (here one whose envs package cannot be imported) the
+    runners imported that checkout while the driver ran its own package; now the creator
+    imports the driver's files."""
+    fake = tmp_path / "checkout"
+    (fake / "spinstrike").mkdir(parents=True)
+    (fake / "spinstrike" / "__init__.py").write_text(Path(spinstrike.__file__).read_text())
+    (fake / "envs").mkdir()
+    (fake / "envs" / "__init__.py").write_text("raise ImportError('the checkout in the cwd')\n")
+    (fake / "pyproject.toml").write_text("[project]\nname = 'spinstrike'\n")
+    monkeypatch.chdir(fake)
+    ray.shutdown()  # the fixture's Ray was started elsewhere: start it from the checkout
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    algo = tiny(configure(PPOConfig(), STRIKE), runners=1, envs=2).build_algo()
+    try:
+        assert _sampled(algo.train()) > 0
+        (where,) = algo.env_runner_group.foreach_env_runner(
+            lambda r: (sys.path[0], sys.modules["spinstrike.envs"].__file__),
+            local_env_runner=False)
+    finally:
+        algo.stop()
+    assert where == (str(fake), sys.modules["spinstrike.envs"].__file__)
