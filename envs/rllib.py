@@ -137,6 +137,7 @@ def _creator(env_id: str, init_file: str):
 
     return create
 
+
 def register_envs() -> list[str]:
     """Register every SpinStrike id with RLlib (``ray.tune.registry.register_env``) under its
     Gymnasium id; returns the names."""
