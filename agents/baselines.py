@@ -257,15 +257,20 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--planner-episodes", type=int, default=20,
                    help="episodes of the CEM planner on each control env (0: none)")
     args = p.parse_args(argv)
+    from spinstrike.agents.config import AgentConfigError
     from spinstrike.agents.evaluate import evaluate
+    from spinstrike.agents.stats import _rliable
+
+    try:  # the report's intervals need it: said before anything trains, not after
+        _rliable()
+    except ImportError as exc:
+        raise AgentConfigError(str(exc)) from None
 
     if args.imitate is not None:
         from spinstrike.agents.imitate import check_teacher
 
         check_teacher(args.imitate)
         if not any("Control" in e for e in args.envs):
-            from spinstrike.agents.config import AgentConfigError
-
             raise AgentConfigError(f"--imitate: adds a row on the control envs only, and none "
                                    f"is among --envs {' '.join(args.envs)}")
 

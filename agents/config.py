@@ -119,6 +119,28 @@ def _policy_kwargs(value: Any, where: str) -> dict:
     return out
 
 
+def _normalize(value: Any, where: str) -> bool | dict:
+    """``normalize``: true / false, or a mapping of ``VecNormalize``'s arguments (rl-zoo3's
+    form; its string form, ``"dict(norm_reward=False)"``, which rl-zoo3 evaluates, is refused
+    here as strings are not evaluated: it used to be taken for plain true)."""
+    if isinstance(value, bool):
+        return value
+    if not isinstance(value, dict):
+        raise AgentConfigError(
+            f"{where}.normalize: must be true, false or a YAML mapping of VecNormalize's "
+            f"arguments, e.g. {{norm_obs: true, norm_reward: false}} (got {value!r}); strings "
+            f"are not evaluated")
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    allowed = set(inspect.signature(VecNormalize.__init__).parameters) - {"self", "venv",
+                                                                          "gamma"}
+    unknown = sorted(set(value) - allowed)
+    if unknown:
+        raise AgentConfigError(f"{where}.normalize.{unknown[0]}: unknown; allowed: "
+                               f"{sorted(allowed)} (gamma is the entry's own)")
+    return dict(value)
+
+
 def _read_entry(path: Path, env_id: str) -> tuple[str, dict]:
     """The raw entry of ``env_id`` (or ``default``) in a hyperparameter file."""
     from spinstrike import envs
@@ -271,7 +293,12 @@ def load_agent_config(algo: str, env_id: str, path: str | Path | None = None,
                                    f"{sorted(set(RESERVED) | allowed)}")
     n_timesteps, n_envs = _budget(entry, where)
     policy = entry.pop("policy", "MlpPolicy")
-    normalize = entry.pop("normalize", False)
+    normalize = _normalize(entry.pop("normalize", False), where)
+    if "replay_buffer_class" in entry:  # rl-zoo3 turns its string into a class; SB3 needs one
+        raise AgentConfigError(
+            f"{where}.replay_buffer_class: not supported by spinstrike train (got "
+            f"{entry['replay_buffer_class']!r}); for HER (obs_mode: dict), train with SB3's "
+            f"HerReplayBuffer directly or with rl_zoo3.train")
     env_kwargs = entry.pop("env_kwargs", {}) or {}
     if not isinstance(env_kwargs, dict):
         raise AgentConfigError(f"{where}.env_kwargs: must be a mapping")

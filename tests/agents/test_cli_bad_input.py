@@ -6,6 +6,7 @@ Nothing here trains: where a run directory is needed its files are written by ha
 """
 
 import hashlib
+import sys
 from pathlib import Path
 
 import pytest
@@ -68,6 +69,18 @@ CASES = [
     ("n_envs-negative",
      lambda t: ["train", "--config", _config(t, "m2.yml", {"n_timesteps": 100, "n_envs": -2})],
      ["m2.yml", "n_envs: must be an integer >= 1", "(got -2)"]),
+    ("normalize-string",  # rl-zoo3 evaluates it; it was taken for plain true (norm_reward on)
+     lambda t: ["train", "--config", _config(t, "ns.yml", {
+         "n_timesteps": 100, "normalize": "dict(norm_obs=True, norm_reward=False)"})],
+     ["ns.yml", "normalize: must be true, false or a YAML mapping", "strings are not evaluated"]),
+    ("normalize-unknown-argument",
+     lambda t: ["train", "--config", _config(t, "nu.yml", {
+         "n_timesteps": 100, "normalize": {"norm_obs": True, "norm_rewards": False}})],
+     ["nu.yml", "normalize.norm_rewards: unknown", "norm_reward"]),
+    ("replay-buffer-class",  # rl-zoo3's way to ask for HER: was a TypeError traceback
+     lambda t: ["train", "--algo", "sac", "--config", _config(t, "her.yml", {
+         "n_timesteps": 100, "replay_buffer_class": "HerReplayBuffer"})],
+     ["her.yml", "replay_buffer_class: not supported by spinstrike train", "HerReplayBuffer"]),
     ("env-kwargs-unknown",
      lambda t: ["train", "--env-kwargs", "{bogus_kwarg: 1}"],
      ["bogus_kwarg", "unknown argument", "restitution"]),
@@ -239,3 +252,14 @@ def test_yaml_1e6_is_accepted_as_an_integer_budget(tmp_path):
     path.write_text(f"{ENV}:\n  n_timesteps: 1e6x\n")
     with pytest.raises(AgentConfigError, match=r"n_timesteps: must be a number \(got '1e6x'\)"):
         load_agent_config("ppo", ENV, path)
+
+
+def test_baselines_without_rliable_says_so_before_training(sandbox, capsys, monkeypatch):
+    """Without the stats extra, ``spinstrike baselines`` trained a whole env's seeds, then died
+    with an ImportError traceback; now it is one error line and nothing is written."""
+    monkeypatch.setitem(sys.modules, "rliable", None)  # import rliable raises ImportError
+    assert main(["baselines", "--quick", "--envs", ENV, "--algos", "ppo"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: confidence intervals need rliable: pip install "
+                          "'spinstrike[stats]'") and len(err.splitlines()) == 1
+    assert list(sandbox.iterdir()) == []

@@ -18,6 +18,21 @@ def _stats(run):
         return pickle.load(f)
 
 
+def test_normalize_arguments_reach_vecnormalize(tmp_path):
+    """rl-zoo3's mapping form of ``normalize`` reaches SB3's VecNormalize as written (the string
+    form, which rl-zoo3 evaluates, is refused: tests/agents/test_cli_bad_input.py)."""
+    cfg = tmp_path / "ppo.yml"
+    cfg.write_text(yaml.safe_dump({ENV: {
+        "n_timesteps": 256, "policy": "MlpPolicy", "n_envs": 2, "n_steps": 128,
+        "batch_size": 64, "n_epochs": 1, "policy_kwargs": {"net_arch": [8]},
+        "normalize": {"norm_obs": True, "norm_reward": False, "clip_obs": 5.0}}}))
+    run = tmp_path / "run"
+    assert main(["train", "--algo", "ppo", "--env", ENV, "--config", str(cfg), "--out",
+                 str(run), "--no-video", "--no-progress", "--no-eval"]) == 0
+    stats = _stats(run)
+    assert stats.norm_obs and not stats.norm_reward and stats.clip_obs == 5.0
+
+
 def test_normalized_run_trains_evaluates_and_resumes(tmp_path, capsys):
     cfg = tmp_path / "ppo.yml"
     cfg.write_text(yaml.safe_dump({ENV: {
