@@ -22,7 +22,13 @@ __all__ = ["SB3VecEnv", "make_sb3_vec_env"]
 class SB3VecEnv(VecEnv):
     """An SB3 ``VecEnv`` backed by a :class:`envs.core.SpinStrikeVectorEnv` in ``SAME_STEP``
     autoreset mode (SB3's own convention: the step that ends an episode returns the next
-    episode's first observation)."""
+    episode's first observation).
+
+    The envs are one batched world, not separate env objects: ``get_attr`` and ``env_method``
+    act on the vector env and return its answer once per index (a single env's methods, such
+    as ``get_physics_state``, are not there: use ``make_vec_env`` with ``DummyVecEnv`` for
+    them), and ``set_attr`` sets the vector env's attribute, so it refuses ``indices`` that
+    select only some envs."""
 
     def __init__(self, venv: gym.vector.VectorEnv) -> None:
         mode = venv.metadata.get("autoreset_mode")
@@ -87,6 +93,10 @@ class SB3VecEnv(VecEnv):
         return [value for _ in self._get_indices(indices)]
 
     def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
+        if sorted(set(self._get_indices(indices))) != list(range(self.num_envs)):
+            raise ValueError(f"set_attr: the {self.num_envs} envs are one batched world, so "
+                             f"{attr_name!r} is set for all of them; indices={indices!r} "
+                             f"selects only some (a DummyVecEnv of single envs can)")
         setattr(self.venv, attr_name, value)
 
     def env_method(self, method_name: str, *args, indices=None, **kwargs) -> list[Any]:

@@ -50,6 +50,17 @@ def test_adapter_seeding_is_deterministic():
     assert np.array_equal(run(), run())
 
 
+def test_adapter_set_attr_refuses_to_set_some_envs_only():
+    """The adapter's envs are one batched world: set_attr on some indices used to set the
+    attribute for every env, silently; get_attr answers once per index."""
+    vec = make_sb3_vec_env("SpinStrike/RodSpin-v0", n_envs=3, seed=0)
+    with pytest.raises(ValueError, match=r"set_attr: the 3 envs are one batched world"):
+        vec.set_attr("render_fps_note", 1, indices=[1])
+    vec.set_attr("render_fps_note", 2)  # every env: accepted
+    vec.set_attr("render_fps_note", 3, indices=[2, 0, 1])
+    assert vec.get_attr("render_fps_note", indices=[0, 2]) == [3, 3]
+
+
 def test_sac_trains_through_subprocvecenv():
     # worker processes import the package through the "spinstrike:" prefix of the id
     vec = make_vec_env("spinstrike:SpinStrike/RodSpin-v0", n_envs=2, seed=0,
