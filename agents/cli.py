@@ -256,16 +256,25 @@ def cmd_envs(args) -> int:
 
 
 def cmd_cache(args) -> int:
-    from spinstrike.physics.cache import ENV_VAR, cache_info, clear_cache
+    from spinstrike.physics.cache import ENV_VAR, cache_info, clear_cache, prune_cache
 
     if args.clear:
         removed = clear_cache()
         print(f"removed {removed} cached kernel files; the next run recompiles (about half a "
               "minute)")
         return 0
+    if args.prune:
+        print(f"removed {prune_cache()} cache folders of source directories that are gone")
+        return 0
     info = cache_info()
+    where = (f"from {ENV_VAR}" if os.environ.get(ENV_VAR)
+             else f"set {ENV_VAR} to move it")
     print(f"compiled kernels: {info['path']} ({info['files']} files, "
-          f"{info['bytes'] / 1e6:.1f} MB; set {ENV_VAR} to move it)")
+          f"{info['bytes'] / 1e6:.1f} MB in {info['folders']} folders, one per source "
+          f"directory; {where})")
+    if info["stale"]:
+        print(f"{info['stale']} of them ({info['stale_bytes'] / 1e6:.1f} MB) belong to source "
+              f"directories that are gone: spinstrike cache --prune removes them")
     if info["fallback"]:
         print(f"fallback (the directory above was not writable): {info['fallback']}")
     return 0
@@ -370,6 +379,9 @@ def build_parser() -> argparse.ArgumentParser:
     c = sub.add_parser("cache", help="where the compiled physics kernels are cached; --clear "
                        "empties the cache")
     c.add_argument("--clear", action="store_true", help="remove every cached kernel")
+    c.add_argument("--prune", action="store_true",
+                   help="remove the kernels of source directories that are gone (deleted "
+                        "clones, virtual environments)")
     c.set_defaults(func=cmd_cache)
 
     b = sub.add_parser("bench", help="benchmarks: accuracy vs time, speed")

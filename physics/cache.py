@@ -17,7 +17,10 @@ behaviour, ``NUMBA_CACHE_DIR`` included):
   ``spinstrike`` module that module imports, transitively* (what numba may inline or freeze into
   it: kernels, layout tables, constants). An edit to any of them recompiles the kernels that
   depend on it, wherever the cache lives, read-only installs included.
-* ``spinstrike cache`` shows the location and size; ``spinstrike cache --clear`` empties it.
+* ``spinstrike cache`` shows the location and size; ``spinstrike cache --clear`` empties it;
+  ``--prune`` removes only the folders of source directories that are gone (each clone,
+  virtual environment or CI checkout compiles into a folder of its own, and a deleted one's
+  kernels would otherwise stay).
 
 On a cache miss the first compilation in a process prints one line to stderr (what, why, first
 run only), so a first run that takes half a minute does not look hung.
@@ -37,10 +40,13 @@ from pathlib import Path
 
 from numba.core.caching import CompileResultCacheImpl, FunctionCache, UserWideCacheLocator
 
-__all__ = ["KernelCache", "cache_dir", "cache_info", "clear_cache", "module_stamp"]
+__all__ = ["KernelCache", "cache_dir", "cache_info", "clear_cache", "module_stamp",
+           "prune_cache"]
 
 #: environment variable overriding the cache directory
 ENV_VAR = "SPINSTRIKE_CACHE_DIR"
+#: the file in each cache folder naming the source directory its kernels were compiled from
+SOURCE_MARKER = "SOURCE"
 #: a ``from spinstrike... import`` of one line or of a parenthesised list (which must not run on
 #: into the next statement: it once swallowed the ``from`` of the import after a list, so that
 #: module fell out of the stamp), or an ``import spinstrike...``
@@ -156,8 +162,13 @@ class KernelCache(FunctionCache):
         return data
 
     def save_overload(self, sig, data):
+        folder = Path(self._cache_path)
         try:
-            Path(self._cache_path).mkdir(parents=True, exist_ok=True)
+            folder.mkdir(parents=True, exist_ok=True)
+            marker = folder / SOURCE_MARKER
+            if not marker.exists():  # what prune_cache checks
+                source = Path(self._impl.locator._py_file).resolve().parent
+                marker.write_text(f"{source}\n")
         except OSError:
             return  # not cached: it compiles again next time
         super().save_overload(sig, data)
@@ -182,12 +193,40 @@ def _kernel_dirs() -> list[Path]:
     return [r for r in roots if r.is_dir()]
 
 
+def _stale_folders() -> list[Path]:
+    """Cache folders whose source directory (recorded in their ``SOURCE`` file) is gone: a
+    deleted clone, virtual environment or CI checkout; each source directory has its own."""
+    stale = []
+    for root in _kernel_dirs():
+        for folder in root.iterdir():
+            marker = folder / SOURCE_MARKER
+            if marker.is_file() and not Path(marker.read_text().strip()).is_dir():
+                stale.append(folder)
+    return stale
+
+
 def cache_info() -> dict:
-    """``{"path", "files", "bytes", "fallback"}`` of the kernel cache."""
+    """``{"path", "files", "bytes", "fallback", "folders", "stale", "stale_bytes"}`` of the
+    kernel cache (``folders``: one per source directory that compiled kernels; ``stale``: those
+    whose source directory is gone, what :func:`prune_cache` removes)."""
     files = [f for root in _kernel_dirs() for f in root.rglob("*") if f.is_file()]
+    stale = _stale_folders()
     return {"path": str(cache_dir()), "files": len(files),
             "bytes": sum(f.stat().st_size for f in files),
-            "fallback": str(_fallback_dir()) if _fallback_dir().is_dir() else None}
+            "fallback": str(_fallback_dir()) if _fallback_dir().is_dir() else None,
+            "folders": sum(1 for root in _kernel_dirs() for f in root.iterdir() if f.is_dir()),
+            "stale": len(stale),
+            "stale_bytes": sum(f.stat().st_size for d in stale for f in d.rglob("*")
+                               if f.is_file())}
+
+
+def prune_cache() -> int:
+    """Remove the cache folders whose source directory is gone (:func:`cache_info`'s
+    ``stale``); returns how many. Kernels of the installs that still exist stay."""
+    stale = _stale_folders()
+    for folder in stale:
+        shutil.rmtree(folder, ignore_errors=True)
+    return len(stale)
 
 
 def clear_cache() -> int:

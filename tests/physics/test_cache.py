@@ -65,6 +65,10 @@ def test_cache_lives_in_its_own_directory_and_follows_the_import_closure(tmp_pat
         assert Path(path).is_relative_to(cache), path
     # nothing was written beside the sources
     assert not list(root.rglob("*.nbi")) and not list(root.rglob("*.nbc"))
+    # each folder names the source directory it was compiled from (what --prune checks)
+    folders = [d for d in cache.iterdir() if d.is_dir()]
+    assert folders and all(Path((d / "SOURCE").read_text().strip()).is_relative_to(root)
+                           for d in folders)
 
     again = _probe(tree, cache)
     assert all(hits > 0 and misses == 0 for hits, misses, _ in again.values()), again
@@ -90,6 +94,27 @@ def test_cache_command_reports_and_clears(tmp_path):
                          text=True, cwd=tmp_path, timeout=300)
     assert out.returncode == 0 and "removed 1" in out.stdout
     assert not cache.exists()
+
+
+def test_cache_prune_removes_the_folders_of_deleted_installs_only(tmp_path):
+    """Each clone, venv or CI checkout compiles into a folder of its own; once it is deleted,
+    ``spinstrike cache`` says so and ``--prune`` removes its kernels, not the others'."""
+    cache = tmp_path / "cache"
+    for name, source in (("physics_gone", tmp_path / "deleted-clone"), ("physics_here", tmp_path)):
+        (cache / name).mkdir(parents=True)
+        (cache / name / "k.nbc").write_bytes(b"x" * 2_000_000)
+        (cache / name / "SOURCE").write_text(f"{source}\n")
+    env = dict(os.environ, SPINSTRIKE_CACHE_DIR=str(cache))
+    script = Path(sys.executable).with_name("spinstrike")
+    out = subprocess.run([str(script), "cache"], env=env, capture_output=True, text=True,
+                         cwd=tmp_path, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert "in 2 folders" in out.stdout and "from SPINSTRIKE_CACHE_DIR" in out.stdout
+    assert "1 of them (2.0 MB) belong to source directories that are gone" in out.stdout
+    out = subprocess.run([str(script), "cache", "--prune"], env=env, capture_output=True,
+                         text=True, cwd=tmp_path, timeout=300)
+    assert out.returncode == 0 and "removed 1 cache folders" in out.stdout
+    assert sorted(d.name for d in cache.iterdir()) == ["physics_here"]
 
 
 def test_importing_creates_no_cache_directory(tmp_path):
