@@ -107,10 +107,25 @@ def _policy(args):
                            "--env ID")
 
 
+def _train_defaults(args) -> None:
+    """Fill in ``--algo``, ``--env`` and ``--seed`` left out. Resuming, those left out are the
+    run's (its config.yml); only the default ``--out`` is named from the defaults."""
+    if args.resume and args.backend == "sb3":
+        if args.out is None:
+            args.out = str(Path("runs") / f"{args.algo or 'ppo'}-"
+                           f"{(args.env or DEFAULT_ENV).split('/')[-1]}-s{args.seed or 0}")
+        return
+    args.algo = args.algo or "ppo"
+    args.env = args.env or DEFAULT_ENV
+    args.seed = 0 if args.seed is None else args.seed
+
+
 def cmd_train(args) -> int:
     from spinstrike.agents.train import train
 
-    _check_env_id(args.env)
+    _train_defaults(args)
+    if args.env is not None:
+        _check_env_id(args.env)
     if not args.no_eval:
         _check_episodes("--eval-episodes", args.eval_episodes)
     if args.backend == "rllib":
@@ -120,21 +135,25 @@ def cmd_train(args) -> int:
             raise AgentConfigError("--imitate: starts SB3's PPO only (not --backend rllib)")
         result = _train_rllib(args)
     else:
-        result = train(args.algo, args.env, config=args.config, seed=args.seed,
-                       timesteps=args.timesteps, out=args.out, n_envs=args.n_envs,
-                       device=args.device, resume=args.resume, force=args.force,
-                       progress=not args.no_progress, evaluate=not args.no_eval,
-                       eval_episodes=args.eval_episodes, video=not args.no_video,
-                       env_kwargs=_kwargs(args.env_kwargs),
-                       torch_threads=args.torch_threads or None,
-                       command="spinstrike " + shlex.join(sys.argv[1:]),
-                       imitate=args.imitate, imitate_rounds=args.imitate_rounds,
-                       imitate_episodes=args.imitate_episodes)
+        try:
+            result = train(args.algo, args.env, config=args.config, seed=args.seed,
+                           timesteps=args.timesteps, out=args.out, n_envs=args.n_envs,
+                           device=args.device, resume=args.resume, force=args.force,
+                           progress=not args.no_progress, evaluate=not args.no_eval,
+                           eval_episodes=args.eval_episodes, video=not args.no_video,
+                           env_kwargs=_kwargs(args.env_kwargs),
+                           torch_threads=args.torch_threads or None,
+                           command="spinstrike " + shlex.join(sys.argv[1:]),
+                           imitate=args.imitate, imitate_rounds=args.imitate_rounds,
+                           imitate_episodes=args.imitate_episodes)
+        except KeyboardInterrupt:  # Ctrl-C: train() said how to go on; no traceback (as SIGTERM)
+            return 128 + 2  # SIGINT
     print(f"run: {result['run_dir']}  ({result['timesteps']} steps, {result['wall_time']:.1f} s)")
     from spinstrike.agents.evaluate import policy_label
 
+    env_id = result.get("env") or args.env
     for name, (mean, std) in result.get("evaluations", {}).items():
-        print(f"  {policy_label(name, 'Control' in args.env):>7s}: {mean:.4f} +/- {std:.4f}")
+        print(f"  {policy_label(name, 'Control' in env_id):>7s}: {mean:.4f} +/- {std:.4f}")
     if "video" in result:
         print(f"video: {result['video']}")
     return 0
@@ -301,17 +320,23 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
 
     t = sub.add_parser("train", help="train an SB3 agent from an rl-zoo3 hyperparameter file")
-    t.add_argument("--algo", choices=ALGOS, default="ppo")
-    t.add_argument("--env", default=DEFAULT_ENV)
+    t.add_argument("--algo", choices=ALGOS, help="default ppo (resuming: the run's)")
+    t.add_argument("--env", help=f"default {DEFAULT_ENV} (resuming: the run's)")
     t.add_argument("--config", help="hyperparameter YAML (default: configs/agents/<algo>.yml)")
-    t.add_argument("--seed", type=int, default=0)
-    t.add_argument("--timesteps", type=int, help="override n_timesteps")
+    t.add_argument("--seed", type=int, help="default 0 (resuming: the run's)")
+    t.add_argument("--timesteps", type=int, help="override n_timesteps (resuming: a new budget "
+                   "for the run, recorded in its config.yml)")
     t.add_argument("--n-envs", type=int, help="override n_envs")
     t.add_argument("--env-kwargs",
                    help="env constructor arguments as YAML, e.g. '{restitution: 0.8}'")
     t.add_argument("--out", help="run directory (default runs/<algo>-<env>-s<seed>)")
-    t.add_argument("--resume", action="store_true", help="continue --out from its last checkpoint")
-    t.add_argument("--force", action="store_true", help="replace an existing run directory")
+    t.add_argument("--resume", action="store_true",
+                   help="continue --out from its last checkpoint, as its config.yml records it "
+                        "(algo, env, env kwargs, hyperparameters, seed, budget); options that "
+                        "contradict the record are refused")
+    t.add_argument("--force", action="store_true",
+                   help="replace an existing run directory, or an interrupted one "
+                        "(<out>.partial)")
     t.add_argument("--device", default="cpu")
     t.add_argument("--torch-threads", type=int, default=1,
                    help="PyTorch CPU threads (default 1: fastest for small networks; 0 = torch's "

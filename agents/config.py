@@ -24,7 +24,7 @@ from typing import Any
 import yaml
 
 __all__ = ["ALGOS", "AgentConfigError", "RunConfig", "algo_class", "load_agent_config",
-           "yaml_problem"]
+           "recorded_agent_config", "yaml_problem"]
 
 #: algorithms the CLI trains
 ALGOS = ("ppo", "sac", "td3")
@@ -276,16 +276,31 @@ def load_agent_config(algo: str, env_id: str, path: str | Path | None = None,
         path: the YAML file; default the packaged ``configs/agents/<algo>.yml``.
         overrides: keys replacing the file's (e.g. ``{"n_timesteps": 1000}``).
     """
-    cls = algo_class(algo)
+    algo_class(algo)  # an unknown algorithm first, then an unknown id, then the file
+    _check_env_id(env_id)
+    path = Path(path) if path is not None else packaged_config_path(algo)
+    entry_key, entry = _read_entry(path, env_id)
+    entry.update(overrides or {})
+    return _resolve(algo, env_id, entry, f"{path.name}[{entry_key}]", str(path))
+
+
+def recorded_agent_config(algo: str, env_id: str, entry: dict, source: str) -> RunConfig:
+    """A run's entry as its ``config.yml`` recorded it (``hyperparameters[env_id]``), validated
+    as a hyperparameter file's; ``source`` is the file it was first read from."""
+    _check_env_id(env_id)
+    return _resolve(algo, env_id, dict(entry), f"config.yml[{env_id}]", source)
+
+
+def _check_env_id(env_id: str) -> None:
     from spinstrike import envs
 
     if env_id not in envs.ENV_IDS:
         raise AgentConfigError(f"env: unknown id {env_id!r}; allowed: {list(envs.ENV_IDS)}")
-    path = Path(path) if path is not None else packaged_config_path(algo)
-    entry_key, entry = _read_entry(path, env_id)
-    entry.update(overrides or {})
+
+
+def _resolve(algo: str, env_id: str, entry: dict, where: str, source: str) -> RunConfig:
+    cls = algo_class(algo)
     raw = dict(entry)
-    where = f"{path.name}[{entry_key}]"
     allowed = set(inspect.signature(cls.__init__).parameters) - {"self", "env", "policy"}
     for key in entry:
         if key not in RESERVED and key not in allowed:
@@ -305,4 +320,4 @@ def load_agent_config(algo: str, env_id: str, path: str | Path | None = None,
     _convert_values(entry, where)
     _check_values(entry, where)
     return RunConfig(algo, env_id, n_timesteps, policy, n_envs, normalize, env_kwargs, entry,
-                     str(path), raw)
+                     source, raw)

@@ -14,11 +14,18 @@ complete and an existing run is never overwritten (unless ``force``). A run that
 error leaves nothing behind; an interrupted one (Ctrl-C, or SIGTERM while it trains) keeps its
 ``.partial`` directory with its checkpoints, and ``resume`` continues it (or a finished run, to a
 larger budget) from the newest checkpoint; interrupted before the first checkpoint, it has
-nothing to resume and the same command starts over.
+nothing to resume and the same command starts over. Without ``resume``, an interrupted run with
+a checkpoint is never deleted (unless ``force``).
+
+A resumed run is the run its ``config.yml`` records (algorithm, env, env kwargs,
+hyperparameters, seed, budget); only the budget (``timesteps``) may be changed, and the new one is
+recorded. Its learning history goes on: the evaluations and ``progress.csv`` rows up to the
+checkpoint are kept and the new ones appended, so ``learning_curve.png`` shows the whole run.
 """
 
 from __future__ import annotations
 
+import csv
 import re
 import shlex
 import shutil
@@ -30,7 +37,13 @@ from typing import Any
 import numpy as np
 import yaml
 
-from spinstrike.agents.config import AgentConfigError, RunConfig, algo_class, load_agent_config
+from spinstrike.agents.config import (
+    AgentConfigError,
+    RunConfig,
+    algo_class,
+    load_agent_config,
+    recorded_agent_config,
+)
 
 __all__ = ["TrainResult", "finish_run", "plot_learning_curve", "train"]
 
@@ -38,7 +51,7 @@ OFF_POLICY = ("sac", "td3")
 
 
 class TrainResult(dict):
-    """``run_dir``, ``timesteps``, ``wall_time`` and (if evaluated) ``evaluations``."""
+    """``run_dir``, ``env``, ``timesteps``, ``wall_time`` and (if evaluated) ``evaluations``."""
 
 
 def _versions() -> dict[str, str]:
@@ -79,10 +92,93 @@ def _model_kwargs(cfg: RunConfig, env) -> dict[str, Any]:
     return kwargs
 
 
+def _checkpoint_steps(ckpt: Path) -> int:
+    return int(re.findall(r"_(\d+)_steps", ckpt.name)[0])
+
+
 def _latest_checkpoint(run_dir: Path) -> Path | None:
-    ckpts = sorted((run_dir / "checkpoints").glob("model_*_steps.zip"),
-                   key=lambda p: int(re.findall(r"_(\d+)_steps", p.name)[0]))
+    ckpts = sorted((run_dir / "checkpoints").glob("model_*_steps.zip"), key=_checkpoint_steps)
     return ckpts[-1] if ckpts else None
+
+
+def _recorded_run(work: Path, given: dict[str, Any], config,
+                  timesteps) -> tuple[str, RunConfig, int]:
+    """The run as ``work/config.yml`` records it: ``(algo, cfg, seed)``, with the budget set to
+    ``timesteps`` if given. ``given`` maps each command-line flag to its value (None: left out);
+    a value that contradicts the record is refused, all of them in one message."""
+    meta = yaml.safe_load((work / "config.yml").read_text())
+    try:
+        algo, env_id, seed = meta["algo"], meta["env"], meta["seed"]
+        entry = meta["hyperparameters"][env_id]
+    except (KeyError, TypeError):
+        raise AgentConfigError(f"resume: {work / 'config.yml'} does not record the run's algo, "
+                               "env, seed and hyperparameters") from None
+    cfg = recorded_agent_config(algo, env_id, entry, meta.get("source", ""))
+    recorded = {"--algo": algo, "--env": env_id, "--seed": seed, "--n-envs": cfg.n_envs}
+    wrong = [f"{flag} {given[flag]} (recorded: {value})" for flag, value in recorded.items()
+             if given.get(flag) is not None and given[flag] != value]
+    env_kwargs = given.get("--env-kwargs") or {}
+    if {**cfg.env_kwargs, **env_kwargs} != cfg.env_kwargs:
+        wrong.append(f"--env-kwargs {env_kwargs} (recorded: {cfg.env_kwargs})")
+    if config is not None and not wrong and not _same_entry(cfg, config):
+        wrong.append(f"--config {config} (its {env_id} entry is not the recorded one)")
+    if wrong:
+        raise AgentConfigError(f"resume: {work} records {algo} on {env_id} (seed {seed}); "
+                               f"the command line contradicts it: {'; '.join(wrong)}. Leave "
+                               "them out: --resume --out RUN continues the run as recorded "
+                               "(only --timesteps may change, to set a new budget)")
+    if timesteps is not None:
+        if isinstance(timesteps, bool) or not isinstance(timesteps, int) or timesteps < 1:
+            raise AgentConfigError(f"timesteps: must be an integer >= 1 (got {timesteps!r})")
+        cfg.n_timesteps = cfg.raw["n_timesteps"] = timesteps
+    return algo, cfg, seed
+
+
+def _same_entry(cfg: RunConfig, config) -> bool:
+    """Whether hyperparameter file ``config`` holds the entry ``cfg`` was built from (its
+    budget, ``n_envs`` and env kwargs aside: those are compared on their own)."""
+    try:
+        other = load_agent_config(cfg.algo, cfg.env_id, config)
+    except AgentConfigError:
+        return False
+
+    def strip(raw: dict) -> dict:
+        return {k: v for k, v in raw.items() if k not in ("n_timesteps", "n_envs", "env_kwargs")}
+
+    return strip(other.raw) == strip(cfg.raw) and \
+        {**cfg.env_kwargs, **other.env_kwargs} == cfg.env_kwargs
+
+
+def _earlier_evaluations(work: Path, upto: int) -> dict[str, list] | None:
+    """The periodic evaluations a resumed run made up to its checkpoint (``upto`` steps)."""
+    path = work / "evaluations.npz"
+    if not path.exists():
+        return None
+    with np.load(path) as data:
+        keep = data["timesteps"] <= upto
+        return {key: data[key][keep].tolist() for key in data.files}
+
+
+def _csv_output(work: Path, upto: int | None):
+    """SB3's ``progress.csv`` writer; resuming (``upto``: the checkpoint's steps), it starts
+    with the earlier rows up to the checkpoint (SB3's own opens the file with mode ``w``)."""
+    from stable_baselines3.common.logger import CSVOutputFormat
+
+    path = work / "progress.csv"
+    rows: list[list[str]] = []
+    if upto is not None and path.exists():
+        with path.open(newline="") as f:
+            rows = list(csv.reader(f))
+    out = CSVOutputFormat(str(path))
+    if rows:
+        header, body = rows[0], rows[1:]
+        col = header.index("time/total_timesteps") if "time/total_timesteps" in header else None
+        keep = [row for row in body
+                if col is None or col >= len(row) or not row[col] or float(row[col]) <= upto]
+        csv.writer(out.file, lineterminator="\n").writerows([header, *keep])
+        out.file.flush()
+        out.keys = list(header)  # SB3 widens the header itself when new keys come
+    return out
 
 
 def plot_learning_curve(run_dir: Path, title: str) -> Path | None:
@@ -125,6 +221,11 @@ def _work_dir(run_dir: Path, resume: bool, force: bool) -> Path:
     if run_dir.exists() and not force:
         raise AgentConfigError(f"out: {run_dir} exists; pass --force to replace it or "
                                "--resume to continue it")
+    ckpt = _latest_checkpoint(partial) if partial.exists() else None
+    if ckpt is not None and not force:  # an interrupted run: its checkpoints are not ours to drop
+        raise AgentConfigError(f"out: {partial} holds an interrupted run (checkpoint at "
+                               f"{_checkpoint_steps(ckpt)} steps); pass --resume to continue it "
+                               "or --force to start over")
     if partial.exists():
         shutil.rmtree(partial)
     return partial
@@ -156,7 +257,8 @@ def _resume_model(cls, algo: str, cfg: RunConfig, work: Path, env, device: str):
 EVAL_SEED = 10_000
 
 
-def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, episodes: int):
+def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, episodes: int,
+               history: dict[str, list] | None):
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
 
     class _FixedEpisodesEval(EvalCallback):
@@ -176,13 +278,21 @@ def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, epis
 
         eval_env = VecNormalize(eval_env, training=False, norm_reward=False)
     every = max(freq // cfg.n_envs, 1)
+    evals = _FixedEpisodesEval(eval_env, n_eval_episodes=episodes, eval_freq=every,
+                               log_path=str(work), best_model_save_path=None,
+                               deterministic=True, verbose=0)
+    if history:  # a resumed run: its evaluations so far, which the next save writes out again
+        evals.evaluations_timesteps = history["timesteps"]
+        evals.evaluations_results = history["results"]
+        evals.evaluations_length = history["ep_lengths"]
+        evals.evaluations_successes = history.get("successes", [])
+        if history["results"]:
+            evals.best_mean_reward = float(max(np.mean(r) for r in history["results"]))
     return eval_env, CallbackList([
         CheckpointCallback(save_freq=every, save_path=str(work / "checkpoints"),
                            name_prefix="model", save_replay_buffer=algo in OFF_POLICY,
                            save_vecnormalize=bool(cfg.normalize)),
-        _FixedEpisodesEval(eval_env, n_eval_episodes=episodes, eval_freq=every,
-                           log_path=str(work), best_model_save_path=None, deterministic=True,
-                           verbose=0),
+        evals,
     ])
 
 
@@ -207,6 +317,9 @@ def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, 
     work.mkdir(parents=True, exist_ok=True)
     if resume:
         model = _resume_model(cls, algo, cfg, work, env, device)
+        meta = yaml.safe_load((work / "config.yml").read_text())
+        meta["hyperparameters"] = cfg.as_yaml_dict()  # the budget, if --timesteps changed it
+        (work / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
     else:
         model = cls(cfg.policy, env, seed=seed, device=device, verbose=0,
                     **_model_kwargs(cfg, env))
@@ -224,15 +337,25 @@ def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, 
                                  "last_return": done.rounds[-1]["return_mean"],
                                  "log_std": [round(x, 4) for x in done.log_std]}
         (work / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
-    model.set_logger(Logger(str(work), [make_output_format("csv", str(work)),
+    upto = model.num_timesteps if resume else None  # the checkpoint's: history after it goes
+    model.set_logger(Logger(str(work), [_csv_output(work, upto),
                                         make_output_format("tensorboard", str(work / "tb"))]))
     freq = eval_freq or max(cfg.n_timesteps // 10, 1)
-    eval_env, callbacks = _callbacks(algo, cfg, work, seed, freq, eval_episodes_during)
+    history = _earlier_evaluations(work, upto) if resume else None
+    eval_env, callbacks = _callbacks(algo, cfg, work, seed, freq, eval_episodes_during, history)
     start = time.time()
     remaining = cfg.n_timesteps - (model.num_timesteps if resume else 0)
     if remaining > 0:
-        model.learn(remaining, callback=callbacks, progress_bar=progress,
-                    reset_num_timesteps=not resume)
+        from stable_baselines3.common.callbacks import ProgressBarCallback
+
+        # our own bar, closed on the way out: SB3's, left open by Ctrl-C, failed at exit
+        bar = ProgressBarCallback() if progress else None
+        try:
+            model.learn(remaining, callback=[callbacks, bar] if bar else callbacks,
+                        reset_num_timesteps=not resume)
+        finally:
+            if getattr(bar, "pbar", None) is not None:
+                bar.pbar.close()
     wall = time.time() - start
     model.save(work / "model.zip")
     if cfg.normalize:
@@ -267,7 +390,25 @@ def _check_env_kwargs(env_id: str, env_kwargs: dict) -> None:
     gym.make(env_id, **env_kwargs).close()
 
 
-def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int = 0,
+def _new_run(algo: str, env_id: str, config, seed: int | None, timesteps: int | None,
+             n_envs: int | None, env_kwargs: dict | None) -> tuple[RunConfig, int]:
+    """A new run's config (the file's entry, with the command line's overrides) and seed."""
+    overrides: dict[str, Any] = {}
+    if timesteps is not None:
+        overrides["n_timesteps"] = timesteps
+    if n_envs is not None:
+        overrides["n_envs"] = n_envs
+    cfg = load_agent_config(algo, env_id, config, overrides)
+    if env_kwargs:
+        cfg.env_kwargs = {**cfg.env_kwargs, **env_kwargs}
+    seed = 0 if seed is None else seed
+    if not isinstance(seed, int) or seed < 0:
+        raise AgentConfigError(f"seed: must be an integer >= 0 (got {seed!r})")
+    return cfg, seed
+
+
+def train(algo: str | None, env_id: str | None, *, config: str | Path | None = None,
+          seed: int | None = None,
           timesteps: int | None = None, out: str | Path | None = None,
           n_envs: int | None = None, device: str = "cpu", resume: bool = False,
           force: bool = False, progress: bool = True, evaluate: bool = True,
@@ -282,8 +423,12 @@ def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int
         config: rl-zoo3 hyperparameter file (default: the packaged ``configs/agents/<algo>.yml``).
         timesteps, n_envs, env_kwargs: override the file's ``n_timesteps``, ``n_envs`` and
             ``env_kwargs``.
+        seed: default 0.
         out: run directory (default ``runs/<algo>-<env>-s<seed>``).
-        resume: continue ``out`` from its newest checkpoint.
+        resume: continue ``out`` from its newest checkpoint, as its ``config.yml`` records it:
+            ``algo``, ``env_id``, ``seed``, ``config``, ``n_envs`` and ``env_kwargs`` may be
+            None (or repeat the record; anything else is refused), ``timesteps`` sets a new
+            budget (recorded in ``config.yml``).
         force: replace an existing run directory.
         evaluate, video: after training, evaluate against random and oracle, record an mp4.
         eval_freq, eval_episodes_during: the learning curve's evaluations (default: 10 evenly
@@ -300,28 +445,28 @@ def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int
     ``SystemExit(143)``; the previous handler is restored after), it keeps the work folder
     (``<out>.partial`` for a new run), says how to go on, and re-raises.
     """
-    overrides: dict[str, Any] = {}
-    if timesteps is not None:
-        overrides["n_timesteps"] = timesteps
-    if n_envs is not None:
-        overrides["n_envs"] = n_envs
-    cfg = load_agent_config(algo, env_id, config, overrides)
-    if env_kwargs:
-        cfg.env_kwargs = {**cfg.env_kwargs, **env_kwargs}
-    if not isinstance(seed, int) or seed < 0:
-        raise AgentConfigError(f"seed: must be an integer >= 0 (got {seed!r})")
+    if out is None and (algo is None or env_id is None):
+        raise AgentConfigError("out: give the run directory (or algo and env)")
+    run_dir = Path(out) if out is not None else \
+        Path("runs") / f"{algo}-{env_id.split('/')[-1]}-s{seed or 0}"
     imitation = None
-    if imitate is not None:
-        from spinstrike.agents.imitate import settings
+    if resume:  # the run as recorded; the checkpoint holds an imitated policy already
+        work = _work_dir(run_dir, resume, force)
+        given = {"--algo": algo, "--env": env_id, "--seed": seed, "--n-envs": n_envs,
+                 "--env-kwargs": env_kwargs}
+        algo, cfg, seed = _recorded_run(work, given, config, timesteps)
+        env_id = cfg.env_id
+    else:
+        if algo is None or env_id is None:
+            raise AgentConfigError("algo, env: a new run needs both")
+        cfg, seed = _new_run(algo, env_id, config, seed, timesteps, n_envs, env_kwargs)
+        if imitate is not None:
+            from spinstrike.agents.imitate import settings
 
-        imitation = settings(imitate, algo, env_id, bool(cfg.normalize), imitate_rounds,
-                             imitate_episodes)
-        if resume:  # the checkpoint holds the imitated policy already
-            imitation = None
-    name = f"{algo}-{env_id.split('/')[-1]}-s{seed}"
-    run_dir = Path(out) if out is not None else Path("runs") / name
-    _check_env_kwargs(env_id, cfg.env_kwargs)  # a bad argument first, before "out exists"
-    work = _work_dir(run_dir, resume, force)
+            imitation = settings(imitate, algo, env_id, bool(cfg.normalize), imitate_rounds,
+                                 imitate_episodes)
+        _check_env_kwargs(env_id, cfg.env_kwargs)  # a bad argument first, before "out exists"
+        work = _work_dir(run_dir, resume, force)
     from spinstrike.agents.imitate import _sigterm_exits
 
     try:
@@ -348,7 +493,8 @@ def train(algo: str, env_id: str, *, config: str | Path | None = None, seed: int
         if not resume:
             shutil.rmtree(work, ignore_errors=True)
         raise
-    result = TrainResult(run_dir=str(run_dir), timesteps=int(model.num_timesteps), wall_time=wall)
+    result = TrainResult(run_dir=str(run_dir), env=env_id, timesteps=int(model.num_timesteps),
+                         wall_time=wall)
     meta = yaml.safe_load((run_dir / "config.yml").read_text())
     meta.setdefault("runs", []).append({"timesteps": int(model.num_timesteps),
                                         "wall_time_s": round(wall, 2)})

@@ -209,8 +209,7 @@ def test_ctrl_c_during_dagger_says_there_is_nothing_to_resume(tmp_path, monkeypa
     args = ["train", "--algo", "ppo", "--env", ENV, "--imitate", "chase-and-hit",
             "--imitate-rounds", "1", "--imitate-episodes", "1", "--timesteps", "1024",
             "--no-video", "--no-eval", "--no-progress", "--out", str(tmp_path / "run")]
-    with pytest.raises(KeyboardInterrupt):
-        main(args)
+    assert main(args) == 130  # 128 + SIGINT, after the message (no traceback)
     err = capsys.readouterr().err
     assert "nothing to resume" in err and "--resume" not in err
     assert main(args[:-2] + ["--resume", "--out", str(tmp_path / "run")]) == 2

@@ -1,0 +1,200 @@
+"""An interrupted ``spinstrike train``, from the user's side: ``--resume`` continues the run that
+``config.yml`` records and keeps one learning history; running the command again without
+``--resume`` does not delete it; Ctrl-C ends like SIGTERM, with the resume hint and no traceback.
+
+The interrupt is Ctrl-C's ``KeyboardInterrupt``, raised by a callback once training has passed a
+given step (after a checkpoint), so every test stops at the same place."""
+
+import contextlib
+import csv
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import yaml
+
+import spinstrike.envs.sb3 as sb3
+from spinstrike.agents import train as train_mod
+from spinstrike.agents.cli import main
+
+ENV = "SpinStrike/RodSpin-v0"
+
+
+def _tiny_config(path, n_timesteps=2048):
+    path.write_text(yaml.safe_dump({env: {
+        "n_timesteps": n_timesteps, "policy": "MlpPolicy", "n_envs": 4, "n_steps": 64,
+        "batch_size": 128, "n_epochs": 1, "policy_kwargs": {"net_arch": [16]}}
+        for env in (ENV, "SpinStrike/PuckSpeed-v1")}))
+    return path
+
+
+def _interrupt_at(monkeypatch, steps):
+    """Ctrl-C once training passes ``steps`` (checkpoints and evaluations come every 204)."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class _CtrlC(BaseCallback):
+        def _on_step(self) -> bool:
+            if self.num_timesteps >= steps:
+                raise KeyboardInterrupt
+            return True
+
+    real = train_mod._callbacks
+
+    def callbacks(*args, **kwargs):
+        eval_env, cbs = real(*args, **kwargs)
+        cbs.callbacks.append(_CtrlC())
+        return eval_env, cbs
+
+    monkeypatch.setattr(train_mod, "_callbacks", callbacks)
+    return real
+
+
+def _interrupted_run(tmp_path, monkeypatch, args):
+    real = _interrupt_at(monkeypatch, 1100)
+    with contextlib.suppress(KeyboardInterrupt):  # (it used to escape main())
+        assert main(args) == 130
+    monkeypatch.setattr(train_mod, "_callbacks", real)
+    partial = tmp_path / "run.partial"
+    assert list((partial / "checkpoints").glob("model_*_steps.zip"))
+    return partial
+
+
+def _progress_steps(path):
+    with path.open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    return [int(float(r["time/total_timesteps"])) for r in rows if r["time/total_timesteps"]]
+
+
+def test_resume_keeps_the_learning_history(tmp_path, monkeypatch):
+    """After ``--resume``, evaluations.npz (what learning_curve.png and ``spinstrike baselines``
+    read) and progress.csv hold the whole run: the points before the interrupt, then the new
+    ones, steps increasing (they used to start again at the checkpoint)."""
+    run = tmp_path / "run"
+    args = ["train", "--algo", "ppo", "--env", ENV, "--config", str(_tiny_config(
+        tmp_path / "ppo.yml")), "--out", str(run), "--no-eval", "--no-video", "--no-progress"]
+    partial = _interrupted_run(tmp_path, monkeypatch, args)
+    before = np.load(partial / "evaluations.npz")["timesteps"].tolist()
+    rows_before = _progress_steps(partial / "progress.csv")
+    ckpt = max(int(p.name.split("_")[1]) for p in (partial / "checkpoints").glob("model_*.zip"))
+    assert before and max(before) <= ckpt
+
+    assert main([*args, "--resume"]) == 0
+    data = np.load(run / "evaluations.npz")
+    steps = data["timesteps"].tolist()
+    assert steps[:len(before)] == before, steps  # the first part is kept
+    assert len(steps) > len(before) and steps[-1] >= 2048
+    assert np.all(np.diff(steps) > 0), steps
+    assert data["results"].shape == (len(steps), 10)
+    rows = _progress_steps(run / "progress.csv")
+    kept = [s for s in rows_before if s <= ckpt]
+    assert rows[:len(kept)] == kept and rows[0] < 1024 and rows[-1] >= 2048, rows
+    assert np.all(np.diff(rows) >= 0), rows
+    assert (run / "learning_curve.png").is_file()
+
+
+def test_resume_continues_the_recorded_run(tmp_path, monkeypatch, capsys):
+    """``--resume --out RUN`` (what the interrupt message says) trains the run as config.yml
+    records it: its env, env kwargs, hyperparameters and budget, not the command line's
+    defaults (it used to train RodSpin-v0 on the packaged config, or end in a traceback); an
+    option that contradicts the record is refused on one line; --timesteps sets a new budget,
+    recorded."""
+    run = tmp_path / "run"
+    env = "SpinStrike/PuckSpeed-v1"
+    args = ["train", "--algo", "ppo", "--env", env, "--env-kwargs", "{restitution: 0.5}",
+            "--config", str(_tiny_config(tmp_path / "ppo.yml")), "--seed", "3",
+            "--out", str(run), "--no-eval", "--no-video", "--no-progress"]
+    _interrupted_run(tmp_path, monkeypatch, args)
+    recorded = yaml.safe_load((tmp_path / "run.partial" / "config.yml").read_text())
+    capsys.readouterr()
+
+    for extra, needle in ((["--algo", "sac"], "--algo sac (recorded: ppo)"),
+                          (["--env", ENV], f"--env {ENV} (recorded: {env})"),
+                          (["--env-kwargs", "{restitution: 0.9}"], "--env-kwargs"),
+                          (["--seed", "0"], "--seed 0 (recorded: 3)"),
+                          (["--n-envs", "2"], "--n-envs 2 (recorded: 4)")):
+        assert main(["train", "--resume", "--out", str(run), *extra]) == 2, extra
+        err = capsys.readouterr().err
+        assert err.startswith("error: resume: ") and needle in err, (extra, err)
+        assert err.count("\n") == 1
+
+    made = []
+    real = sb3.make_sb3_vec_env
+
+    def spy(env_id, **kwargs):
+        made.append((env_id, kwargs["n_envs"], kwargs["env_kwargs"]))
+        return real(env_id, **kwargs)
+
+    monkeypatch.setattr(sb3, "make_sb3_vec_env", spy)
+    assert main(["train", "--resume", "--out", str(run), "--no-eval", "--no-video",
+                 "--no-progress"]) == 0
+    assert {(e, kw["restitution"]) for e, _, kw in made} == {(env, 0.5)}, made
+    assert (env, 4, {"restitution": 0.5}) in made  # the training envs
+    meta = yaml.safe_load((run / "config.yml").read_text())
+    assert meta["hyperparameters"] == recorded["hyperparameters"]
+    # the recorded budget (to PPO's rollouts of 4 x 64), not the packaged 150k
+    assert 2048 <= meta["runs"][-1]["timesteps"] < 2048 + 256
+
+    # the same command with --resume (as the README says) is the recorded run too, and a
+    # larger --timesteps extends the budget, recorded in config.yml
+    assert main([*args, "--resume", "--timesteps", "2560"]) == 0
+    meta = yaml.safe_load((run / "config.yml").read_text())
+    assert meta["hyperparameters"][env]["n_timesteps"] == 2560
+    assert 2560 <= meta["runs"][-1]["timesteps"] < 2560 + 256
+    assert np.load(run / "evaluations.npz")["timesteps"].max() >= 2448
+
+
+def test_same_command_without_resume_keeps_the_interrupted_run(tmp_path, monkeypatch, capsys):
+    """Running the command again without --resume refuses, on one line naming --resume and
+    --force, and leaves the checkpoints (it used to delete them silently); --force starts
+    over."""
+    args = ["train", "--algo", "ppo", "--env", ENV, "--config", str(_tiny_config(
+        tmp_path / "ppo.yml", 1024)), "--out", str(tmp_path / "run"), "--no-eval",
+        "--no-video", "--no-progress"]
+    real = _interrupt_at(monkeypatch, 600)
+    with contextlib.suppress(KeyboardInterrupt):
+        main(args)
+    monkeypatch.setattr(train_mod, "_callbacks", real)
+    checkpoints = sorted((tmp_path / "run.partial" / "checkpoints").iterdir())
+    assert checkpoints
+    capsys.readouterr()
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: out: ") and "--resume" in err and "--force" in err, err
+    assert err.count("\n") == 1
+    assert sorted((tmp_path / "run.partial" / "checkpoints").iterdir()) == checkpoints
+    assert not (tmp_path / "run").exists()
+    assert main([*args, "--force"]) == 0
+    assert (tmp_path / "run" / "model.zip").is_file()
+    assert not (tmp_path / "run.partial").exists()
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+def test_ctrl_c_ends_with_the_resume_hint_and_no_traceback(tmp_path):
+    """Ctrl-C (SIGINT) on ``spinstrike train`` with its progress bar, after a checkpoint: exit
+    code 130 and the resume hint alone, as SIGTERM (it used to print a long traceback and a
+    progress-bar error at exit)."""
+    import signal
+    import time
+
+    args = ["train", "--algo", "ppo", "--env", ENV, "--config", str(_tiny_config(
+        tmp_path / "ppo.yml", 100_000)), "--no-video", "--no-eval", "--out",
+        str(tmp_path / "run")]
+    proc = subprocess.Popen([sys.executable, "-m", "spinstrike.agents.cli", *args],
+                            cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    checkpoints = tmp_path / "run.partial" / "checkpoints"
+    try:
+        deadline = time.time() + 240
+        while not (checkpoints.exists() and any(checkpoints.glob("model_*_steps.zip"))):
+            assert proc.poll() is None, proc.stderr.read().decode()
+            assert time.time() < deadline, "no checkpoint in 240 s"
+            time.sleep(0.2)
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=60) == 128 + signal.SIGINT
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    err = proc.stderr.read().decode()
+    assert f"interrupted: continue with --resume --out {tmp_path / 'run'}" in err
+    assert "Traceback" not in err and "Exception ignored" not in err, err
