@@ -762,13 +762,14 @@ class World:
                 f"m/s overflow, and forces that produce them). The world keeps that state: "
                 f"restore a snapshot or reset it", bad)
         capped = np.flatnonzero(code == FALLBACK_CAPPED)
+        speed = np.hypot(self._state[capped, :, VX], self._state[capped, :, VY]).max()
+        force = np.hypot(self._forces[capped, :, 0], self._forces[capped, :, 1]).max()
         warnings.warn(
             f"step: element(s) {_few(capped)}: the exact solver's settling needed more than its "
             f"cap of {MAX_SETTLE_SUBSTEPS:,} substeps, so bodies may have passed through each "
-            f"other in this step (last_step.capped); forces and speeds this large (the largest "
-            f"force set is {np.abs(self._forces[capped]).max():.3g} N) are beyond what the "
-            f"step length can resolve: use a shorter step or smaller forces",
-            RuntimeWarning, stacklevel=3)
+            f"other in this step (last_step.capped): speeds and forces this large for the "
+            f"bodies' sizes (now up to {speed:.3g} m/s; forces set up to {force:.3g} N) need a "
+            f"shorter step ({self.dt:g} s now)", RuntimeWarning, stacklevel=3)
 
     @property
     def backend(self):
