@@ -15,6 +15,7 @@ from spinstrike.agents.cli import main
 from spinstrike.agents.config import ALGOS, AgentConfigError, load_agent_config
 from spinstrike.agents.evaluate import evaluate, load_model_policy
 from spinstrike.agents.train import train
+from tests.agents.signals import signal_after_checkpoint
 
 
 @pytest.mark.parametrize("algo", ALGOS)
@@ -153,26 +154,11 @@ def test_sigterm_during_training_says_resume_and_the_run_resumes(tmp_path):
     a checkpoint: exit code 143, the resume hint, the learning-curve log flushed, and
     ``--resume`` finishes the run (by default SIGTERM ended the process with none of that)."""
     import signal
-    import time
 
     args = ["train", "--algo", "ppo", "--env", "SpinStrike/RodSpin-v0", "--timesteps", "100000",
             "--no-video", "--no-progress", "--no-eval", "--out", str(tmp_path / "run")]
-    proc = subprocess.Popen([sys.executable, "-m", "spinstrike.agents.cli", *args],
-                            cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    checkpoints = tmp_path / "run.partial" / "checkpoints"
-    try:
-        deadline = time.time() + 240
-        while not (checkpoints.exists() and any(checkpoints.glob("model_*_steps.zip"))):
-            assert proc.poll() is None, proc.stderr.read().decode()
-            assert time.time() < deadline, "no checkpoint in 240 s"
-            time.sleep(0.2)
-        proc.send_signal(signal.SIGTERM)
-        assert proc.wait(timeout=60) == 128 + signal.SIGTERM
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-    assert "continue with --resume" in proc.stderr.read().decode()
+    err = signal_after_checkpoint(args, tmp_path, signal.SIGTERM, tmp_path / "run")
+    assert "continue with --resume" in err
     assert (tmp_path / "run.partial" / "progress.csv").read_text().count("\n") >= 2
     done = subprocess.run([sys.executable, "-m", "spinstrike.agents.cli", *args, "--resume"],
                           cwd=tmp_path, capture_output=True, text=True, timeout=600)

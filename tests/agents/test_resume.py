@@ -7,7 +7,6 @@ given step (after a checkpoint), so every test stops at the same place."""
 
 import contextlib
 import csv
-import subprocess
 import sys
 
 import numpy as np
@@ -17,6 +16,7 @@ import yaml
 import spinstrike.envs.sb3 as sb3
 from spinstrike.agents import train as train_mod
 from spinstrike.agents.cli import main
+from tests.agents.signals import signal_after_checkpoint
 
 ENV = "SpinStrike/RodSpin-v0"
 
@@ -175,26 +175,10 @@ def test_ctrl_c_ends_with_the_resume_hint_and_no_traceback(tmp_path):
     code 130 and the resume hint alone, as SIGTERM (it used to print a long traceback and a
     progress-bar error at exit)."""
     import signal
-    import time
 
     args = ["train", "--algo", "ppo", "--env", ENV, "--config", str(_tiny_config(
         tmp_path / "ppo.yml", 100_000)), "--no-video", "--no-eval", "--out",
         str(tmp_path / "run")]
-    proc = subprocess.Popen([sys.executable, "-m", "spinstrike.agents.cli", *args],
-                            cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    checkpoints = tmp_path / "run.partial" / "checkpoints"
-    try:
-        deadline = time.time() + 240
-        while not (checkpoints.exists() and any(checkpoints.glob("model_*_steps.zip"))):
-            assert proc.poll() is None, proc.stderr.read().decode()
-            assert time.time() < deadline, "no checkpoint in 240 s"
-            time.sleep(0.2)
-        proc.send_signal(signal.SIGINT)
-        assert proc.wait(timeout=60) == 128 + signal.SIGINT
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-    err = proc.stderr.read().decode()
+    err = signal_after_checkpoint(args, tmp_path, signal.SIGINT, tmp_path / "run")
     assert f"interrupted: continue with --resume --out {tmp_path / 'run'}" in err
     assert "Traceback" not in err and "Exception ignored" not in err, err
