@@ -49,11 +49,9 @@ def _kwargs(text: str | None) -> dict:
 
 
 def _check_env_id(env_id: str) -> None:
-    from spinstrike import envs
-    from spinstrike.agents.config import AgentConfigError
+    from spinstrike.agents.config import check_env_id
 
-    if env_id not in envs.ENV_IDS:
-        raise AgentConfigError(f"--env: unknown id {env_id!r}; allowed: {list(envs.ENV_IDS)}")
+    check_env_id(env_id, "--env")
 
 
 def _check_episodes(option: str, value: int) -> None:
@@ -112,8 +110,10 @@ def _train_defaults(args) -> None:
     run's (its config.yml); only the default ``--out`` is named from the defaults."""
     if args.resume and args.backend == "sb3":
         if args.out is None:
-            args.out = str(Path("runs") / f"{args.algo or 'ppo'}-"
-                           f"{(args.env or DEFAULT_ENV).split('/')[-1]}-s{args.seed or 0}")
+            from spinstrike.agents.train import default_run_dir
+
+            args.out = str(default_run_dir(args.algo or "ppo", args.env or DEFAULT_ENV,
+                                           args.seed or 0))
         return
     args.algo = args.algo or "ppo"
     args.env = args.env or DEFAULT_ENV
@@ -219,8 +219,15 @@ def _size(text: str) -> tuple[int, int]:
     return w, h
 
 
-def cmd_record(args) -> int:
+def _check_video_out(out: str) -> None:
     from spinstrike.agents.config import AgentConfigError
+    from spinstrike.envs.recording import FORMATS
+
+    if Path(out).suffix.lower() not in FORMATS:
+        raise AgentConfigError(f"--out: must end in .mp4 or .gif (got {out!r})")
+
+
+def cmd_record(args) -> int:
     from spinstrike.agents.record import record
 
     if args.scene is not None:
@@ -229,8 +236,7 @@ def cmd_record(args) -> int:
     policy, env_id, env_kwargs, name = _policy(args)
     out = args.out or (str(Path(args.run_dir) / "rollout.mp4") if args.run_dir
                        else f"{name}-{env_id.split('/')[-1]}.mp4")
-    if Path(out).suffix.lower() not in (".mp4", ".gif"):
-        raise AgentConfigError(f"--out: must end in .mp4 or .gif (got {out!r})")
+    _check_video_out(out)
     size = _size(args.size) if args.size else None
     result = record(policy, env_id, out, episodes=args.episodes, seed=args.seed,
                     env_kwargs=env_kwargs, size=size, grid=args.grid)
@@ -256,8 +262,7 @@ def _record_scene(args) -> int:
         if not (math.isfinite(value) and value > 0):
             raise AgentConfigError(f"{flag}: must be a number > 0 (got {value})")
     out = args.out or f"{Path(str(args.scene)).stem}.mp4"
-    if Path(out).suffix.lower() not in (".mp4", ".gif"):
-        raise AgentConfigError(f"--out: must end in .mp4 or .gif (got {out!r})")
+    _check_video_out(out)
     world = physics.World(args.scene)
     result = record_world(world, out, seconds=args.seconds, dt=args.dt,
                           size=_size(args.size) if args.size else (720, 480))

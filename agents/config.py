@@ -23,8 +23,8 @@ from typing import Any
 
 import yaml
 
-__all__ = ["ALGOS", "AgentConfigError", "RunConfig", "algo_class", "load_agent_config",
-           "recorded_agent_config", "yaml_problem"]
+__all__ = ["ALGOS", "AgentConfigError", "RunConfig", "algo_class", "check_env_id",
+           "load_agent_config", "recorded_agent_config", "yaml_problem"]
 
 #: algorithms the CLI trains
 ALGOS = ("ppo", "sac", "td3")
@@ -277,7 +277,7 @@ def load_agent_config(algo: str, env_id: str, path: str | Path | None = None,
         overrides: keys replacing the file's (e.g. ``{"n_timesteps": 1000}``).
     """
     algo_class(algo)  # an unknown algorithm first, then an unknown id, then the file
-    _check_env_id(env_id)
+    check_env_id(env_id)
     path = Path(path) if path is not None else packaged_config_path(algo)
     entry_key, entry = _read_entry(path, env_id)
     entry.update(overrides or {})
@@ -287,15 +287,16 @@ def load_agent_config(algo: str, env_id: str, path: str | Path | None = None,
 def recorded_agent_config(algo: str, env_id: str, entry: dict, source: str) -> RunConfig:
     """A run's entry as its ``config.yml`` recorded it (``hyperparameters[env_id]``), validated
     as a hyperparameter file's; ``source`` is the file it was first read from."""
-    _check_env_id(env_id)
+    check_env_id(env_id)
     return _resolve(algo, env_id, dict(entry), f"config.yml[{env_id}]", source)
 
 
-def _check_env_id(env_id: str) -> None:
+def check_env_id(env_id: str, field: str = "env") -> None:
+    """Refuse an id that is not a registered SpinStrike env, naming ``field``."""
     from spinstrike import envs
 
     if env_id not in envs.ENV_IDS:
-        raise AgentConfigError(f"env: unknown id {env_id!r}; allowed: {list(envs.ENV_IDS)}")
+        raise AgentConfigError(f"{field}: unknown id {env_id!r}; allowed: {list(envs.ENV_IDS)}")
 
 
 def _resolve(algo: str, env_id: str, entry: dict, where: str, source: str) -> RunConfig:

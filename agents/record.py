@@ -114,7 +114,7 @@ def record_world(world, path: str | Path, seconds: float = 3.0, dt: float = 0.02
     Returns:
         ``{"path", "frames", "fps", "size", "contacts"}``.
     """
-    from spinstrike.envs.rendering import BodyDraw, Frame, Marker, Renderer, body_points
+    from spinstrike.envs.rendering import Frame, Marker, Renderer, body_draws, body_points
 
     if not (math.isfinite(seconds) and seconds > 0):
         raise ValueError(f"seconds: must be a number > 0 (got {seconds!r})")
@@ -123,7 +123,6 @@ def record_world(world, path: str | Path, seconds: float = 3.0, dt: float = 0.02
     b = element
     if isinstance(b, bool) or not isinstance(b, int | np.integer) or not 0 <= b < world.batch_size:
         raise ValueError(f"element: must be in [0, {world.batch_size}) (got {element!r})")
-    n = world.n_bodies
     half = world.table_half_size[b]
     walls = bool(world.walls)
     if np.isfinite(half).all():
@@ -140,16 +139,8 @@ def record_world(world, path: str | Path, seconds: float = 3.0, dt: float = 0.02
     total = 0
     writer = VideoWriter(path, fps)
 
-    def bodies() -> list[BodyDraw]:
-        st = world.state
-        return [BodyDraw(world.names[i] if world.names[i] in ("rod", "puck", "mallet",
-                                                              "striker") else "other",
-                         *st.positions[b, i], st.angles[b, i], world.radius[b, i],
-                         world.half_length[b, i], st.omegas[b, i], *st.velocities[b, i])
-                for i in range(n)]
-
     def frame() -> np.ndarray:
-        drawn = bodies()
+        drawn = body_draws(world, b)  # bodies not named as the envs' are drawn grey
         points = [body_points(d) for d in drawn]
         while len(paths) < len(points):
             paths.append(deque(maxlen=keep))

@@ -92,6 +92,11 @@ def _model_kwargs(cfg: RunConfig, env) -> dict[str, Any]:
     return kwargs
 
 
+def default_run_dir(algo: str, env_id: str, seed: int) -> Path:
+    """``runs/<algo>-<env>-s<seed>``: where a run goes without ``out``."""
+    return Path("runs") / f"{algo}-{env_id.split('/')[-1]}-s{seed}"
+
+
 def _checkpoint_steps(ckpt: Path) -> int:
     return int(re.findall(r"_(\d+)_steps", ckpt.name)[0])
 
@@ -447,8 +452,7 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
     """
     if out is None and (algo is None or env_id is None):
         raise AgentConfigError("out: give the run directory (or algo and env)")
-    run_dir = Path(out) if out is not None else \
-        Path("runs") / f"{algo}-{env_id.split('/')[-1]}-s{seed or 0}"
+    run_dir = Path(out) if out is not None else default_run_dir(algo, env_id, seed or 0)
     imitation = None
     if resume:  # the run as recorded; the checkpoint holds an imitated policy already
         work = _work_dir(run_dir, resume, force)

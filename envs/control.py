@@ -25,7 +25,7 @@ from spinstrike.envs.core import (
 )
 from spinstrike.envs.fast import CONTROL_STEP, limit_force
 from spinstrike.envs.layout import SPEED_SCALE, SPIN_SCALE, control_layout, layout_table
-from spinstrike.envs.rendering import BodyDraw, Frame, Gauge, Marker, body_points
+from spinstrike.envs.rendering import BodyDraw, Frame, Gauge, Marker, body_draws, body_points
 from spinstrike.physics.layout import FORCE
 
 __all__ = ["PuckSpeedControlEnv", "PuckSpeedControlVectorEnv", "RodSpinControlEnv",
@@ -121,7 +121,7 @@ class _ControlTask(Task):
     def _remember(self) -> None:
         """Add element 0's pose to its motion trail (when recording)."""
         if self.record_trace:
-            self._trail.append([body_points(b) for b in self._bodies(0)])
+            self._trail.append([body_points(b) for b in body_draws(self.world, 0)])
 
     def step(self, actions, batch_info: bool = True):
         a = np.asarray(actions)
@@ -165,15 +165,9 @@ class _ControlTask(Task):
     def restore(self, snap: dict) -> None:
         pass
 
-    def _bodies(self, b: int) -> list[BodyDraw]:
-        w = self.world
-        return [BodyDraw(w.names[i], *w.state.positions[b, i], w.state.angles[b, i],
-                         w.radius[b, i], w.half_length[b, i], w.state.omegas[b, i],
-                         *w.state.velocities[b, i]) for i in range(w.n_bodies)]
-
     def frame(self, b: int, decorate: bool = True) -> Frame:
         w = self.world
-        bodies = self._bodies(b)
+        bodies = body_draws(self.world, b)
         hw = w.table_half_size[b]
         half = (float(hw[0]), float(hw[1]))
         target = bodies[self.it]

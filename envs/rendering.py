@@ -23,8 +23,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["BodyDraw", "Frame", "Gauge", "Marker", "Renderer", "Vector", "body_points",
-           "strike_times"]
+from spinstrike.physics.layout import ANGLE, OMEGA, VX, VY, X, Y
+
+__all__ = ["BodyDraw", "Frame", "Gauge", "Marker", "Renderer", "Vector", "body_draws",
+           "body_points", "strike_times"]
 
 COLOURS = {
     "table": (28, 84, 58),
@@ -132,6 +134,18 @@ class Frame:
     panel: list[str] = field(default_factory=list)
     #: draw rods as anti-aliased capsules (video frames; plain frames keep their pixels)
     smooth: bool = False
+
+
+def body_draws(world, b: int, S: np.ndarray | None = None) -> list[BodyDraw]:
+    """Element b's bodies of a ``physics.World`` to draw, in its current state or in the state
+    rows ``S [N, 6]`` (a traced instant of a strike)."""
+    if S is None:
+        st = world.state
+        pos, ang, vel, om = st.positions[b], st.angles[b], st.velocities[b], st.omegas[b]
+    else:
+        pos, ang, vel, om = S[:, X:Y + 1], S[:, ANGLE], S[:, VX:VY + 1], S[:, OMEGA]
+    return [BodyDraw(world.names[i], *pos[i], ang[i], world.radius[b, i],
+                     world.half_length[b, i], om[i], *vel[i]) for i in range(world.n_bodies)]
 
 
 def body_points(b: BodyDraw) -> list[tuple[float, float]]:

@@ -32,11 +32,12 @@ from spinstrike.envs.rendering import (
     Gauge,
     Marker,
     Vector,
+    body_draws,
     body_points,
     strike_times,
 )
 from spinstrike.physics import SceneError
-from spinstrike.physics.layout import ANGLE, OMEGA, STATE_COLUMNS, VX, VY, X, Y
+from spinstrike.physics.layout import STATE_COLUMNS
 from spinstrike.physics.solvers import TRACE_DROPPED, TRACE_ENTRIES
 
 __all__ = ["PuckSpeedEnv", "PuckSpeedV1Env", "PuckSpeedV1VectorEnv", "PuckSpeedVectorEnv",
@@ -326,17 +327,6 @@ class _StrikeTask(Task):
         self.result_vs[:] = snap["result_vs"]
 
     # -- rendering ----------------------------------------------------------------------------
-    def _draw_bodies(self, b: int, S: np.ndarray | None = None) -> list[BodyDraw]:
-        """Element b's bodies, in its current state or in the state rows ``S [N, 6]``."""
-        w = self.world
-        if S is None:
-            pos, ang = w.state.positions[b], w.state.angles[b]
-            vel, om = w.state.velocities[b], w.state.omegas[b]
-        else:
-            pos, ang, vel, om = S[:, X:Y + 1], S[:, ANGLE], S[:, VX:VY + 1], S[:, OMEGA]
-        return [BodyDraw(w.names[i], *pos[i], ang[i], w.radius[b, i], w.half_length[b, i], om[i],
-                         *vel[i]) for i in range(w.n_bodies)]
-
     def _record_clip(self) -> StrikeClip:
         """Element 0's strike as the solver computed it, sampled at its frames' instants."""
         tr = self._strace
@@ -361,7 +351,7 @@ class _StrikeTask(Task):
         impulse (it is what ``rgb_array`` shows after the step)."""
         frame_of = np.searchsorted(clip.times, clip.contacts[:, fast.TC_TIME])
         last_contact = clip.contacts[:, fast.TC_TIME].max() if len(clip.contacts) else np.inf
-        points = [[body_points(b) for b in self._draw_bodies(0, S)] for S in clip.states]
+        points = [[body_points(b) for b in body_draws(self.world, 0, S)] for S in clip.states]
         frames = []
         for f, S in enumerate(clip.states):
             t = clip.times[f]
@@ -375,13 +365,13 @@ class _StrikeTask(Task):
                 trails=trails, markers=markers))
         last = frames[-1]
         step = max(1, len(clip.states) // 8)
-        last.ghosts = [self._draw_bodies(0, S) for S in clip.states[::step]]
+        last.ghosts = [body_draws(self.world, 0, S) for S in clip.states[::step]]
         last.markers = [_marker(c, self.it, 1.0) for c in clip.contacts]
         return frames
 
     def _video_frame(self, b: int, S: np.ndarray | None, t: float, slow_motion: int,
                      reward: float | None, trails=(), markers=()) -> Frame:
-        bodies = self._draw_bodies(b, S)
+        bodies = body_draws(self.world, b, S)
         target = bodies[self.it]
         pace = f"slow motion x{slow_motion}" if slow_motion > 1 else "real time (x1)"
         when = f"t = {1000 * t:6.1f} ms   {pace}" if slow_motion else "before the strike"
@@ -394,7 +384,7 @@ class _StrikeTask(Task):
 
     def frame(self, b: int, decorate: bool = True) -> Frame:
         if not decorate:  # the pixel observation (its pixels are a contract: keep it plain)
-            return Frame(self._draw_bodies(b), tuple(self.world.table_half_size[b]),
+            return Frame(body_draws(self.world, b), tuple(self.world.table_half_size[b]),
                          walls="walls" in self.world.effects, text=self._caption(b))
         if b == 0 and self.clip is not None:
             return self._strike_frames()[-1]
