@@ -34,7 +34,7 @@ def local_ray():
     """A local Ray of 2 CPUs (the machine's), shut down after the test."""
     if ray.is_initialized():
         ray.shutdown()
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     try:
         yield
     finally:
@@ -452,7 +452,7 @@ def test_runners_import_the_drivers_spinstrike_from_a_checkouts_root(local_ray, 
     (fake / "pyproject.toml").write_text("[project]\nname = 'spinstrike'\n")
     monkeypatch.chdir(fake)
     ray.shutdown()  # the fixture's Ray was started elsewhere: start it from the checkout
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     algo = tiny(configure(PPOConfig(), STRIKE), runners=1, envs=2).build_algo()
     try:
         assert _sampled(algo.train()) > 0

@@ -21,7 +21,7 @@ def test_ppo_through_rllib_reaches_090_of_the_oracle_on_rodspin(tmp_path):
 
     if ray.is_initialized():
         ray.shutdown()
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     try:
         result = train_rllib("SpinStrike/RodSpin-v0", seed=0, out=tmp_path / "run",
                              num_env_runners=2, eval_episodes=50, video=False)
