@@ -26,6 +26,7 @@ checkpoint are kept and the new ones appended, so ``learning_curve.png`` shows t
 from __future__ import annotations
 
 import csv
+import os
 import re
 import shlex
 import shutil
@@ -253,7 +254,9 @@ def _resume_model(cls, algo: str, cfg: RunConfig, work: Path, env, device: str):
         model.set_env(VecNormalize.load(str(stats), env.venv))
     buf = ckpt.with_name(ckpt.name.replace("model_", "model_replay_buffer_")
                          .replace(".zip", ".pkl"))
-    if algo in OFF_POLICY and buf.exists():
+    if algo in OFF_POLICY:
+        if not buf.exists():  # an empty buffer would silently restart learning_starts' warm-up
+            raise AgentConfigError(f"resume: {ckpt} has no replay buffer ({buf.name})")
         model.load_replay_buffer(buf)
     return model
 
@@ -262,28 +265,101 @@ def _resume_model(cls, algo: str, cfg: RunConfig, work: Path, env, device: str):
 EVAL_SEED = 10_000
 
 
-def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, episodes: int,
-               history: dict[str, list] | None):
-    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
+def _atomic(path: Path, write) -> None:
+    """``write(tmp)`` then rename ``tmp`` to ``path``: readers see the whole file or none."""
+    tmp = path.with_name(path.name + ".tmp")  # a suffix SB3 keeps (it adds .zip to none)
+    write(tmp)
+    os.replace(tmp, path)
 
-    class _FixedEpisodesEval(EvalCallback):
-        """SB3's evaluation, reseeded before each so every point sees the same episodes."""
+
+def _checkpoint_callback(every: int, folder: Path, on_policy: bool, normalize: bool):
+    """A checkpoint each ``every`` steps, and one at the end: ``model_<steps>_steps.zip`` (SB3's
+    names), with the VecNormalize statistics; for off-policy algorithms the replay buffer, the
+    newest only.
+
+    SB3's ``CheckpointCallback`` saves on the step that completes each ``save_freq`` calls,
+    before that step's transition is stored and, for PPO, inside a rollout whose update has not
+    happened: a resumed PPO run redid up to a rollout and made one update fewer, and a resumed
+    SAC run lacked a transition per resume. Here a checkpoint is saved where the algorithm's
+    loop starts a rollout (for SAC and TD3 every ``train_freq`` steps), the first at or after
+    each mark: every transition stored and every update made, so a resume goes on with nothing
+    lost or repeated. Only the newest replay buffer is kept (the whole buffer, ~32 MB for 300k
+    transitions of a control env; every checkpoint kept one, 325 MB a run): a resume reads
+    only that one."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class _Checkpoints(BaseCallback):
+        def _init_callback(self) -> None:
+            folder.mkdir(parents=True, exist_ok=True)
+            self._saved = self.model.num_timesteps
+            self._next = (self._saved // every + 1) * every
+
+        def _save(self) -> None:
+            steps = self._saved = self.model.num_timesteps
+            self._next = (steps // every + 1) * every
+            older = list(folder.glob("model_replay_buffer_*_steps.pkl"))
+            # Each file is written under a temporary name and renamed: a kill (Ctrl-C, a
+            # scheduler's SIGTERM) while it is written leaves no truncated file under the real
+            # name, which --resume would fail to load. The model last: a checkpoint is found by
+            # its .zip, whose companions then exist; the older buffers go after it (a kill in
+            # between leaves one buffer more, not one fewer).
+            if not on_policy:
+                _atomic(folder / f"model_replay_buffer_{steps}_steps.pkl",
+                        self.model.save_replay_buffer)
+            if normalize:
+                _atomic(folder / f"model_vecnormalize_{steps}_steps.pkl",
+                        lambda tmp: self.model.get_vec_normalize_env().save(str(tmp)))
+            _atomic(folder / f"model_{steps}_steps.zip", self.model.save)
+            for path in older:
+                path.unlink(missing_ok=True)
+
+        def _on_rollout_start(self) -> None:  # after the previous rollout's update
+            if self.model.num_timesteps >= self._next:
+                self._save()
 
         def _on_step(self) -> bool:
-            if self.eval_freq > 0 and self.n_calls % self.eval_freq == 0:
-                self.eval_env.seed(EVAL_SEED)
-            return super()._on_step()
+            return True
+
+        def _on_training_end(self) -> None:  # a finished run can be extended by --resume
+            if self.model.num_timesteps > self._saved:
+                self._save()
+
+    return _Checkpoints()
+
+
+def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, episodes: int,
+               history: dict[str, list] | None):
+    from stable_baselines3.common.callbacks import CallbackList, EvalCallback
+
+    # the interval in steps: a multiple of n_envs, the grid of an uninterrupted SB3 run
+    every = max(freq // cfg.n_envs, 1) * cfg.n_envs
+
+    class _FixedEpisodesEval(EvalCallback):
+        """SB3's evaluation, reseeded before each so every point sees the same episodes, on
+        the grid of ``every`` steps counted from the start of the run (SB3 counts calls from
+        the start of ``learn``: a resumed run's points fell off the grid and its first one
+        repeated the checkpoint's)."""
+
+        def _init_callback(self) -> None:
+            super()._init_callback()
+            self._next = (self.model.num_timesteps // every + 1) * every
+
+        def _on_step(self) -> bool:
+            if self.model.num_timesteps < self._next:
+                return True
+            self._next = (self.model.num_timesteps // every + 1) * every
+            self.eval_env.seed(EVAL_SEED)
+            return super()._on_step()  # eval_freq 1: SB3's evaluation, every time it is called
 
     from spinstrike.envs.sb3 import make_sb3_vec_env
 
-    # the same episodes at every evaluation and for every seed and algorithm (reseeded below)
+    # the same episodes at every evaluation and for every seed and algorithm (reseeded above)
     eval_env = make_sb3_vec_env(cfg.env_id, n_envs=1, seed=EVAL_SEED, env_kwargs=cfg.env_kwargs)
     if cfg.normalize:
         from stable_baselines3.common.vec_env import VecNormalize
 
         eval_env = VecNormalize(eval_env, training=False, norm_reward=False)
-    every = max(freq // cfg.n_envs, 1)
-    evals = _FixedEpisodesEval(eval_env, n_eval_episodes=episodes, eval_freq=every,
+    evals = _FixedEpisodesEval(eval_env, n_eval_episodes=episodes, eval_freq=1,
                                log_path=str(work), best_model_save_path=None,
                                deterministic=True, verbose=0)
     if history:  # a resumed run: its evaluations so far, which the next save writes out again
@@ -294,9 +370,8 @@ def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, epis
         if history["results"]:
             evals.best_mean_reward = float(max(np.mean(r) for r in history["results"]))
     return eval_env, CallbackList([
-        CheckpointCallback(save_freq=every, save_path=str(work / "checkpoints"),
-                           name_prefix="model", save_replay_buffer=algo in OFF_POLICY,
-                           save_vecnormalize=bool(cfg.normalize)),
+        _checkpoint_callback(every, work / "checkpoints", algo not in OFF_POLICY,
+                             bool(cfg.normalize)),
         evals,
     ])
 
@@ -396,9 +471,10 @@ def _check_env_kwargs(env_id: str, env_kwargs: dict) -> None:
 
 
 def _new_run(algo: str, env_id: str, config, seed: int | None, timesteps: int | None,
-             n_envs: int | None, env_kwargs: dict | None) -> tuple[RunConfig, int]:
+             n_envs: int | None, env_kwargs: dict | None,
+             hyperparameters: dict | None = None) -> tuple[RunConfig, int]:
     """A new run's config (the file's entry, with the command line's overrides) and seed."""
-    overrides: dict[str, Any] = {}
+    overrides: dict[str, Any] = dict(hyperparameters or {})
     if timesteps is not None:
         overrides["n_timesteps"] = timesteps
     if n_envs is not None:
@@ -421,13 +497,15 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
           eval_freq: int | None = None, eval_episodes_during: int = 10,
           torch_threads: int | None = 1, command: str | None = None,
           imitate: str | None = None, imitate_rounds: int = 20,
-          imitate_episodes: int = 16) -> TrainResult:
+          imitate_episodes: int = 16, hyperparameters: dict | None = None) -> TrainResult:
     """Train ``algo`` on ``env_id``; return the run directory and what was measured.
 
     Args:
         config: rl-zoo3 hyperparameter file (default: the packaged ``configs/agents/<algo>.yml``).
         timesteps, n_envs, env_kwargs: override the file's ``n_timesteps``, ``n_envs`` and
             ``env_kwargs``.
+        hyperparameters: entries replacing the file's for a new run (e.g.
+            ``{"learning_starts": 1000}``), validated as the file's; recorded in ``config.yml``.
         seed: default 0.
         out: run directory (default ``runs/<algo>-<env>-s<seed>``).
         resume: continue ``out`` from its newest checkpoint, as its ``config.yml`` records it:
@@ -455,6 +533,9 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
     run_dir = Path(out) if out is not None else default_run_dir(algo, env_id, seed or 0)
     imitation = None
     if resume:  # the run as recorded; the checkpoint holds an imitated policy already
+        if hyperparameters:
+            raise AgentConfigError(f"hyperparameters: a resumed run trains as its config.yml "
+                                   f"records it (got {sorted(hyperparameters)})")
         work = _work_dir(run_dir, resume, force)
         given = {"--algo": algo, "--env": env_id, "--seed": seed, "--n-envs": n_envs,
                  "--env-kwargs": env_kwargs}
@@ -463,7 +544,8 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
     else:
         if algo is None or env_id is None:
             raise AgentConfigError("algo, env: a new run needs both")
-        cfg, seed = _new_run(algo, env_id, config, seed, timesteps, n_envs, env_kwargs)
+        cfg, seed = _new_run(algo, env_id, config, seed, timesteps, n_envs, env_kwargs,
+                             hyperparameters)
         if imitate is not None:
             from spinstrike.agents.imitate import settings
 
