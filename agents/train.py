@@ -120,7 +120,8 @@ def _recorded_run(work: Path, given: dict[str, Any], config,
         raise AgentConfigError(f"resume: {work / 'config.yml'} does not record the run's algo, "
                                "env, seed and hyperparameters") from None
     cfg = recorded_agent_config(algo, env_id, entry, meta.get("source", ""))
-    recorded = {"--algo": algo, "--env": env_id, "--seed": seed, "--n-envs": cfg.n_envs}
+    recorded = {"--algo": algo, "--env": env_id, "--seed": seed, "--n-envs": cfg.n_envs,
+                "--imitate": (meta.get("imitation") or {}).get("teacher", "none")}
     wrong = [f"{flag} {given[flag]} (recorded: {value})" for flag, value in recorded.items()
              if given.get(flag) is not None and given[flag] != value]
     env_kwargs = given.get("--env-kwargs") or {}
@@ -538,7 +539,7 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
                                    f"records it (got {sorted(hyperparameters)})")
         work = _work_dir(run_dir, resume, force)
         given = {"--algo": algo, "--env": env_id, "--seed": seed, "--n-envs": n_envs,
-                 "--env-kwargs": env_kwargs}
+                 "--env-kwargs": env_kwargs, "--imitate": imitate}
         algo, cfg, seed = _recorded_run(work, given, config, timesteps)
         env_id = cfg.env_id
     else:

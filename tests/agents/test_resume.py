@@ -112,7 +112,10 @@ def test_resume_continues_the_recorded_run(tmp_path, monkeypatch, capsys):
                           (["--env", ENV], f"--env {ENV} (recorded: {env})"),
                           (["--env-kwargs", "{restitution: 0.9}"], "--env-kwargs"),
                           (["--seed", "0"], "--seed 0 (recorded: 3)"),
-                          (["--n-envs", "2"], "--n-envs 2 (recorded: 4)")):
+                          (["--n-envs", "2"], "--n-envs 2 (recorded: 4)"),
+                          # (it used to be ignored: the run went on without DAgger)
+                          (["--imitate", "chase-and-hit"],
+                           "--imitate chase-and-hit (recorded: none)")):
         assert main(["train", "--resume", "--out", str(run), *extra]) == 2, extra
         err = capsys.readouterr().err
         assert err.startswith("error: resume: ") and needle in err, (extra, err)
