@@ -1,8 +1,10 @@
 """Stopping ``spinstrike train`` by a signal once it has written a checkpoint (the tests of
-Ctrl-C and of a scheduler's SIGTERM)."""
+Ctrl-C and of a scheduler's SIGTERM), or in-process by Ctrl-C's ``KeyboardInterrupt`` once
+training has passed a given step (the tests of ``--resume`` and of checkpoints)."""
 
 from __future__ import annotations
 
+import contextlib
 import subprocess
 import sys
 import time
@@ -28,3 +30,30 @@ def signal_after_checkpoint(args: list[str], cwd: Path, signum: int, run: Path) 
             proc.kill()
             proc.wait()
     return proc.stderr.read().decode()
+
+
+@contextlib.contextmanager
+def ctrl_c_after(monkeypatch, steps: int):
+    """Within the block, ``spinstrike train`` (in this process) raises ``KeyboardInterrupt``
+    from a callback once training has passed ``steps``, so every test stops at the same
+    place."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    from spinstrike.agents import train as train_mod
+
+    class _CtrlC(BaseCallback):
+        def _on_step(self) -> bool:
+            if self.num_timesteps >= steps:
+                raise KeyboardInterrupt
+            return True
+
+    real = train_mod._callbacks
+
+    def callbacks(*args, **kwargs):
+        eval_env, cbs = real(*args, **kwargs)
+        cbs.callbacks.append(_CtrlC())
+        return eval_env, cbs
+
+    with monkeypatch.context() as m:
+        m.setattr(train_mod, "_callbacks", callbacks)
+        yield

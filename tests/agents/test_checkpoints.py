@@ -18,9 +18,9 @@ import pickle
 import numpy as np
 import yaml
 
-from spinstrike.agents import train as train_mod
 from spinstrike.agents.cli import main
 from spinstrike.agents.config import packaged_config_path
+from tests.agents.signals import ctrl_c_after
 
 ENV = "SpinStrike/RodSpin-v0"
 ROLLOUT = 4 * 64  # the tiny PPO entry's n_envs x n_steps
@@ -44,25 +44,8 @@ def _sac_config(path):
 
 def _interrupt(monkeypatch, args, steps):
     """Run ``spinstrike ARGS`` and Ctrl-C it once training passes ``steps``."""
-    from stable_baselines3.common.callbacks import BaseCallback
-
-    class _CtrlC(BaseCallback):
-        def _on_step(self) -> bool:
-            if self.num_timesteps >= steps:
-                raise KeyboardInterrupt
-            return True
-
-    real = train_mod._callbacks
-
-    def callbacks(*a, **kw):
-        eval_env, cbs = real(*a, **kw)
-        cbs.callbacks.append(_CtrlC())
-        return eval_env, cbs
-
-    with monkeypatch.context() as m:
-        m.setattr(train_mod, "_callbacks", callbacks)
-        with contextlib.suppress(KeyboardInterrupt):
-            assert main(args) == 130
+    with ctrl_c_after(monkeypatch, steps), contextlib.suppress(KeyboardInterrupt):
+        assert main(args) == 130
 
 
 def _steps(folder, pattern):

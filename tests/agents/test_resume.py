@@ -14,9 +14,8 @@ import pytest
 import yaml
 
 import spinstrike.envs.sb3 as sb3
-from spinstrike.agents import train as train_mod
 from spinstrike.agents.cli import main
-from tests.agents.signals import signal_after_checkpoint
+from tests.agents.signals import ctrl_c_after, signal_after_checkpoint
 
 ENV = "SpinStrike/RodSpin-v0"
 
@@ -29,32 +28,10 @@ def _tiny_config(path, n_timesteps=2048):
     return path
 
 
-def _interrupt_at(monkeypatch, steps):
-    """Ctrl-C once training passes ``steps`` (checkpoints and evaluations come every 204)."""
-    from stable_baselines3.common.callbacks import BaseCallback
-
-    class _CtrlC(BaseCallback):
-        def _on_step(self) -> bool:
-            if self.num_timesteps >= steps:
-                raise KeyboardInterrupt
-            return True
-
-    real = train_mod._callbacks
-
-    def callbacks(*args, **kwargs):
-        eval_env, cbs = real(*args, **kwargs)
-        cbs.callbacks.append(_CtrlC())
-        return eval_env, cbs
-
-    monkeypatch.setattr(train_mod, "_callbacks", callbacks)
-    return real
-
-
 def _interrupted_run(tmp_path, monkeypatch, args):
-    real = _interrupt_at(monkeypatch, 1100)
-    with contextlib.suppress(KeyboardInterrupt):  # (it used to escape main())
+    # (the KeyboardInterrupt used to escape main())
+    with ctrl_c_after(monkeypatch, 1100), contextlib.suppress(KeyboardInterrupt):
         assert main(args) == 130
-    monkeypatch.setattr(train_mod, "_callbacks", real)
     partial = tmp_path / "run.partial"
     assert list((partial / "checkpoints").glob("model_*_steps.zip"))
     return partial
@@ -154,10 +131,8 @@ def test_same_command_without_resume_keeps_the_interrupted_run(tmp_path, monkeyp
     args = ["train", "--algo", "ppo", "--env", ENV, "--config", str(_tiny_config(
         tmp_path / "ppo.yml", 1024)), "--out", str(tmp_path / "run"), "--no-eval",
         "--no-video", "--no-progress"]
-    real = _interrupt_at(monkeypatch, 600)
-    with contextlib.suppress(KeyboardInterrupt):
+    with ctrl_c_after(monkeypatch, 600), contextlib.suppress(KeyboardInterrupt):
         main(args)
-    monkeypatch.setattr(train_mod, "_callbacks", real)
     checkpoints = sorted((tmp_path / "run.partial" / "checkpoints").iterdir())
     assert checkpoints
     capsys.readouterr()
