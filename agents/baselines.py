@@ -241,8 +241,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--algos", nargs="+", default=list(ALGOS), choices=ALGOS)
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4])
     p.add_argument("--quick", action="store_true",
-                   help="one seed, a tenth of each budget (a smoke test: its runs and report go "
-                        "to runs/baselines-quick unless --root/--doc say otherwise)")
+                   help="one seed, a tenth of each budget and of SAC's and TD3's "
+                        "learning_starts (a smoke test: its runs and report go to "
+                        "runs/baselines-quick unless --root/--doc say otherwise)")
     p.add_argument("--root", default=None,
                    help="where the runs are trained and reused (default: runs/baselines, or "
                         "runs/baselines-quick with --quick)")
