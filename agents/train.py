@@ -102,8 +102,23 @@ def _checkpoint_steps(ckpt: Path) -> int:
     return int(re.findall(r"_(\d+)_steps", ckpt.name)[0])
 
 
+def _checkpoint_file(folder: Path, steps: int | str, kind: str = "") -> Path:
+    """A checkpoint's file in ``folder``, SB3's names: the model ``model_<steps>_steps.zip``
+    (``kind`` ""), beside it ``model_vecnormalize_...pkl`` and ``model_replay_buffer_...pkl``
+    (``steps`` "*": their glob pattern)."""
+    if not kind:
+        return folder / f"model_{steps}_steps.zip"
+    return folder / f"model_{kind}_{steps}_steps.pkl"
+
+
+def _next_mark(steps: int, every: int) -> int:
+    """The first multiple of ``every`` after ``steps`` (checkpoints' and evaluations' grid)."""
+    return (steps // every + 1) * every
+
+
 def _latest_checkpoint(run_dir: Path) -> Path | None:
-    ckpts = sorted((run_dir / "checkpoints").glob("model_*_steps.zip"), key=_checkpoint_steps)
+    folder = run_dir / "checkpoints"
+    ckpts = sorted(folder.glob(_checkpoint_file(folder, "*").name), key=_checkpoint_steps)
     return ckpts[-1] if ckpts else None
 
 
@@ -241,20 +256,18 @@ def _work_dir(run_dir: Path, resume: bool, force: bool) -> Path:
 def _resume_model(cls, algo: str, cfg: RunConfig, work: Path, env, device: str):
     """Load the newest checkpoint (with its replay buffer and normalisation statistics)."""
     ckpt = _latest_checkpoint(work)
+    steps = _checkpoint_steps(ckpt)
     model = cls.load(ckpt, env=env, device=device)
     if cfg.normalize:
         from stable_baselines3.common.vec_env import VecNormalize
 
-        # SB3's CheckpointCallback names them model_vecnormalize_<steps>_steps.pkl, beside
-        # model_<steps>_steps.zip; without them the policy would see unnormalised observations
-        stats = ckpt.with_name(ckpt.name.replace("model_", "model_vecnormalize_")
-                               .replace(".zip", ".pkl"))
+        # without them the policy would see unnormalised observations
+        stats = _checkpoint_file(ckpt.parent, steps, "vecnormalize")
         if not stats.exists():
             raise AgentConfigError(f"resume: {ckpt} has no normalisation statistics "
                                    f"({stats.name}) although the run normalizes")
         model.set_env(VecNormalize.load(str(stats), env.venv))
-    buf = ckpt.with_name(ckpt.name.replace("model_", "model_replay_buffer_")
-                         .replace(".zip", ".pkl"))
+    buf = _checkpoint_file(ckpt.parent, steps, "replay_buffer")
     if algo in OFF_POLICY:
         if not buf.exists():  # an empty buffer would silently restart learning_starts' warm-up
             raise AgentConfigError(f"resume: {ckpt} has no replay buffer ({buf.name})")
@@ -293,24 +306,24 @@ def _checkpoint_callback(every: int, folder: Path, on_policy: bool, normalize: b
         def _init_callback(self) -> None:
             folder.mkdir(parents=True, exist_ok=True)
             self._saved = self.model.num_timesteps
-            self._next = (self._saved // every + 1) * every
+            self._next = _next_mark(self._saved, every)
 
         def _save(self) -> None:
             steps = self._saved = self.model.num_timesteps
-            self._next = (steps // every + 1) * every
-            older = list(folder.glob("model_replay_buffer_*_steps.pkl"))
+            self._next = _next_mark(steps, every)
+            older = list(folder.glob(_checkpoint_file(folder, "*", "replay_buffer").name))
             # Each file is written under a temporary name and renamed: a kill (Ctrl-C, a
             # scheduler's SIGTERM) while it is written leaves no truncated file under the real
             # name, which --resume would fail to load. The model last: a checkpoint is found by
             # its .zip, whose companions then exist; the older buffers go after it (a kill in
             # between leaves one buffer more, not one fewer).
             if not on_policy:
-                _atomic(folder / f"model_replay_buffer_{steps}_steps.pkl",
+                _atomic(_checkpoint_file(folder, steps, "replay_buffer"),
                         self.model.save_replay_buffer)
             if normalize:
-                _atomic(folder / f"model_vecnormalize_{steps}_steps.pkl",
+                _atomic(_checkpoint_file(folder, steps, "vecnormalize"),
                         lambda tmp: self.model.get_vec_normalize_env().save(str(tmp)))
-            _atomic(folder / f"model_{steps}_steps.zip", self.model.save)
+            _atomic(_checkpoint_file(folder, steps), self.model.save)
             for path in older:
                 path.unlink(missing_ok=True)
 
@@ -343,12 +356,12 @@ def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, epis
 
         def _init_callback(self) -> None:
             super()._init_callback()
-            self._next = (self.model.num_timesteps // every + 1) * every
+            self._next = _next_mark(self.model.num_timesteps, every)
 
         def _on_step(self) -> bool:
             if self.model.num_timesteps < self._next:
                 return True
-            self._next = (self.model.num_timesteps // every + 1) * every
+            self._next = _next_mark(self.model.num_timesteps, every)
             self.eval_env.seed(EVAL_SEED)
             return super()._on_step()  # eval_freq 1: SB3's evaluation, every time it is called
 
