@@ -439,17 +439,20 @@ def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, 
     eval_env, callbacks = _callbacks(algo, cfg, work, seed, freq, eval_episodes_during, history)
     start = time.time()
     remaining = cfg.n_timesteps - (model.num_timesteps if resume else 0)
-    if remaining > 0:
-        from stable_baselines3.common.callbacks import ProgressBarCallback
+    from stable_baselines3.common.callbacks import ProgressBarCallback
 
-        # our own bar, closed on the way out: SB3's, left open by Ctrl-C, failed at exit
-        bar = ProgressBarCallback() if progress else None
-        try:
+    # our own bar, closed on the way out: SB3's, left open by Ctrl-C, failed at exit
+    bar = ProgressBarCallback() if progress and remaining > 0 else None
+    try:
+        if remaining > 0:
             model.learn(remaining, callback=[callbacks, bar] if bar else callbacks,
                         reset_num_timesteps=not resume)
-        finally:
-            if getattr(bar, "pbar", None) is not None:
-                bar.pbar.close()
+    finally:
+        if getattr(bar, "pbar", None) is not None:
+            bar.pbar.close()
+        # progress.csv and the TensorBoard events, interrupted or not (SB3 leaves its logger's
+        # files to the garbage collector: a ResourceWarning at exit)
+        model.logger.close()
     wall = time.time() - start
     model.save(work / "model.zip")
     if cfg.normalize:
