@@ -18,7 +18,7 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from spinstrike import envs, physics
@@ -101,7 +101,11 @@ def _check_scene(s):
         e1 = world.kinetic_energy()[0]
         assert e1 <= e_before * (1 + ROUNDOFF * max(n, 1)) + 1e-300, \
             f"energy gain {e1 / e_before - 1:.3e} over {n} contacts"
-        assert np.all(np.abs(world.state.positions[0]) <= hw), "a body left the table"
+        # a centre past a cushion by more than the tolerance (a zero-thickness rod lying flat on
+        # the cushion has its centre on it: 5.6e-17 m past it after a plastic hit, an overlap
+        # within the tolerance that the gap check below judges, not an escape)
+        assert np.all(np.abs(world.state.positions[0]) <= hw + world.tolerance), \
+            "a body left the table"
         if s["solver"] == "exact" and world.gaps().size:
             assert world.gaps().min() >= -1e-9, f"overlap {-world.gaps().min():.3e} m"
     elastic = s["e"] == 1.0 and s["mu"] == 0.0
@@ -109,8 +113,29 @@ def _check_scene(s):
         assert abs(world.kinetic_energy()[0] - e0) <= ROUNDOFF * max(contacts, 1) * e0
 
 
+def _disk(size, log_mass, velocity):
+    return {"shape": "disk", "size": size, "thickness": 0.0, "log_mass": log_mass, "angle": 0.0,
+            "velocity": velocity, "omega": 0.0, "kind": "free"}
+
+
+#: cases the big budget found, kept in the default suite: a zero-thickness rod driven flat onto
+#: the top cushion in a corner (its centre ends 5.6e-17 m past the cushion); four plastic disks
+#: piled into a corner and settled (8.8e-9 m of overlap handed on, also in
+#: tests/physics/test_extreme_inputs.py)
+FOUND = [
+    {"bodies": [_disk(0.0625, 0.0, (0.0, 0.0)),
+                {**_disk(0.0625, 0.0, (11.0, 8.0)), "shape": "rod"}],
+     "e": 0.0, "mu": 0.0, "solver": "exact", "dt": 0.1, "steps": 1},
+    {"bodies": [_disk(0.09375, -1.0, (9.75, 2.0)), _disk(0.0546875, 0.0, (7.0, 8.0)),
+                _disk(0.0625, -1.0, (-2.0, 3.0)), _disk(0.0625, 0.0, (0.0, 8.0))],
+     "e": 0.0, "mu": 0.0, "solver": "exact", "dt": 0.1, "steps": 1},
+]
+
+
 @SMALL
 @given(scene_case)
+@example(FOUND[0])
+@example(FOUND[1])
 def test_fuzz_scenes(s):
     _check_scene(s)
 
