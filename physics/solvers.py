@@ -120,7 +120,7 @@ MAX_SWEEPS = 64
 #: most substeps the settling integration of one step may take
 MAX_SETTLE_SUBSTEPS = 1_000_000
 #: most positional-correction sweeps of a settle's last substep, the one whose overlap the step
-#: hands on (the other substeps stop at ``MAX_SWEEPS``; see :func:`fixed_element`)
+#: hands on (the other substeps stop at ``MAX_SWEEPS``; see :func:`_settle`)
 MAX_FINAL_SEPARATE_SWEEPS = 4096
 
 # ---------------------------------------------------------------------------------------------
@@ -354,7 +354,7 @@ def _separate(S, Pm, hw, PA, PB, weighted, rotate):
 
     One sweep in pair order; returns the deepest overlap it corrected (0 if none). A sweep can
     push a body into a third one (a puck pressed between the mallet and a cushion), so callers
-    that must leave no overlap repeat it (``fixed_element``'s ``separate_sweeps``). Repeated
+    that must leave no overlap repeat it (``_substep``'s ``separate_sweeps``). Repeated
     sweeps use equal shares: with inverse-mass shares a light body pinned between a heavy one
     and a cushion takes almost all of each correction and gives it back to the cushion, so the
     overlap shrinks only by ``m_light / m_heavy`` per sweep (1e-4 m left after 64 sweeps at a
@@ -423,35 +423,39 @@ def _kick(S, Pm, F, h, rotation, table_friction):
 
 
 @jit
+def _substep(S, Pm, F, hw, PA, PB, MAT, h, t, iterations, slop, rotation, contact_friction,
+             table_friction, cpair, crec, stats, changed, separate_sweeps, rotate, jam, trace):
+    """One fixed substep of h seconds, ending at time t: forces and drift (:func:`_kick`),
+    sequential impulses on the pairs within ``slop`` and approaching (``iterations`` sweeps,
+    then the block solve of a jam if ``jam``), then positional correction, repeated up to
+    ``separate_sweeps`` times while a sweep still corrects an overlap deeper than ``slop``
+    (``rotate``: turning the bodies too, :func:`_separate`)."""
+    _kick(S, Pm, F, h, rotation, table_friction)
+    _sweeps(S, Pm, hw, PA, PB, MAT, slop, 0.0, t, rotation, contact_friction, changed,
+            cpair, crec, stats, iterations, jam)
+    for sweep in range(separate_sweeps):
+        if _separate(S, Pm, hw, PA, PB, sweep == 0, rotate) <= slop:
+            break
+    if trace is not None:  # the trace hook
+        trace_state(trace, t, S)
+
+
+@jit
 def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, rotation,
                   contact_friction, table_friction, cpair, crec, stats, changed,
                   separate_sweeps, jam, trace):
-    """Advance one element by T seconds in ``substeps`` fixed substeps.
+    """Advance one element by T seconds in ``substeps`` fixed substeps (:func:`_substep`).
 
-    ``separate_sweeps``: positional-correction sweeps per substep, repeated while one still
-    corrects an overlap deeper than ``slop``. The plain fixed solver uses 1 (its documented,
-    cheap behaviour); the exact solver's settling uses ``MAX_SWEEPS`` so that a chain of
-    contacts (mallet -> puck -> cushion) is not left overlapping, and in its last substep, whose
-    pose the step hands on, up to ``MAX_FINAL_SEPARATE_SWEEPS``: in a plastic pile driven along
-    a wedge (four disks pressed into a cushion corner) a sweep removes only ~1/6 of the overlap,
-    and 64 sweeps left 8.8e-9 m where the tolerance is 1e-9 m. ``jam``: the sweeps end in the
-    block solve of a jam (settling only, and only where contacts can jam). ``trace``: the trace
-    hook (a ``Trace``: the state after every substep), or None.
+    ``separate_sweeps``: positional-correction sweeps per substep; the fixed solver uses 1
+    (its documented, cheap behaviour; the exact solver's settling, :func:`_settle`, repeats
+    them). ``jam``: the sweeps end in the block solve of a jam. ``trace``: the trace hook (a
+    ``Trace``: the state after every substep), or None.
     """
     h = T / substeps
     for k in range(substeps):
-        _kick(S, Pm, F, h, rotation, table_friction)
-        t = t0 + (k + 1) * h
-        _sweeps(S, Pm, hw, PA, PB, MAT, slop, 0.0, t, rotation, contact_friction, changed,
-                cpair, crec, stats, iterations, jam)
-        limit = separate_sweeps
-        if separate_sweeps > 1 and k == substeps - 1:
-            limit = MAX_FINAL_SEPARATE_SWEEPS
-        for sweep in range(limit):
-            if _separate(S, Pm, hw, PA, PB, sweep == 0, rotation and separate_sweeps > 1) <= slop:
-                break
-        if trace is not None:  # the trace hook
-            trace_state(trace, t, S)
+        _substep(S, Pm, F, hw, PA, PB, MAT, h, t0 + (k + 1) * h, iterations, slop, rotation,
+                 contact_friction, table_friction, cpair, crec, stats, changed,
+                 separate_sweeps, rotation and separate_sweeps > 1, jam, trace)
     stats[STAT_SUBSTEPS] += substeps
 
 
@@ -614,19 +618,62 @@ def _settle_substeps(S, Pm, F, PA, PB, T, settle_substep):
 
 
 @jit
+def _plan(needed, budget):
+    """(substeps, capped) for a stretch of settling that needs ``needed`` substeps
+    (:func:`_settle_substeps`) and may take at most ``budget``, what is left of the cap."""
+    if needed > budget:
+        return budget, True
+    return int(math.ceil(needed)), False
+
+
+@jit
 def _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, sweeps, tol, rotation,
             contact_friction, table_friction, cpair, crec, stats, changed, jam, trace):
-    """Settle the rest of the step (``t_now..dt``) with the fixed solver and flag the element:
-    ``FALLBACK_SETTLED``, or ``FALLBACK_CAPPED`` where the substeps the no-tunnelling bound needs
-    (:func:`_settle_substeps`) exceed ``MAX_SETTLE_SUBSTEPS`` and the capped ones are longer, so
-    a pair may have passed through another (forces or speeds ~10^6 times what the bodies' sizes
-    allow in the step: a force of 10^14 N on a 0.3 kg disk in a 20 ms step)."""
-    needed = _settle_substeps(S, Pm, F, PA, PB, dt - t_now, settle_substep)
-    capped = needed > MAX_SETTLE_SUBSTEPS
-    substeps = MAX_SETTLE_SUBSTEPS if capped else int(math.ceil(needed))
-    fixed_element(S, Pm, F, hw, PA, PB, MAT, dt - t_now, substeps, sweeps, tol, t_now, rotation,
-                  contact_friction, table_friction, cpair, crec, stats, changed, sweeps, jam,
-                  trace)
+    """Settle the rest of the step (``t_now..dt``) in fixed substeps (:func:`_substep`, with
+    ``sweeps`` impulse sweeps and positional-correction sweeps) and flag the element.
+
+    The substeps are as many as the no-tunnelling bound needs (:func:`_settle_substeps`) from
+    the bodies' speeds, and the bound is checked again after every substep: where collisions
+    made a body faster than the plan allowed, the rest of the step is planned again with
+    shorter substeps. (Planned once, a 1e-4 kg disk driven by a 1e4 kg one into a cushion at
+    5 m/s went from ~10^2 to 10^4 m/s during the settle and passed through the heavy disk,
+    unflagged.) At most ``MAX_SETTLE_SUBSTEPS`` over the step: a bound that needs shorter
+    substeps flags the element ``FALLBACK_CAPPED`` (a pair may have passed through another:
+    forces or speeds ~10^6 times what the bodies' sizes allow in the step, a force of 10^14 N
+    on a 0.3 kg disk in a 20 ms step), else ``FALLBACK_SETTLED``.
+
+    The last substep, whose pose the step hands on, repeats the positional correction up to
+    ``MAX_FINAL_SEPARATE_SWEEPS`` times: in a plastic pile driven along a wedge (four disks
+    pressed into a cushion corner) a sweep removes only ~1/6 of the overlap, and 64 sweeps left
+    8.8e-9 m where the tolerance is 1e-9 m.
+    """
+    span = dt - t_now
+    n, capped = _plan(_settle_substeps(S, Pm, F, PA, PB, span, settle_substep),
+                      MAX_SETTLE_SUBSTEPS)
+    h = span / n
+    t0 = t_now
+    k = 0  # substeps of the current plan done
+    total = 0
+    while True:
+        k += 1
+        final = k == n
+        _substep(S, Pm, F, hw, PA, PB, MAT, h, t0 + k * h, sweeps, tol, rotation,
+                 contact_friction, table_friction, cpair, crec, stats, changed,
+                 MAX_FINAL_SEPARATE_SWEEPS if final else sweeps, rotation, jam, trace)
+        total += 1
+        if final:
+            break
+        left = (n - k) * h
+        needed = _settle_substeps(S, Pm, F, PA, PB, left, settle_substep)
+        if needed > (n - k) * (1.0 + 1e-9):  # faster than planned (not round-off): plan again
+            m, c = _plan(needed, MAX_SETTLE_SUBSTEPS - total)
+            capped |= c
+            if m > n - k:
+                t0 = t0 + k * h
+                n = m
+                k = 0
+                h = left / m
+    stats[STAT_SUBSTEPS] += total
     stats[STAT_FALLBACK] = FALLBACK_CAPPED if capped else FALLBACK_SETTLED
 
 
