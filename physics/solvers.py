@@ -635,12 +635,12 @@ def _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, sweeps, tol, r
     The substeps are as many as the no-tunnelling bound needs (:func:`_settle_substeps`) from
     the bodies' speeds, and the bound is checked again after every substep: where collisions
     made a body faster than the plan allowed, the rest of the step is planned again with
-    shorter substeps. (Planned once, a 1e-4 kg disk driven by a 1e4 kg one into a cushion at
-    5 m/s went from ~10^2 to 10^4 m/s during the settle and passed through the heavy disk,
-    unflagged.) At most ``MAX_SETTLE_SUBSTEPS`` over the step: a bound that needs shorter
-    substeps flags the element ``FALLBACK_CAPPED`` (a pair may have passed through another:
-    forces or speeds ~10^6 times what the bodies' sizes allow in the step, a force of 10^14 N
-    on a 0.3 kg disk in a 20 ms step), else ``FALLBACK_SETTLED``.
+    shorter substeps. (Planned once: a 1e-5 kg disk driven into a cushion by a 1e4 kg one at
+    2 m/s got ~100 times faster during the settle and passed through the heavy disk, unflagged;
+    ``tests/physics/test_extreme_inputs.py``.) At most ``MAX_SETTLE_SUBSTEPS`` over the step:
+    a bound that needs shorter substeps flags the element ``FALLBACK_CAPPED`` (a pair may have
+    passed through another: forces or speeds ~10^6 times what the bodies' sizes allow in the
+    step, a force of 10^14 N on a 0.3 kg disk in a 20 ms step), else ``FALLBACK_SETTLED``.
 
     The last substep, whose pose the step hands on, repeats the positional correction up to
     ``MAX_FINAL_SEPARATE_SWEEPS`` times: in a plastic pile driven along a wedge (four disks
