@@ -15,6 +15,12 @@ from spinstrike import physics
 from spinstrike.physics.world import PARALLEL_BATCH
 
 
+def _walled(restitution, bodies):
+    """A scene of ``bodies`` on the fuzz test's walled 1.2 m x 0.8 m table, frictionless."""
+    return {"table": {"size": [1.2, 0.8]}, "effects": ["rotation", "walls"],
+            "materials": {"restitution": restitution, "friction": 0.0}, "bodies": bodies}
+
+
 @pytest.mark.parametrize("batch", [4, PARALLEL_BATCH])  # the serial and the parallel kernel
 @pytest.mark.parametrize("solver", [None, {"mode": "fixed", "substeps": 4}])
 def test_a_state_that_overflows_raises_naming_element_and_body(batch, solver):
@@ -75,16 +81,16 @@ def test_the_cap_warning_names_the_fastest_body_counting_its_spin():
     fastest centre's speed ("now up to 0 m/s" here, 39 m/s in the fuzz case that showed it); it
     now gives the fastest point of a body's core, as the no-tunnelling bound sees it, and names
     the body."""
-    scene = {"table": {"size": [1.2, 0.8]}, "effects": ["rotation", "walls"],
-             "materials": {"restitution": 1.0, "friction": 0.0}, "bodies": [
-                 {"name": "rotor", "shape": "rod", "length": 0.4, "thickness": 0.01,
-                  "mass": 0.1, "pivot": True, "angle": 1.0, "omega": 1e6},
-                 {"name": "post", "shape": "disk", "radius": 0.02, "static": True,
-                  "position": [0.1, 0.0]}]}
+    scene = _walled(1.0, [
+        {"name": "rotor", "shape": "rod", "length": 0.4, "thickness": 0.01,
+         "mass": 0.1, "pivot": True, "angle": 1.0, "omega": 1e6},
+        {"name": "post", "shape": "disk", "radius": 0.02, "static": True,
+         "position": [0.1, 0.0]}])
     world = physics.World(scene)
     with pytest.warns(RuntimeWarning, match=r"now up to 2e\+05 m/s, body 'rotor'"):
         world.step(0.1)
     assert world.last_step.capped[0] and world.last_step.substeps[0] == 1_000_000
+
 
 def test_a_force_the_settling_can_resolve_does_not_warn():
     """1e6 N on the mallet squeezing the rod against the cushion: ~5e4 settling substeps, within
@@ -105,14 +111,13 @@ def test_thin_rods_settle_without_the_cap():
     which an overlap is still seen, which for two rods includes crossing cores (the shorter
     half-length), not only the thicknesses (50 um: 1e6 substeps, the cap, and a warning). No
     warning now, a few thousand substeps, no overlap and no energy gained."""
-    scene = {"table": {"size": [1.2, 0.8]}, "effects": ["rotation", "walls"],
-             "materials": {"restitution": 0.25, "friction": 0.0}, "bodies": [
-                 {"name": "bare", "shape": "rod", "position": [0.15, 0.2], "angle": -0.65,
-                  "length": 0.08, "thickness": 0.0, "mass": 64.0, "omega": 15.0,
-                  "velocity": [18.9, -18.6]},
-                 {"name": "thin", "shape": "rod", "position": [0.45, -0.2], "angle": 0.18,
-                  "length": 0.2, "thickness": 5e-05, "mass": 2.75e-05, "omega": 62.4,
-                  "velocity": [15.3, 0.0]}]}
+    scene = _walled(0.25, [
+        {"name": "bare", "shape": "rod", "position": [0.15, 0.2], "angle": -0.65,
+         "length": 0.08, "thickness": 0.0, "mass": 64.0, "omega": 15.0,
+         "velocity": [18.9, -18.6]},
+        {"name": "thin", "shape": "rod", "position": [0.45, -0.2], "angle": 0.18,
+         "length": 0.2, "thickness": 5e-05, "mass": 2.75e-05, "omega": 62.4,
+         "velocity": [15.3, 0.0]}])
     world = physics.World(scene)
     energy = world.kinetic_energy()[0]
     with warnings.catch_warnings():
@@ -137,10 +142,9 @@ def test_a_settled_pile_is_handed_on_without_overlap(loop):
              ((0.15, 0.2), 0.0625, 0.1, (-2.0, 3.0)), ((0.45, -0.2), 0.0625, 1.0, (0.0, 8.0))]
     if loop == "calendar":
         disks += [((-0.5 + 0.1 * i, -0.35), 0.02, 1.0, (0.0, 0.0)) for i in range(4)]
-    scene = {"table": {"size": [1.2, 0.8]}, "effects": ["rotation", "walls"],
-             "materials": {"restitution": 0.0, "friction": 0.0},
-             "bodies": [{"name": f"d{i}", "shape": "disk", "position": list(p), "radius": r,
-                         "mass": m, "velocity": list(v)} for i, (p, r, m, v) in enumerate(disks)]}
+    scene = _walled(0.0, [{"name": f"d{i}", "shape": "disk", "position": list(p), "radius": r,
+                           "mass": m, "velocity": list(v)}
+                          for i, (p, r, m, v) in enumerate(disks)])
     world = physics.World(scene)
     assert world.tolerance == 1e-9
     energy = world.kinetic_energy()[0]
@@ -171,8 +175,7 @@ def test_a_light_disk_squeezed_by_a_heavy_one_never_passes_through_it(loop):
     if loop == "calendar":
         bodies += [{"name": f"rest{i}", "shape": "disk", "position": [-0.5 + 0.1 * i, -0.3],
                     "radius": 0.02, "mass": 1.0} for i in range(6)]
-    scene = {"table": {"size": [1.2, 0.8]}, "effects": ["rotation", "walls"],
-             "materials": {"restitution": 1.0, "friction": 0.0}, "bodies": bodies}
+    scene = _walled(1.0, bodies)
     world = physics.World(scene)
     energy = world.kinetic_energy()[0]
     contacts = settled = 0

@@ -107,7 +107,7 @@ def _check_scene(s):
         assert np.all(np.abs(world.state.positions[0]) <= hw + world.tolerance), \
             "a body left the table"
         if s["solver"] == "exact" and world.gaps().size:
-            assert world.gaps().min() >= -1e-9, f"overlap {-world.gaps().min():.3e} m"
+            assert world.gaps().min() >= -world.tolerance, f"overlap {-world.gaps().min():.3e} m"
     elastic = s["e"] == 1.0 and s["mu"] == 0.0
     if elastic and s["solver"] == "exact" and not world.last_step.fallback[0]:
         assert abs(world.kinetic_energy()[0] - e0) <= ROUNDOFF * max(contacts, 1) * e0
