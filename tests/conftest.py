@@ -8,7 +8,10 @@ os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 import pytest  # noqa: E402
 from hypothesis import HealthCheck, settings  # noqa: E402
 
-settings.register_profile("default", deadline=None, max_examples=150,
+# The default suite (CI's) draws the same examples every run, so a red CI names a reproducible
+# case, not a lucky draw; the `slow` profile (`pytest -m slow --hypothesis-profile slow`) explores
+# fresh random examples, 33x as many, and found the cases pinned as @example in the tests.
+settings.register_profile("default", deadline=None, max_examples=150, derandomize=True,
                           suppress_health_check=[HealthCheck.too_slow])
 settings.register_profile("slow", deadline=None, max_examples=5000,
                           suppress_health_check=[HealthCheck.too_slow])
