@@ -18,7 +18,10 @@ project allows):
   overrides such as ``thin_rod`` carry over; without the ``rotation`` effect the moment is
   ``inf``. ``static`` bodies are ``Body.STATIC``; a ``pivot`` is a dynamic body pinned at its
   centre to the space's static body by a ``PivotJoint`` (finite mass, so the pin is only as
-  rigid as ``iterations`` make it — part of what the benchmark prices).
+  rigid as ``iterations`` make it — part of what the benchmark prices). The world reports a
+  pivot where every solver does, at its pin with zero velocity (its angle and spin are
+  pymunk's): the joint's give stays inside the space, so ``reset``, ``set_state`` and snapshots
+  keep the world's rule that pivots do not move.
 * ``walls``: four static segments whose inner surfaces lie on the table's edges (left, right,
   bottom, top = bodies ``N..N+3``). They are *thick* (radius ``WALL_DEPTH`` x the smaller half
   size of the table, core moved outward by that radius, extended past the corners) so that a
@@ -302,7 +305,10 @@ class PymunkBackend:
                 for seg, ((a, c), r) in zip(el.walls, self._wall_geometry(b), strict=True):
                     seg.unsafe_set_endpoints(a, c)
                     seg.unsafe_set_radius(r)
-                el.space.reindex_static()
+            # static shapes (cushions, and static bodies resized above) stay in the broad
+            # phase's static index with their old bounding boxes until reindexed: a post grown
+            # in a scene without walls was passed through
+            el.space.reindex_static()
             self._set_cloth(b)
 
     def space(self, b: int) -> pymunk.Space:
@@ -356,6 +362,7 @@ class PymunkBackend:
         state = w._state
         stats = w._stats
         driven = [i for i in range(w.n_bodies) if w.driven[i]]
+        pivot = w.pivot
         forces = w._forces
         ctx = self._ctx
         for b, el in enumerate(self._elements):
@@ -374,15 +381,17 @@ class PymunkBackend:
             for i, body in enumerate(bodies):
                 if w.static[i]:
                     continue
+                r = row[i]
+                r[ANGLE] = body.angle
+                r[OMEGA] = body.angular_velocity
+                if pivot[i]:  # reported at its pin, at rest (see the module docstring)
+                    continue
                 x, y = body.position
                 vx, vy = body.velocity
-                r = row[i]
                 r[X] = x
                 r[Y] = y
-                r[ANGLE] = body.angle
                 r[VX] = vx
                 r[VY] = vy
-                r[OMEGA] = body.angular_velocity
             stats[b, STAT_CONTACTS] = ctx[2]
             if dt > 0.0:
                 stats[b, STAT_SUBSTEPS] = n

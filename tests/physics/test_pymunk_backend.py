@@ -30,6 +30,11 @@ def _pair(va=(1.0, 0.0), vb=(0.0, 0.0), yb=0.0, e=1.0, mu=0.0, ma=0.1, mb=0.3):
     }
 
 
+def _pymunk_body(world, i, b=0):
+    """Body i of element b as pymunk has it (its shape's collision type is the body's index)."""
+    return next(s.body for s in world.backend.space(b).shapes if s.collision_type == i)
+
+
 # ---------------------------------------------------------------------------------------------
 # (a) parity where pymunk is exact
 # ---------------------------------------------------------------------------------------------
@@ -264,10 +269,65 @@ def test_pivot_pinned_rod_matches_exact_with_enough_iterations():
     for its in (1, 100):
         world = physics.World(scene, solver={"mode": "pymunk", "substeps": 200, "iterations": its})
         world.step(0.1)
-        assert np.abs(world.state.positions[0, 0]).max() < 1e-12  # the pin holds
+        give = np.array(_pymunk_body(world, 0).position)  # the joint's, in pymunk
+        assert np.abs(give).max() < 1e-12  # the pin holds
+        np.testing.assert_array_equal(world.state.positions[0, 0], [0.0, 0.0])  # as reported
         errors[its] = abs(world.state.omegas[0, 0] - exact.state.omegas[0, 0])
     assert errors[100] < 1e-6 * abs(exact.state.omegas[0, 0])
     assert errors[1] > 100 * errors[100]  # the pin is as rigid as the iterations make it
+
+
+def test_a_pivot_that_gives_in_pymunk_is_reported_at_its_pin_and_the_world_resets():
+    """pymunk pins a pivot with a finite-mass joint that gives a little; the world's rule is
+    that pivots do not move, so it reports the pin (at rest) and its own checks keep working:
+    reset, writing the current state back, a snapshot."""
+    scene = {"effects": ["rotation"], "materials": {"restitution": 1.0}, "bodies": [
+        {"name": "rod", "shape": "rod", "length": 0.4, "thickness": 0.02, "mass": 1.0,
+         "angle": math.pi / 2, "pivot": True},
+        {"name": "s", "shape": "disk", "radius": 0.02, "mass": 0.5, "position": [-0.2, 0.15],
+         "velocity": [1.0, 0.0]}]}
+    world = physics.World(scene, solver="pymunk")
+    world.step(0.3)
+    give = np.hypot(*_pymunk_body(world, 0).position)
+    assert give > 1e-5  # the joint gave (2e-4 m at the default iterations), inside pymunk
+    assert world.state.omegas[0, 0] != 0.0  # the rod was struck and turns
+    np.testing.assert_array_equal(world.state.positions[0, 0], [0.0, 0.0])
+    np.testing.assert_array_equal(world.state.velocities[0, 0], [0.0, 0.0])
+    s = world.state
+    world.set_state(positions=s.positions.copy(), angles=s.angles.copy(),
+                    velocities=s.velocities.copy(), omegas=s.omegas.copy())
+    snap = world.get_state()
+    world.step(0.1)
+    after = world.state.omegas.copy()
+    world.restore(snap)
+    world.step(0.1)
+    np.testing.assert_array_equal(world.state.omegas, after)
+    world.reset()
+    fresh = physics.World(scene, solver="pymunk")
+    world.step(0.3)
+    fresh.step(0.3)
+    np.testing.assert_array_equal(world.state.omegas, fresh.state.omegas)
+
+
+@pytest.mark.parametrize("walls", [False, True])
+def test_a_static_body_resized_by_set_body_collides_at_its_new_size(walls):
+    """A static body's shape is in Chipmunk's static index, which keeps the old bounding box
+    until reindexed: a post grown in a scene without walls let a puck through."""
+    scene = {"effects": ["rotation"] + (["walls"] if walls else []),
+             "materials": {"restitution": 1.0}, "bodies": [
+                 {"name": "post", "shape": "disk", "radius": 0.05, "static": True},
+                 {"name": "a", "shape": "disk", "radius": 0.03, "mass": 1.0,
+                  "position": [-0.5, 0.06], "velocity": [1.0, 0.0]}]}
+    if walls:
+        scene["table"] = {"size": [3.0, 3.0]}
+    grown = physics.World(scene, solver=PYMUNK)
+    grown.set_body("post", radius=0.1)
+    grown.step(1.0)
+    scene["bodies"][0]["radius"] = 0.1
+    built = physics.World(scene, solver=PYMUNK)
+    built.step(1.0)
+    np.testing.assert_allclose(grown.state.velocities, built.state.velocities, atol=1e-12)
+    assert grown.state.velocities[0, 1, 1] > 0.5  # deflected by the bigger post
 
 
 def test_static_body_bounces_a_puck():
