@@ -15,9 +15,10 @@ a cushion (outside the table) by more than the tolerance raises :class:`SceneErr
 bodies, and the world is left as it was. The world's single-purpose setters (``set_body``,
 ``set_material``, ``set_table``, ``set_state``, ``set_force``, ``reset``) are each one such edit.
 
-Overlap rule: a change that places every body (positions of all bodies given) must leave no
-overlap beyond the tolerance; any other change may keep an overlap that was already there (the
-fixed and pymunk solvers can leave one after an impact) but may not create or deepen one.
+Overlap rule: no change may create or deepen an overlap beyond the tolerance. An overlap that
+is already there (the fixed and pymunk solvers can leave one after an impact) may stay, unless a
+change that places every body (positions of all bodies given, as a reset does) moves one of the
+pair: a new placement starts without overlap, while writing back the state just read is fine.
 """
 
 from __future__ import annotations
@@ -342,21 +343,30 @@ class WorldEdit:
         e, p, g = first_overlap(state, pm, half, w._pair_a, w._pair_b, tol)
         if e < 0:
             return
-        if not self._placed_all:  # only overlap the change creates or deepens is an error
-            new = w._gaps_of(state, pm, half)
-            bad = (new < -tol) & (new < w._gaps_of(w._state[sel], w._params[sel],
-                                                   w._half[sel]) - tol)
-            if not bad.any():
-                return
-            e, p = np.argwhere(bad)[0]
-            g = new[e, p]
+        new = w._gaps_of(state, pm, half)
+        before = w._gaps_of(w._state[sel], w._params[sel], w._half[sel])
+        bad = (new < -tol) & (new < before - tol)  # created or deepened
+        if self._placed_all:  # and an overlap kept by a pair the placement moves
+            old = w._state[sel]
+            moved = np.any(state[..., X:ANGLE + 1] != old[..., X:ANGLE + 1], axis=2)
+            moved = np.concatenate([moved, np.zeros((len(moved), 4), bool)], axis=1)  # cushions
+            bad |= (new < -tol) & (moved[:, w._pair_a] | moved[:, w._pair_b])
+        if not bad.any():
+            return
+        e, p = np.argwhere(bad)[0]
+        g = new[e, p]
         a, b = w.names[w.pair_a[p]], w.names[w.pair_b[p]]
         where = f"in element {self.rows[e]} (tolerance {tol:g} m)"
         if w.pair_b[p] >= w.n_bodies:
             raise SceneError(f"bodies: {a!r} would lie outside the table, {-g:.3g} m past "
                              f"the cushion {b!r}, {where}")
+        kept = ""
+        if before[e, p] < -tol:
+            kept = (f" (they overlapped by {-before[e, p]:.3g} m already: a change that places "
+                    f"every body must separate them; set_state(body=...) may move one alone "
+                    f"and keep the overlap)")
         raise SceneError(f"bodies: {a!r} and {b!r} overlap by {-g:.3g} m {where}; "
-                         "touching is allowed, overlap beyond the tolerance is not")
+                         f"touching is allowed, overlap beyond the tolerance is not{kept}")
 
 
 @jit
