@@ -256,17 +256,17 @@ class WorldEdit:
         s = self._rows_of("_state")
         if positions is not None:
             pos = as_batch(positions, (self.n, k, 2), "positions", keep_scalar=True)
-            if any_fixed:
-                moved = np.any(pos != s[:, cols, X:Y + 1], axis=(0, 2))
+            if any_fixed:  # they stay where the scene put them
+                moved = np.any(pos != w._initial[cols, X:Y + 1], axis=(0, 2))
                 if np.any(moved & fixed):
                     names = np.array(w.names[:w.n_bodies])[cols][moved & fixed]
                     raise SceneError(f"positions: static bodies and pivots cannot move "
-                                     f"({list(names)})")
+                                     f"({[str(n) for n in names]})")
             s[:, cols, X:Y + 1] = pos
             self._placed_all |= body is None
         if angles is not None:
             ang = as_batch(angles, (self.n, k), "angles", keep_scalar=True)
-            if any_static and np.any((ang != s[:, cols, ANGLE]) & static):
+            if any_static and np.any((ang != w._initial[cols, ANGLE]) & static):
                 raise SceneError("angles: a static body cannot turn")
             s[:, cols, ANGLE] = ang
         if velocities is not None:

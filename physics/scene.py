@@ -276,6 +276,16 @@ class Body(_Model):
                      "a static body must have zero velocity and omega")
         else:
             _require(self.mass is not None, "mass", "required for a non-static body, > 0 (kg)")
+            _require(_invertible(self.mass), "mass",
+                     f"{self.mass:g} kg is too small or large for float64: its inverse, which "
+                     f"the impulses use, is not a finite nonzero number")
+            try:
+                moment = self.moment
+            except OverflowError:
+                moment = math.inf
+            _require(_invertible(moment), "inertia",
+                     f"the moment of inertia of this mass and size ({moment:g} kg m^2) is too "
+                     f"small or large for float64: its inverse is not a finite nonzero number")
         if self.pivot:
             _require(not self.driven, "pivot", "a pivot cannot be driven")
             _require(self.velocity == (0.0, 0.0), "velocity",
@@ -297,6 +307,12 @@ class Body(_Model):
         """Moment of inertia about the centre of mass, kg m^2 (derived unless overridden)."""
         return body_inertia(self.shape, self.mass or 0.0, self.core_radius, self.half_length,
                             self.inertia)
+
+
+def _invertible(x: float) -> bool:
+    """``x`` and ``1 / x`` are both finite and nonzero (a mass or moment the impulses divide by:
+    1e-310 kg has an infinite inverse)."""
+    return math.isfinite(x) and x > 0.0 and math.isfinite(1.0 / x) and 1.0 / x > 0.0
 
 
 def body_inertia(shape: str, mass, radius, half_length, override=None):
@@ -324,6 +340,11 @@ class Scene(_Model):
     materials: Materials = Materials()
     bodies: tuple[Body, ...] = Field(min_length=1)
 
+    @field_validator("solver", mode="before")
+    @classmethod
+    def _mode_name(cls, v: Any) -> Any:
+        return {"mode": v} if isinstance(v, str) else v  # `solver: fixed`, as World(solver=...)
+
     @model_validator(mode="after")
     def _consistency(self) -> Scene:
         effects = set(self.effects)
@@ -346,14 +367,28 @@ class Scene(_Model):
         if "table_friction" not in effects:
             _require(self.table.friction == 0.0, "table.friction",
                      "is set but the scene does not list the 'table_friction' effect")
+            _require("gravity" not in self.table.model_fields_set, "table.gravity",
+                     "is set but the scene does not list the 'table_friction' effect (gravity "
+                     "only presses bodies onto the cloth)")
         if "contact_friction" not in effects:
             _require(self.materials.friction == 0.0, "materials.friction",
                      "is set but the scene does not list the 'contact_friction' effect")
-        allowed = set(names) | {"walls"} | (set(WALL_NAMES) if "walls" in effects else set())
+        cushions = {"walls", *WALL_NAMES}
+        allowed = set(names) | (cushions if "walls" in effects else set())
+        static = {b.name for b in self.bodies if b.static} | cushions
         for k, pair in enumerate(self.materials.pairs):
+            field = f"materials.pairs[{k}].bodies"
             for name in pair.bodies:
-                _require(name in allowed, f"materials.pairs[{k}].bodies",
+                if name in cushions and "walls" not in effects:
+                    _require(False, field, f"{name!r} names the cushions, but the scene does "
+                                           f"not list the 'walls' effect")
+                _require(name in allowed, field,
                          f"unknown body {name!r}; allowed: {sorted(allowed)}")
+            a, b = pair.bodies
+            _require(a != b, field, f"names {a!r} twice: a body never touches itself")
+            _require(not (a in static and b in static), field,
+                     f"{a!r} and {b!r} never touch: static bodies and cushions do not move, so "
+                     f"only a pair with a moving body has a contact")
             if "contact_friction" not in effects:
                 _require(not pair.friction, f"materials.pairs[{k}].friction",
                          "is set but the scene does not list the 'contact_friction' effect")
@@ -484,9 +519,10 @@ def read_scene(source: str | Path) -> Any:
         SceneError: a missing file (with where relative paths start and the packaged scenes),
             an unknown name (with the packaged scenes), or text that is not YAML.
     """
-    text = str(source)
+    text = source_text = str(source)
     path = Path(text)
-    if "\n" not in text and (path.suffix in (".yaml", ".yml") or path.exists()):
+    if isinstance(source, Path) or "\n" not in text and (
+            path.suffix.lower() in (".yaml", ".yml") or path.exists()):
         if not path.is_file():
             problem = "is not a file" if path.exists() else "does not exist"
             raise SceneError(f"scene: {text!r} {problem} (relative paths start at "
@@ -496,9 +532,15 @@ def read_scene(source: str | Path) -> Any:
     elif isinstance(source, str) and re.fullmatch(r"[A-Za-z0-9_]+", text):
         return packaged_scene(text)
     try:
-        return yaml.safe_load(text)
+        data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         raise SceneError(f"scene: not valid YAML: {exc}") from None
+    if text is source_text and "\n" not in text.strip() and not isinstance(data, dict):
+        # one line that was not read from a file: a mistyped path or name
+        raise SceneError(f"scene: {text!r} is neither a file, a packaged scene's name nor YAML "
+                         f"of a scene (relative paths start at {str(Path.cwd())!r}; packaged: "
+                         f"{packaged_scenes()})")
+    return data
 
 
 def load_scene(source: str | Path | dict[str, Any] | Scene) -> Scene:

@@ -288,7 +288,7 @@ class World:
                                               self._half_length, self._table_mu)
         self._configure_solver()
         self._initial = self._initial_state()
-        self._state[:] = self._initial
+        self._state[:] = np.nan  # nothing placed yet: reset() below places every body, checked
         self._make_views()
         self._backend = None
         self._parallel = B >= PARALLEL_BATCH

@@ -52,6 +52,19 @@ BAD_SCENE_FILES = [
     ("table: {size: [1, 1]}\neffects: [walls]\nbodies:\n"
      "  - {name: p, shape: disk, radius: 0.1, mass: 1, position: [0.45, 0]}\n",
      "bodies[0].position"),
+    # accepted by load_scene before, then refused by World() without the field, or never
+    ("materials: {pairs: [{bodies: [p, walls], restitution: 0.5}]}\nbodies:\n"
+     "  - {name: p, shape: disk, radius: 1, mass: 1}\n", "materials.pairs[0].bodies"),
+    ("materials: {pairs: [{bodies: [p, p], restitution: 0.5}]}\nbodies:\n"
+     "  - {name: p, shape: disk, radius: 1, mass: 1}\n", "materials.pairs[0].bodies"),
+    ("materials: {pairs: [{bodies: [s, t], restitution: 0.5}]}\nbodies:\n"
+     "  - {name: s, shape: disk, radius: 1, static: true}\n"
+     "  - {name: t, shape: disk, radius: 1, static: true, position: [5, 0]}\n",
+     "materials.pairs[0].bodies"),
+    ("table: {gravity: 100}\nbodies:\n  - {name: p, shape: disk, radius: 1, mass: 1}\n",
+     "table.gravity"),
+    ("bodies:\n  - {name: p, shape: disk, radius: 1, mass: 1.0e-310}\n", "bodies[0].mass"),
+    ("bodies:\n  - {name: p, shape: disk, radius: 1.0e+300, mass: 1}\n", "bodies[0].inertia"),
 ]
 
 
@@ -71,6 +84,24 @@ def test_missing_scene_file_and_directory(tmp_path):
         physics.load_scene(str(tmp_path / "nope.yaml"))
     with pytest.raises(SceneError, match="is not a file"):
         physics.load_scene(tmp_path)
+
+
+@pytest.mark.parametrize("source", ["myscene.txt", "scenes/rod.YAML", "rod_spin ",
+                                    "nope"])
+def test_a_mistyped_scene_path_or_name_says_so(tmp_path, monkeypatch, source):
+    """One line that is no file, no packaged scene and no YAML mapping was read as YAML text
+    and reported as 'scene must be a mapping of fields, got str'."""
+    monkeypatch.chdir(tmp_path)
+    for given in (source, tmp_path / source):
+        with pytest.raises(SceneError, match="does not exist|is neither a file") as info:
+            physics.load_scene(given)
+        assert "rod_spin" in str(info.value)  # the packaged scenes are listed
+
+
+def test_a_scene_names_its_solver_by_mode_as_world_does():
+    scene = {"solver": "fixed", "bodies": [DISK]}
+    assert physics.World(scene).solver == physics.World({"bodies": [DISK]},
+                                                        solver="fixed").solver
 
 
 def test_packaged_scene_files_load():
