@@ -68,12 +68,18 @@ class _ControlTask(Task):
         k[fast.K_LOW:fast.K_LOW + fast.OBS_SIZE] = self.obs_low
         k[fast.K_HIGH:fast.K_HIGH + fast.OBS_SIZE] = self.obs_high
         self.kcfg = k
-        self._actions = self.tbuf[:, fast.T_ACTION:fast.T_ACTION + len(self.ACTIONS)]
         self._never = np.zeros(batch_size, dtype=bool)
         self._never.flags.writeable = False
         # element 0's recent poses and return, for the video frames (``record_trace``)
         self._trail: deque[list[list[tuple[float, float]]]] = deque(maxlen=TRAIL_STEPS)
         self._return = 0.0
+
+    @property
+    def _actions(self) -> np.ndarray:
+        """The actions' columns of ``tbuf``, a view made when asked: a view kept as an attribute
+        became an array of its own in a pickled or deep-copied env, whose actions then never
+        reached the step."""
+        return self.tbuf[:, fast.T_ACTION:fast.T_ACTION + len(self.ACTIONS)]
 
     def _set_random(self, edit, key, value) -> None:
         if key == "mallet_mass":

@@ -285,6 +285,29 @@ def test_pickle_round_trip_continues_identically(env_id):
         assert np.array_equal(o1, o2) and r1 == r2 and t1 == t2
 
 
+@pytest.mark.parametrize("how", ["deepcopy", "pickle"])
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_a_copied_native_vector_env_steps_as_the_original(env_id, how):
+    """A deep copy or a pickle of ``gym.make_vec``'s batched env (what SubprocVecEnv and Ray
+    ship to workers) continues with the same actions to the same observations and rewards.
+    The control envs' copies ignored every action (a view into their step buffer had become
+    an array of its own): they coasted on the force set before the copy."""
+    import copy
+
+    vec = gym.make_vec(env_id, num_envs=3)
+    vec.reset(seed=2)
+    acts = [_actions(vec.single_action_space, 3, seed=k) for k in range(4)]
+    vec.step(np.stack(acts[0]))
+    clone = copy.deepcopy(vec) if how == "deepcopy" else pickle.loads(pickle.dumps(vec))
+    for a in acts[1:]:
+        o1, r1, *_ = vec.step(np.stack(a))
+        o2, r2, *_ = clone.step(np.stack(a))
+        np.testing.assert_array_equal(o2, o1)
+        np.testing.assert_array_equal(r2, r1)
+    vec.close()
+    clone.close()
+
+
 #: a range for every parameter each env can randomise (masses log-uniform, the rest uniform)
 RANGES = {"striker_mass": [0.05, 0.5], "mallet_mass": [0.05, 0.5], "target_mass": [0.05, 0.5],
           "restitution": [0.5, 1.0], "rod_length": [0.2, 0.8], "friction": [0.0, 0.4],
