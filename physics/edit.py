@@ -33,6 +33,8 @@ from spinstrike.physics.kernels import element_overlap
 from spinstrike.physics.layout import (
     ANGLE,
     FRICTION,
+    INV_INERTIA,
+    INV_MASS,
     OMEGA,
     RESTITUTION,
     VX,
@@ -45,7 +47,7 @@ from spinstrike.physics.scene import SceneError, body_inertia
 if TYPE_CHECKING:
     from spinstrike.physics.world import World
 
-__all__ = ["WorldEdit", "as_batch", "batch_rows"]
+__all__ = ["WorldEdit", "as_batch", "batch_rows", "check_snapshot"]
 
 
 def as_batch(value: Any, shape: tuple[int, ...], field: str,
@@ -367,6 +369,85 @@ class WorldEdit:
                     f"and keep the overlap)")
         raise SceneError(f"bodies: {a!r} and {b!r} overlap by {-g:.3g} m {where}; "
                          f"touching is allowed, overlap beyond the tolerance is not{kept}")
+
+
+def check_snapshot(w: World, a: dict[str, np.ndarray], params: np.ndarray | None) -> None:
+    """Raise :class:`SceneError` naming the field and body if the rows of a snapshot that
+    ``restore`` is about to write (``a``: private array name -> rows) hold what no edit of this
+    world could make: fixed bodies off their pins or moving, spin without ``rotation``, forces on
+    bodies that are not driven, parameters out of range or of another shape of body, friction of
+    an effect the scene does not list. Geometry is checked on the exact solver only, whose states
+    never overlap; a fixed or pymunk snapshot may hold the overlap an impact left."""
+    names = [str(n) for n in w.names[:w.n_bodies]]
+
+    def fail(field: str, bodies: np.ndarray, what: str) -> None:
+        where = f" ({[names[i] for i in np.flatnonzero(bodies)]})" if bodies is not None else ""
+        raise SceneError(f"snapshot.{field}{where}: {what}")
+
+    def any_rows(bad: np.ndarray) -> np.ndarray:  # [n, N] -> [N]
+        return bad.reshape(-1, bad.shape[-1]).any(axis=0)
+
+    disk = np.array([shape == "disk" for shape in w.shapes[:w.n_bodies]])
+    s = a.get("_state")
+    if s is not None:
+        fixed, static = np.asarray(w._fixed), np.asarray(w.static)
+        off = any_rows(np.any(s[..., X:Y + 1] != w._initial[:, X:Y + 1], axis=-1)) & fixed
+        if off.any():
+            fail("state", off, "static bodies and pivots stay at their pins (the scene's "
+                               "positions)")
+        moving = any_rows(np.any(s[..., VX:VY + 1] != 0, axis=-1)) & fixed
+        if moving.any():
+            fail("state", moving, "static bodies and pivots have zero velocity")
+        turned = any_rows((s[..., ANGLE] != w._initial[:, ANGLE]) | (s[..., OMEGA] != 0)) & static
+        if turned.any():
+            fail("state", turned, "a static body neither turns nor spins")
+        if not w.rotation and np.any(s[..., OMEGA] != 0):
+            fail("state", any_rows(s[..., OMEGA] != 0),
+                 "spin, but the scene does not list the 'rotation' effect")
+    f = a.get("_forces")
+    if f is not None:
+        pushed = any_rows(np.any(f != 0, axis=-1)) & ~np.asarray(w.driven)
+        if pushed.any():
+            fail("forces", pushed, "only bodies marked 'driven: true' take forces")
+    if params is not None:
+        _check_snapshot_parameters(w, a, params, disk, fail, any_rows)
+
+
+def _check_snapshot_parameters(w: World, a: dict[str, np.ndarray], params: np.ndarray,
+                               disk: np.ndarray, fail, any_rows) -> None:
+    """:func:`check_snapshot`'s parameters."""
+    dynamic = ~np.asarray(w.static)
+    checks = [
+        ("mass", any_rows(~(a["_mass"] > 0) | ~np.isfinite(a["_mass"])
+                          | ~np.isfinite(params[..., INV_MASS])) & dynamic,
+         "must be a finite number > 0 kg, with a finite inverse (inf: make the body static)"),
+        ("inertia", any_rows(~(a["_inertia"] > 0) | ~np.isfinite(a["_inertia"])
+                             | ~np.isfinite(params[..., INV_INERTIA])) & dynamic,
+         "must be a finite number > 0 kg m^2, with a finite inverse"),
+        ("radius", any_rows(~(a["_radius"] > 0)) & disk,
+         "a disk's radius must be > 0 m"),
+        ("radius", any_rows(~(a["_radius"] >= 0)) & ~disk,
+         "a rod's half thickness must be >= 0 m"),
+        ("half_length", any_rows(a["_half_length"] != 0) & disk,
+         "a disk has no length (is this another scene's snapshot?)"),
+        ("half_length", any_rows(~(a["_half_length"] > 0)) & ~disk,
+         "a rod's half length must be > 0 m"),
+    ]
+    for field, bad, what in checks:
+        if bad.any():
+            fail(field, bad, what)
+    mu = a["_table_mu"]
+    if np.any(mu < 0) or (not w.table_friction and np.any(mu != 0)):
+        fail("table_friction", None, "must be >= 0, and 0 unless the scene lists the "
+                                     "'table_friction' effect")
+    if np.any(~(a["_half"] > 0)):
+        fail("table_half_size", None, "must be > 0 m (inf: an unbounded table)")
+    m = a["_materials"]
+    if np.any((m[..., RESTITUTION] < 0) | (m[..., RESTITUTION] > 1)):
+        fail("materials", None, "restitution must lie in [0, 1]")
+    if np.any(m[..., FRICTION] < 0) or (not w.contact_friction and np.any(m[..., FRICTION] != 0)):
+        fail("materials", None, "friction must be >= 0, and 0 unless the scene lists the "
+                                "'contact_friction' effect")
 
 
 @jit

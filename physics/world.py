@@ -25,7 +25,13 @@ from typing import Any
 
 import numpy as np
 
-from spinstrike.physics.edit import WorldEdit, as_batch, batch_rows
+from spinstrike.physics.edit import (
+    WorldEdit,
+    as_batch,
+    batch_rows,
+    check_snapshot,
+    first_overlap,
+)
 from spinstrike.physics.events import pair_bodies, pair_geometry
 from spinstrike.physics.jit import jit
 from spinstrike.physics.kernels import STEP, BatchKernel
@@ -622,7 +628,15 @@ class World:
         parameters too, if it has them."""
         rows = batch_rows(env, self.batch_size)
         names = [("state", "_state"), ("forces", "_forces"), ("time", "_time")]
-        with_params = all(key in snapshot for key, _ in _PARAMETER_ARRAYS)
+        missing = [key for key, _ in names if key not in snapshot]
+        have = [key for key, _ in _PARAMETER_ARRAYS if key in snapshot]
+        with_params = len(have) == len(_PARAMETER_ARRAYS)
+        if have and not with_params:
+            missing += [key for key, _ in _PARAMETER_ARRAYS if key not in snapshot]
+        if missing:
+            raise SceneError(f"snapshot: missing {missing} (get_state() has state, forces and "
+                             f"time; get_state(parameters=True) adds "
+                             f"{[key for key, _ in _PARAMETER_ARRAYS]})")
         if with_params:
             names += _PARAMETER_ARRAYS
         arrays = {}
@@ -636,14 +650,29 @@ class World:
             elif value.dtype.kind not in "iuf" or np.isnan(value).any():
                 # parameters may be inf (a static body's mass, an unbounded table)
                 raise SceneError(f"snapshot: {key} must be numbers, not NaN")
-            arrays[name] = value
-        for name, value in arrays.items():
-            getattr(self, name)[rows] = value[rows]
+            arrays[name] = value[rows]
+        params = None
         if with_params:
-            self._params[rows] = self._derive_params(self._mass[rows], self._inertia[rows],
-                                                     self._radius[rows],
-                                                     self._half_length[rows],
-                                                     self._table_mu[rows])
+            with np.errstate(over="ignore"):
+                params = self._derive_params(arrays["_mass"], arrays["_inertia"],
+                                             arrays["_radius"], arrays["_half_length"],
+                                             arrays["_table_mu"])
+        check_snapshot(self, arrays, params)
+        if isinstance(self.solver, ExactSolver) and len(self._pair_a):
+            pm = self._params[rows] if params is None else params
+            half = arrays.get("_half", self._half[rows])
+            e, p, g = first_overlap(np.ascontiguousarray(arrays["_state"]), pm,
+                                    np.ascontiguousarray(half), self._pair_a, self._pair_b,
+                                    self.tolerance)
+            if e >= 0:
+                a, b = self.names[self._pair_a[p]], self.names[self._pair_b[p]]
+                raise SceneError(f"snapshot.state: {a!r} and {b!r} overlap by {-g:.3g} m in "
+                                 f"element {rows[e]}: the exact solver's states never overlap "
+                                 f"(a snapshot of another solver's world, or edited?)")
+        for name, value in arrays.items():
+            getattr(self, name)[rows] = value
+        if with_params:
+            self._params[rows] = params
         self._sync_backend(params=with_params, state=True)
 
     def load_element(self, other: World, b: int, env: Any = None) -> None:

@@ -9,6 +9,8 @@ another or outside the table — naming the body — and leaves the world unchan
 from __future__ import annotations
 
 import dataclasses
+import math
+import re
 
 import gymnasium as gym
 import numpy as np
@@ -251,3 +253,65 @@ def test_a_snapshot_with_parameters_undoes_an_edit(solver):
         world.step(0.01)
         reference.step(0.01)
     np.testing.assert_array_equal(world.get_state()["state"], reference.get_state()["state"])
+
+
+def _env_snapshot_edited(env_id, edit):
+    env = gym.make(env_id)
+    env.reset(seed=0)
+    snap = env.unwrapped.get_physics_state()
+    edit(snap["world"])
+    return env, snap
+
+
+_IM = 1  # the mallet's index in both control scenes (checked below)
+
+
+@pytest.mark.parametrize(("env_id", "edit", "names"), [
+    ("SpinStrike/RodSpinControl-v0",
+     lambda w: w["materials"].__setitem__((..., 0), 3.0), "restitution must lie in [0, 1]"),
+    ("SpinStrike/RodSpinControl-v0", lambda w: w["mass"].__setitem__((..., _IM), -1.0),
+     "snapshot.mass (['mallet'])"),
+    ("SpinStrike/PuckSpeedControl-v0", lambda w: w["mass"].__setitem__((..., _IM), math.inf),
+     "snapshot.mass (['mallet'])"),
+    ("SpinStrike/PuckSpeedControl-v0", lambda w: w["state"].__setitem__((..., _IM, 0), 5.0),
+     "'mallet' and 'wall_right' overlap"),
+    ("SpinStrike/RodSpinControl-v0", lambda w: w["forces"].__setitem__((..., 0, 0), 1.0),
+     "only bodies marked 'driven: true'"),
+    ("SpinStrike/RodSpinControl-v0", lambda w: w.pop("inertia"), "missing ['inertia']"),
+])
+def test_a_snapshot_no_edit_could_make_is_refused_naming_the_field(env_id, edit, names):
+    """``set_physics_state`` (``World.restore``) took any numbers of the right shape: e = 3
+    (energy gained 5x), negative or infinite masses, a mallet 4 m off the table, forces on
+    bodies that are not driven; a snapshot missing one parameter silently restored none."""
+    env, snap = _env_snapshot_edited(env_id, edit)
+    assert env.unwrapped.world.names[_IM] == "mallet"
+    before = env.unwrapped.get_physics_state()
+    with pytest.raises(SceneError, match=re.escape(names)):
+        env.unwrapped.set_physics_state(snap)
+    after = env.unwrapped.get_physics_state()  # refused: nothing was written
+    for key, value in before["world"].items():
+        np.testing.assert_array_equal(after["world"][key], value)
+
+
+def test_another_scenes_snapshot_is_refused():
+    rod, puck = gym.make("SpinStrike/RodSpinControl-v0"), gym.make("SpinStrike/PuckSpeedControl-v0")
+    rod.reset(seed=0)
+    puck.reset(seed=0)
+    with pytest.raises(SceneError, match="a disk has no length"):
+        puck.unwrapped.set_physics_state(rod.unwrapped.get_physics_state())
+
+
+def test_a_pymunk_snapshot_keeps_its_overlap_and_an_exact_world_refuses_it():
+    scene = {"effects": ["rotation"], "bodies": [
+        {"name": "a", "shape": "disk", "radius": 0.03, "mass": 0.1, "position": [-0.1, 0.0],
+         "velocity": [1.0, 0.0]},
+        {"name": "b", "shape": "disk", "radius": 0.02, "mass": 0.3, "position": [0.1, 0.0]}]}
+    pm = physics.World(scene, solver={"mode": "pymunk", "substeps": 100})
+    pm.step(0.1503)
+    snap = pm.get_state(parameters=True)
+    assert pm.gaps().min() < -1e-4
+    pm.step(0.1)
+    pm.restore(snap)  # its own solver left that overlap: it comes back as it was
+    assert pm.gaps().min() < -1e-4
+    with pytest.raises(SceneError, match="exact solver's states never overlap"):
+        physics.World(scene).restore(snap)
