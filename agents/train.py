@@ -344,6 +344,8 @@ def _checkpoint_callback(every: int, folder: Path, on_policy: bool, normalize: b
 def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, episodes: int,
                history: dict[str, list] | None):
     from stable_baselines3.common.callbacks import CallbackList, EvalCallback
+    from stable_baselines3.common.preprocessing import is_image_space
+    from stable_baselines3.common.vec_env import VecTransposeImage
 
     # the interval in steps: a multiple of n_envs, the grid of an uninterrupted SB3 run
     every = max(freq // cfg.n_envs, 1) * cfg.n_envs
@@ -373,6 +375,8 @@ def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, epis
         from stable_baselines3.common.vec_env import VecNormalize
 
         eval_env = VecNormalize(eval_env, training=False, norm_reward=False)
+    if is_image_space(eval_env.observation_space):  # outermost, as SB3 wraps the training env
+        eval_env = VecTransposeImage(eval_env)
     evals = _FixedEpisodesEval(eval_env, n_eval_episodes=episodes, eval_freq=1,
                                log_path=str(work), best_model_save_path=None,
                                deterministic=True, verbose=0)
@@ -473,9 +477,9 @@ def _refuse_render_mode(env_kwargs: dict) -> None:
                                f"nothing, the video uses rgb_array_list): drop it")
 
 
-def _check_env_kwargs(env_id: str, env_kwargs: dict) -> None:
+def _check_env_kwargs(env_id: str, env_kwargs: dict):
     """Build the env once with ``env_kwargs``: its own validation (a ConfigError naming the
-    argument) speaks before anything about the run folder."""
+    argument) speaks before anything about the run folder. Returns its observation space."""
     import gymnasium as gym
 
     _refuse_render_mode(env_kwargs)
@@ -484,7 +488,34 @@ def _check_env_kwargs(env_id: str, env_kwargs: dict) -> None:
                               or steps < 1):  # gymnasium's own check is a bare assert
         raise AgentConfigError(f"env_kwargs: max_episode_steps: must be an int >= 1 "
                                f"(got {steps!r})")
-    gym.make(env_id, **env_kwargs).close()
+    env = gym.make(env_id, **env_kwargs)
+    space = env.observation_space
+    env.close()
+    return space
+
+
+#: the SB3 policy each kind of observation needs
+POLICY_FOR = {"vector": "MlpPolicy", "dict": "MultiInputPolicy", "pixels": "CnnPolicy"}
+
+
+def _policy_for(cfg: RunConfig, space) -> str:
+    """The SB3 policy for the env's observations: the config's, or for a config's ``MlpPolicy``
+    (what every shipped entry names) on dict or pixel observations the policy they need, said
+    on one line; a config naming a policy that cannot take them is refused."""
+    from gymnasium import spaces
+    from stable_baselines3.common.preprocessing import is_image_space
+
+    kind = ("dict" if isinstance(space, spaces.Dict)
+            else "pixels" if is_image_space(space) else "vector")
+    need = POLICY_FOR[kind]
+    if cfg.policy == need:
+        return need
+    if cfg.policy == "MlpPolicy":
+        print(f"policy: {need} for {kind} observations (obs_mode={kind!r}; the config's "
+              f"MlpPolicy takes vectors)", file=sys.stderr)
+        return need
+    raise AgentConfigError(f"policy: {cfg.policy} cannot take {kind} observations "
+                           f"(obs_mode={kind!r}); use {need}")
 
 
 def _new_run(algo: str, env_id: str, config, seed: int | None, timesteps: int | None,
@@ -568,7 +599,9 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
 
             imitation = settings(imitate, algo, env_id, bool(cfg.normalize), imitate_rounds,
                                  imitate_episodes)
-        _check_env_kwargs(env_id, cfg.env_kwargs)  # a bad argument first, before "out exists"
+        # a bad argument first, before "out exists"
+        cfg.policy = cfg.raw["policy"] = _policy_for(cfg, _check_env_kwargs(env_id,
+                                                                            cfg.env_kwargs))
         work = _work_dir(run_dir, resume, force)
     from spinstrike.agents.imitate import _sigterm_exits
 

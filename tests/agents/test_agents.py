@@ -43,6 +43,27 @@ def test_each_algorithm_trains_saves_loads_and_evaluates(algo, env_id, tmp_path)
     assert agent.episodes == 2 and np.isfinite(agent.mean)
 
 
+@pytest.mark.parametrize(("kwargs", "policy"), [
+    ("{obs_mode: dict}", "MultiInputPolicy"),
+    ("{obs_mode: pixels, obs_size: [48, 48]}", "CnnPolicy"),
+])
+def test_the_cli_trains_on_dict_and_pixel_observations(kwargs, policy, tmp_path, capsys):
+    """The shipped entries name MlpPolicy; on dict observations SB3 refused it with a
+    traceback, and on pixels it built an MLP over every pixel (a 679 MB model.zip for 128
+    steps). The run takes the policy the observations need, says so and records it; its
+    evaluations and its summary go through the same observations."""
+    run = tmp_path / "run"
+    assert main(["train", "--algo", "ppo", "--env", "SpinStrike/RodSpin-v0", "--timesteps", "64",
+                 "--n-envs", "2", "--env-kwargs", kwargs, "--out", str(run), "--no-video",
+                 "--eval-episodes", "2", "--no-progress"]) == 0
+    assert f"policy: {policy} for" in capsys.readouterr().err
+    meta = yaml.safe_load((run / "config.yml").read_text())
+    assert meta["hyperparameters"]["SpinStrike/RodSpin-v0"]["policy"] == policy
+    assert (run / "model.zip").stat().st_size < 20e6
+    load_model_policy(run)  # loads
+    assert main(["evaluate", str(run), "--episodes", "2", "--no-save"]) == 0
+
+
 def test_a_run_closes_its_logs_finished_or_interrupted(tmp_path, monkeypatch):
     """``spinstrike train`` closes progress.csv and the TensorBoard events itself, when the run
     finishes and when Ctrl-C stops it. SB3 leaves its logger's files to the garbage collector:
