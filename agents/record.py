@@ -91,8 +91,12 @@ def record(policy, env_id: str, path: str | Path, episodes: int = 3, seed: int =
                     writer.write(frame)
                 for _ in range(held):
                     writer.write(run.last)
-    finally:
+    except BaseException:  # Ctrl-C too: no truncated video under ``path``
+        writer.abort()
+        raise
+    else:
         writer.close()
+    finally:
         for run in runs:
             run.close()
     return {"path": str(writer.path), "frames": writer.frames, "fps": fps,
@@ -165,8 +169,10 @@ def record_world(world, path: str | Path, seconds: float = 3.0, dt: float = 0.02
                                               contacts.impulse[mine], strict=True):
                 markers.append(Marker.on(int(c), int(a), int(c), point, normal, float(j)))
             writer.write(frame())
-    finally:
-        writer.close()
+    except BaseException:
+        writer.abort()
+        raise
+    writer.close()
     return {"path": str(writer.path), "frames": writer.frames, "fps": fps,
             "size": writer.size, "contacts": total}
 

@@ -649,17 +649,34 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
 def finish_run(result: TrainResult, policy, env_id: str, run_dir: Path, env_kwargs: dict,
                title: str, *, evaluate: bool, eval_episodes: int, video: bool) -> TrainResult:
     """The end of every backend's run: ``summary.md`` (the policy beside random and the
-    reference over ``eval_episodes``) and ``rollout.mp4``, as asked; returns ``result``."""
-    if evaluate:
-        from spinstrike.agents.evaluate import evaluate as run_eval
-        from spinstrike.agents.evaluate import summarise
+    reference over ``eval_episodes``) and ``rollout.mp4``, as asked; returns ``result``.
 
-        results = run_eval(env_id, policy, episodes=eval_episodes, env_kwargs=env_kwargs)
-        summarise(results, run_dir, title)
-        result["evaluations"] = {r.policy: (r.mean, r.std) for r in results}
-    if video:
-        from spinstrike.agents.record import record
+    Interrupted (Ctrl-C, SIGTERM) after training, it says that the model is saved and which
+    commands write what is missing, and re-raises; a video stopped half way is not left."""
+    from spinstrike.agents.imitate import _sigterm_exits
 
-        result["video"] = record(policy, env_id, run_dir / "rollout.mp4", episodes=3,
-                                 env_kwargs=env_kwargs)["path"]
+    try:
+        with _sigterm_exits():
+            if evaluate:
+                from spinstrike.agents.evaluate import evaluate as run_eval
+                from spinstrike.agents.evaluate import summarise
+
+                results = run_eval(env_id, policy, episodes=eval_episodes,
+                                   env_kwargs=env_kwargs)
+                summarise(results, run_dir, title)
+                result["evaluations"] = {r.policy: (r.mean, r.std) for r in results}
+            if video:
+                from spinstrike.agents.record import record
+
+                result["video"] = record(policy, env_id, run_dir / "rollout.mp4", episodes=3,
+                                         env_kwargs=env_kwargs)["path"]
+    except (KeyboardInterrupt, SystemExit):
+        missing = [f"spinstrike evaluate {run_dir}"] if "evaluations" not in result and \
+            evaluate else []
+        if video and "video" not in result:
+            missing.append(f"spinstrike record {run_dir}")
+        print(f"interrupted after training: the model is saved in {run_dir}; "
+              f"{' and '.join(f'`{m}`' for m in missing)} write"
+              f"{'s' if len(missing) == 1 else ''} what is missing", file=sys.stderr)
+        raise
     return result

@@ -17,6 +17,7 @@ Saving one step's frames with Gymnasium's own helper works too:
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import math
 import os
@@ -39,6 +40,10 @@ class VideoWriter:
     ``.gif`` (Pillow, looping, written on :meth:`close`; Pillow merges identical consecutive
     frames into one of their summed duration).
 
+    The frames go to ``<stem>.partial<suffix>`` beside ``path``, renamed to ``path`` by
+    :meth:`close`: a recording stopped half way (Ctrl-C, an error) leaves no truncated video
+    under ``path`` (nor replaces one that was there); :meth:`abort` removes the partial file.
+
     Args:
         path: the file (its folder is created).
         fps: frames per second of the video.
@@ -52,6 +57,7 @@ class VideoWriter:
         if not (math.isfinite(fps) and fps > 0):
             raise ValueError(f"fps: must be a number > 0 (got {fps!r})")
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._partial = self.path.with_name(f"{self.path.stem}.partial{self.path.suffix}")
         self.fps = fps
         #: frames written so far
         self.frames = 0
@@ -90,7 +96,7 @@ class VideoWriter:
         import imageio_ffmpeg
 
         encoder = imageio_ffmpeg.write_frames(
-            str(self.path), (width, height), fps=self.fps, codec="libx264",
+            str(self._partial), (width, height), fps=self.fps, codec="libx264",
             pix_fmt_out="yuv420p", macro_block_size=1, output_params=["-loglevel", "error"])
         encoder.send(None)
         return encoder
@@ -107,15 +113,29 @@ class VideoWriter:
             # a GIF counts time in hundredths of a second: round the frames' cumulative times
             # to those, so that the whole lasts what it should (30 fps: 30, 30, 40, 30...)
             ends = np.round(np.arange(len(images) + 1) * 100 / self.fps) * 10
-            images[0].save(self.path, save_all=True, append_images=images[1:], loop=0,
+            images[0].save(self._partial, save_all=True, append_images=images[1:], loop=0,
                            duration=np.diff(ends).astype(int).tolist(), optimize=True)
             self._gif = []
+        if self._partial.exists():
+            os.replace(self._partial, self.path)
+
+    def abort(self) -> None:
+        """Stop without a video: the partial file is removed, ``path`` left as it was."""
+        if self._encoder is not None:
+            with contextlib.suppress(Exception):  # ffmpeg may have died with the signal too
+                self._encoder.close()
+            self._encoder = None
+        self._gif = []
+        self._partial.unlink(missing_ok=True)
 
     def __enter__(self) -> VideoWriter:
         return self
 
-    def __exit__(self, *exc: Any) -> None:
-        self.close()
+    def __exit__(self, kind, *exc: Any) -> None:
+        if kind is None:
+            self.close()
+        else:
+            self.abort()
 
 
 def tile(frames: Sequence[np.ndarray | None], columns: int) -> np.ndarray:

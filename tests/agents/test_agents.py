@@ -85,6 +85,35 @@ def test_a_run_closes_its_logs_finished_or_interrupted(tmp_path, monkeypatch):
     assert (tmp_path / "stopped.partial" / "progress.csv").read_text().count("\n") >= 2
 
 
+def test_ctrl_c_while_a_run_films_says_what_is_missing_and_leaves_no_broken_video(
+        tmp_path, monkeypatch, capsys):
+    """Training done, a signal during the final evaluation or the video exited silently and
+    left a 48-byte rollout.mp4 no player could open."""
+    from spinstrike.envs import recording
+
+    real = recording.VideoWriter.write
+
+    def write(self, frame):
+        if self.frames == 20:
+            raise KeyboardInterrupt
+        real(self, frame)
+
+    run = tmp_path / "run"
+    with monkeypatch.context() as m, contextlib.suppress(KeyboardInterrupt):
+        m.setattr(recording.VideoWriter, "write", write)
+        assert main(["train", "--algo", "ppo", "--env", "SpinStrike/RodSpin-v0", "--timesteps",
+                     "64", "--n-envs", "2", "--out", str(run), "--eval-episodes", "2",
+                     "--no-progress"]) == 130
+    err = capsys.readouterr().err
+    assert f"interrupted after training: the model is saved in {run}" in err
+    assert f"`spinstrike record {run}` writes what is missing" in err
+    assert (run / "model.zip").is_file() and (run / "summary.md").is_file()
+    assert not list(run.glob("*.mp4")), "a truncated video was left"
+    assert main(["record", str(run)]) == 0
+    frames, _ = imageio_ffmpeg.count_frames_and_secs(str(run / "rollout.mp4"))
+    assert frames > 20
+
+
 def test_cli_train_evaluate_record_envs(tmp_path, capsys):
     run = tmp_path / "ppo"
     assert main(["train", "--algo", "ppo", "--env", "SpinStrike/PuckSpeed-v0", "--timesteps",
