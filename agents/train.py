@@ -139,7 +139,11 @@ def _recorded_run(work: Path, given: dict[str, Any], config,
                 "--imitate": (meta.get("imitation") or {}).get("teacher", "none")}
     wrong = [f"{flag} {given[flag]} (recorded: {value})" for flag, value in recorded.items()
              if given.get(flag) is not None and given[flag] != value]
-    env_kwargs = given.get("--env-kwargs") or {}
+    env_kwargs = dict(given.get("--env-kwargs") or {})
+    if "scene" in env_kwargs:  # recorded as read (see train)
+        from spinstrike.envs.config import resolve_scene
+
+        env_kwargs["scene"] = resolve_scene(env_kwargs["scene"])
     if {**cfg.env_kwargs, **env_kwargs} != cfg.env_kwargs:
         wrong.append(f"--env-kwargs {env_kwargs} (recorded: {cfg.env_kwargs})")
     if config is not None and not wrong and not _same_entry(cfg, config):
@@ -602,6 +606,10 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
         # a bad argument first, before "out exists"
         cfg.policy = cfg.raw["policy"] = _policy_for(cfg, _check_env_kwargs(env_id,
                                                                             cfg.env_kwargs))
+        if "scene" in cfg.env_kwargs:  # config.yml records the scene, not a relative path
+            from spinstrike.envs.config import resolve_scene
+
+            cfg.env_kwargs["scene"] = resolve_scene(cfg.env_kwargs["scene"])
         work = _work_dir(run_dir, resume, force)
     from spinstrike.agents.imitate import _sigterm_exits
 

@@ -10,7 +10,8 @@ from __future__ import annotations
 import copy
 import os
 from collections.abc import Iterator
-from typing import Annotated, ClassVar, Literal
+from pathlib import Path
+from typing import Annotated, Any, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
@@ -34,6 +35,7 @@ __all__ = [
     "RodSpinConfig",
     "load_packaged_scene",
     "parse_config",
+    "resolve_scene",
 ]
 
 
@@ -84,7 +86,10 @@ class EnvConfig(BaseModel):
     @field_validator("scene", mode="before")
     @classmethod
     def _path(cls, v):
-        return os.fspath(v) if isinstance(v, os.PathLike) else v  # a pathlib.Path, as load_scene
+        try:
+            return resolve_scene(v)
+        except SceneError as exc:
+            raise ValueError(str(exc).removeprefix("scene: ")) from None
 
     @field_validator("effects")
     @classmethod
@@ -263,6 +268,17 @@ def build_world(scene: Scene, batch_size: int) -> World:
         return World(scene, batch_size)
     except SceneError as exc:
         raise ConfigError(f"scene: {exc}") from None
+
+
+def resolve_scene(source: Any) -> Any:
+    """A ``scene`` argument given as a path to a file, read now: the file's data (a dict), so
+    that an env's config, a pickle of the env (a worker in another folder) and a run's
+    ``config.yml`` hold the scene itself, not a path relative to where it was given, and a later
+    edit of the file changes no env made from it. Names, YAML text and dicts stay as given."""
+    if isinstance(source, os.PathLike) or (isinstance(source, str) and "\n" not in source
+                                           and Path(source).is_file()):
+        return read_scene(source)
+    return source
 
 
 def load_packaged_scene(name: str) -> dict:

@@ -294,6 +294,8 @@ class SpinStrikeEnv(gym.Env):
         self.render_mode = render_mode
         self._config = dict(config or {}) | kwargs
         self.cfg = parse_config(self.TASK.CONFIG, config, kwargs)
+        if "scene" in self._config:  # a scene file as read (config.resolve_scene), for pickles
+            self._config["scene"] = self.cfg.scene
         self.task = self.TASK(self.cfg, 1, single=True)
         self.task.record_trace = render_mode is not None
         if self.task.render_fps != self.metadata["render_fps"]:  # e.g. a control dt != 0.02 s

@@ -114,6 +114,39 @@ def test_ctrl_c_while_a_run_films_says_what_is_missing_and_leaves_no_broken_vide
     assert frames > 20
 
 
+def test_a_run_on_a_scene_file_records_the_scene_and_evaluates_from_anywhere(
+        tmp_path, monkeypatch):
+    """``--env-kwargs '{scene: scn/table.yaml}'`` was recorded as that relative path: the run
+    could not be evaluated from another folder, and an edit of the file after training changed
+    what ``evaluate`` measured, silently. An env pickled with such a path (a Ray or
+    SubprocVecEnv worker starting elsewhere) could not be rebuilt either."""
+    import pickle
+
+    import gymnasium as gym
+
+    scene = envs.config.load_packaged_scene("rod_spin")
+    scene["bodies"][0]["length"] = 0.3
+    (tmp_path / "scn").mkdir()
+    (tmp_path / "scn" / "rod.yaml").write_text(yaml.safe_dump(scene))
+    monkeypatch.chdir(tmp_path)
+    assert main(["train", "--algo", "ppo", "--env", "SpinStrike/RodSpin-v0", "--timesteps",
+                 "64", "--n-envs", "2", "--env-kwargs", "{scene: scn/rod.yaml}", "--out", "run",
+                 "--no-video", "--no-eval", "--no-progress"]) == 0
+    env = gym.make("SpinStrike/RodSpin-v0", scene="scn/rod.yaml")
+    env.reset(seed=0)
+    blob = pickle.dumps(env)
+    meta = yaml.safe_load((tmp_path / "run" / "config.yml").read_text())
+    kwargs = meta["hyperparameters"]["SpinStrike/RodSpin-v0"]["env_kwargs"]
+    assert kwargs["scene"] == scene  # the scene itself
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    (tmp_path / "scn" / "rod.yaml").unlink()
+    assert main(["evaluate", str(tmp_path / "run"), "--episodes", "2", "--no-save"]) == 0
+    clone = pickle.loads(blob)
+    assert clone.unwrapped.world.half_length[0, 0] == 0.15
+
+
 def test_cli_train_evaluate_record_envs(tmp_path, capsys):
     run = tmp_path / "ppo"
     assert main(["train", "--algo", "ppo", "--env", "SpinStrike/PuckSpeed-v0", "--timesteps",
