@@ -76,6 +76,17 @@ def as_batch(value: Any, shape: tuple[int, ...], field: str,
     return arr
 
 
+def _invertible(arr: np.ndarray, field: str) -> None:
+    """Raise unless every value and its inverse are finite and nonzero: a mass or moment of
+    inertia the impulses divide by (1e-320 kg has an infinite inverse)."""
+    with np.errstate(divide="ignore", over="ignore"):
+        inverse = 1.0 / arr
+    if not (np.all(np.isfinite(arr)) and np.all(np.isfinite(inverse)) and np.all(inverse > 0)):
+        raise SceneError(f"{field}: too small or large for float64 (got {arr.min():g}.."
+                         f"{arr.max():g}): its inverse, which the impulses use, is not a finite "
+                         f"nonzero number")
+
+
 def _show(value: Any) -> str:
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."
@@ -180,6 +191,8 @@ class WorldEdit:
             if np.any(arr <= 0) if strict else np.any(arr < 0):
                 raise SceneError(f"{name}.{field}: must be {'>' if strict else '>='} 0 "
                                  f"(got {arr.min()})")
+            if field in ("mass", "inertia"):
+                _invertible(arr, f"{name}.{field}")
             values[field] = arr
         if not values:
             return
@@ -198,8 +211,10 @@ class WorldEdit:
         if "inertia" in values:
             inert[:, i] = values["inertia"]
         elif not w.static[i] and not isinstance(w.scene.bodies[i].inertia, float):
-            inert[:, i] = body_inertia(shape, m[:, i], r[:, i], h[:, i],
-                                       w.scene.bodies[i].inertia)
+            with np.errstate(over="ignore", under="ignore"):
+                inert[:, i] = body_inertia(shape, m[:, i], r[:, i], h[:, i],
+                                           w.scene.bodies[i].inertia)
+            _invertible(inert[:, i], f"{name}.inertia (of this mass and size)")
 
     def set_material(self, a: str, b: str, *, restitution: Any = None,
                      friction: Any = None) -> None:

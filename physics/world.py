@@ -520,6 +520,9 @@ class World:
         else:
             raise SceneError(f"body: must be a name or an index (got {body!r})")
         if not 0 <= i < self.n_bodies:
+            if isinstance(body, str):
+                raise SceneError(f"body: {body!r} is a cushion, not a body (cushions have no "
+                                 f"parameters or state; set_table moves them)")
             raise SceneError(f"body index {i} out of range [0, {self.n_bodies})")
         return i
 
@@ -571,12 +574,22 @@ class World:
             e.set_table(friction=friction, size=size)
 
     def restitution(self, a: str, b: str) -> np.ndarray:
-        """Restitution of the pair between ``a`` and ``b`` per element, shape [B]."""
-        return self._materials[:, self.pair_rows(a, b)[0], RESTITUTION].copy()
+        """Restitution of the pair between ``a`` and ``b`` per element, shape [B] (``"walls"``:
+        the cushions', if the four agree; else name one, e.g. ``"wall_left"``)."""
+        return self._material(a, b, RESTITUTION, "restitution")
 
     def friction(self, a: str, b: str) -> np.ndarray:
-        """Contact friction coefficient of the pair between ``a`` and ``b`` per element, [B]."""
-        return self._materials[:, self.pair_rows(a, b)[0], FRICTION].copy()
+        """Contact friction coefficient of the pair between ``a`` and ``b`` per element, [B]
+        (``"walls"`` as for :meth:`restitution`)."""
+        return self._material(a, b, FRICTION, "friction")
+
+    def _material(self, a: str, b: str, column: int, field: str) -> np.ndarray:
+        values = self._materials[:, self.pair_rows(a, b), column]
+        if np.any(values != values[:, :1]):  # "walls": four cushions set apart
+            raise SceneError(f"{field}: the pairs between {a!r} and {b!r} differ "
+                             f"({values[0].tolist()} in element 0); name one cushion "
+                             f"({', '.join(WALL_NAMES)})")
+        return values[:, 0].copy()
 
     @property
     def table_half_size(self) -> np.ndarray:
@@ -762,6 +775,10 @@ class World:
         return result
 
     def _set_dt(self, dt: Any) -> None:
+        if isinstance(dt, bool) or not isinstance(dt, (int, float, np.integer, np.floating)):
+            # float() took "0.1" and True (a 1 s step); one dt for every element
+            raise SceneError(f"dt: must be a number of seconds, one for every element (got "
+                             f"{dt!r} of type {type(dt).__name__})")
         value = float(dt)
         if not (math.isfinite(value) and value >= 0.0):
             raise SceneError(f"dt: must be a finite number >= 0 s (got {dt!r})")
@@ -774,6 +791,8 @@ class World:
         step; warns (``RuntimeWarning``) if the exact solver's settling hit its cap of substeps
         (``last_step.capped``).
         """
+        if type(dt) is not float:  # checked here: run() reads None as "the last dt", and
+            self._set_dt(dt)       # True == 1.0 would pass as an unchanged 1 s step
         if self.run(STEP, dt=dt) >= FALLBACK_CAPPED:
             self._report_fallback()
         return self.last_contacts

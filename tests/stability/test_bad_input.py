@@ -139,9 +139,17 @@ def _world(**kw):
     (lambda w: w.set_material("p", "m", restitution=2.0), "restitution"),
     (lambda w: w.set_material("p", "m", friction=0.5), "contact_friction"),
     (lambda w: w.set_state(velocities=[[1.0, 0.0]], body="p", env=[3]), "env"),
+    # accepted before: a string, a boolean (a 1 s step), None (the last dt again), an array
+    (lambda w: w.step("0.1"), "dt: must be a number of seconds"),
+    (lambda w: w.step(True), "dt: must be a number of seconds"),
+    (lambda w: w.step(None), "dt: must be a number of seconds"),
+    (lambda w: w.step(np.array([0.01])), "one for every element"),
+    (lambda w: w.set_body("p", mass=1e-320), "p.mass: too small or large for float64"),
+    (lambda w: w.set_body("p", radius=1e300), "p.inertia (of this mass and size)"),
 ], ids=lambda x: x if isinstance(x, str) else "")
 def test_world_api_rejects_bad_values(call, names):
     world = _world()
+    world.step(1.0)  # a last dt equal to True's
     before = world.get_state()["state"].copy()
     with pytest.raises(SceneError) as info:
         call(world)
@@ -257,3 +265,18 @@ def test_vector_env_rejects_nan_actions():
     with pytest.raises(ValueError, match="action"):
         vec.step(actions)
     vec.close()
+
+
+def test_the_cushions_materials_read_as_one_only_where_they_agree():
+    """``world.restitution(body, "walls")`` returned the left cushion's value alone, whatever
+    the other three had; a cushion's name as a body said 'body index 4 out of range'."""
+    scene = {"effects": ["rotation", "walls"], "table": {"size": [1.0, 1.0]},
+             "materials": {"restitution": 0.7}, "bodies": [DISK]}
+    world = physics.World(scene)
+    assert world.restitution("p", "walls").tolist() == [0.7]
+    world.set_material("p", "wall_left", restitution=0.1)
+    assert world.restitution("p", "wall_left").tolist() == [0.1]
+    with pytest.raises(SceneError, match="differ.*name one cushion"):
+        world.restitution("p", "walls")
+    with pytest.raises(SceneError, match="'wall_top' is a cushion, not a body"):
+        world.set_body("wall_top", mass=1.0)
