@@ -181,19 +181,8 @@ class WorldEdit:
         if inertia is not None and not w.rotation:
             raise SceneError(f"{name}.inertia: is set but the scene does not list the "
                              "'rotation' effect")
-        values = {}
-        for field, value, strict in (("mass", mass, True), ("radius", radius, True),
-                                     ("length", length, True), ("thickness", thickness, False),
-                                     ("inertia", inertia, True)):
-            if value is None:
-                continue
-            arr = as_batch(value, (self.n,), f"{name}.{field}")
-            if np.any(arr <= 0) if strict else np.any(arr < 0):
-                raise SceneError(f"{name}.{field}: must be {'>' if strict else '>='} 0 "
-                                 f"(got {arr.min()})")
-            if field in ("mass", "inertia"):
-                _invertible(arr, f"{name}.{field}")
-            values[field] = arr
+        values = self._body_values(name, mass=mass, radius=radius, length=length,
+                                   thickness=thickness, inertia=inertia)
         if not values:
             return
         m = self._rows_of("_mass")
@@ -215,6 +204,23 @@ class WorldEdit:
                 inert[:, i] = body_inertia(shape, m[:, i], r[:, i], h[:, i],
                                            w.scene.bodies[i].inertia)
             _invertible(inert[:, i], f"{name}.inertia (of this mass and size)")
+
+    def _body_values(self, name: str, **given: Any) -> dict[str, np.ndarray]:
+        """The given (not None) numeric parameters of body ``name`` as ``[n]`` arrays, checked:
+        > 0 (a thickness >= 0), and a mass or moment with a finite inverse."""
+        values = {}
+        for field, value in given.items():
+            if value is None:
+                continue
+            arr = as_batch(value, (self.n,), f"{name}.{field}")
+            strict = field != "thickness"
+            if np.any(arr <= 0) if strict else np.any(arr < 0):
+                raise SceneError(f"{name}.{field}: must be {'>' if strict else '>='} 0 "
+                                 f"(got {arr.min()})")
+            if field in ("mass", "inertia"):
+                _invertible(arr, f"{name}.{field}")
+            values[field] = arr
+        return values
 
     def set_material(self, a: str, b: str, *, restitution: Any = None,
                      friction: Any = None) -> None:
