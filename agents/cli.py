@@ -126,7 +126,7 @@ def cmd_train(args) -> int:
     _train_defaults(args)
     if args.env is not None:
         _check_env_id(args.env)
-    if not args.no_eval:
+    if not args.no_eval and args.eval_episodes is not None:
         _check_episodes("--eval-episodes", args.eval_episodes)
     if args.backend == "rllib":
         if args.imitate:
@@ -139,8 +139,11 @@ def cmd_train(args) -> int:
             result = train(args.algo, args.env, config=args.config, seed=args.seed,
                            timesteps=args.timesteps, out=args.out, n_envs=args.n_envs,
                            device=args.device, resume=args.resume, force=args.force,
-                           progress=not args.no_progress, evaluate=not args.no_eval,
-                           eval_episodes=args.eval_episodes, video=not args.no_video,
+                           progress=not args.no_progress,
+                           # a flag left out: a resumed run finishes as its record says
+                           evaluate=False if args.no_eval else None,
+                           eval_episodes=args.eval_episodes,
+                           video=False if args.no_video else None,
                            env_kwargs=_kwargs(args.env_kwargs),
                            torch_threads=args.torch_threads or None,
                            command="spinstrike " + shlex.join(sys.argv[1:]),
@@ -174,8 +177,8 @@ def _train_rllib(args) -> dict:
     return train_rllib(args.env, config=args.config, seed=args.seed, timesteps=args.timesteps,
                        out=args.out, n_envs=args.n_envs, num_env_runners=args.num_env_runners,
                        address=args.address, force=args.force, evaluate=not args.no_eval,
-                       eval_episodes=args.eval_episodes, video=not args.no_video,
-                       env_kwargs=_kwargs(args.env_kwargs),
+                       eval_episodes=50 if args.eval_episodes is None else args.eval_episodes,
+                       video=not args.no_video, env_kwargs=_kwargs(args.env_kwargs),
                        command="spinstrike " + shlex.join(sys.argv[1:]))
 
 
@@ -346,7 +349,9 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--torch-threads", type=int, default=1,
                    help="PyTorch CPU threads (default 1: fastest for small networks; 0 = torch's "
                         "default)")
-    t.add_argument("--eval-episodes", type=int, default=50)
+    t.add_argument("--eval-episodes", type=int, default=None,
+                   help="episodes of the final evaluation (default 50; a resumed run: its "
+                        "first command's)")
     t.add_argument("--no-eval", action="store_true")
     t.add_argument("--no-video", action="store_true")
     t.add_argument("--no-progress", action="store_true")

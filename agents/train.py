@@ -399,7 +399,8 @@ def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, epis
 
 
 def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, eval_freq,
-           eval_episodes_during, command, torch_threads, imitate=None) -> tuple[Any, float]:
+           eval_episodes_during, command, torch_threads, imitate=None,
+           finish=None) -> tuple[Any, float]:
     """Build (or resume) the model and train it to the budget; save it into ``work``."""
     from spinstrike.envs.warm import warm_up
 
@@ -427,7 +428,7 @@ def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, 
                     **_model_kwargs(cfg, env))
         meta = {"algo": algo, "env": cfg.env_id, "seed": seed, "source": cfg.source,
                 "versions": _versions(), "torch_threads": torch.get_num_threads(),
-                "hyperparameters": cfg.as_yaml_dict()}
+                "hyperparameters": cfg.as_yaml_dict(), "finish": finish}
         (work / "command.txt").write_text((command or shlex.join(sys.argv)) + "\n")
         if imitate:
             from spinstrike.agents.imitate import dagger
@@ -544,8 +545,9 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
           seed: int | None = None,
           timesteps: int | None = None, out: str | Path | None = None,
           n_envs: int | None = None, device: str = "cpu", resume: bool = False,
-          force: bool = False, progress: bool = True, evaluate: bool = True,
-          eval_episodes: int = 50, video: bool = True, env_kwargs: dict | None = None,
+          force: bool = False, progress: bool = True, evaluate: bool | None = None,
+          eval_episodes: int | None = None, video: bool | None = None,
+          env_kwargs: dict | None = None,
           eval_freq: int | None = None, eval_episodes_during: int = 10,
           torch_threads: int | None = 1, command: str | None = None,
           imitate: str | None = None, imitate_rounds: int = 20,
@@ -565,7 +567,9 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
             None (or repeat the record; anything else is refused), ``timesteps`` sets a new
             budget (recorded in ``config.yml``).
         force: replace an existing run directory.
-        evaluate, video: after training, evaluate against random and oracle, record an mp4.
+        evaluate, eval_episodes, video: after training, evaluate against random and oracle
+            over ``eval_episodes`` (default True, 50), record an mp4 (default True); a resumed
+            run finishes as its first command asked (``config.yml``'s ``finish``) unless given.
         eval_freq, eval_episodes_during: the learning curve's evaluations (default: 10 evenly
             spaced, of 10 episodes each).
         torch_threads: PyTorch CPU threads (1 is fastest for these small networks, and leaves
@@ -593,6 +597,16 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
                  "--env-kwargs": env_kwargs, "--imitate": imitate}
         algo, cfg, seed = _recorded_run(work, given, config, timesteps)
         env_id = cfg.env_id
+        done = _latest_checkpoint(work)
+        done = _checkpoint_steps(done) if done is not None else 0
+        if timesteps is not None and timesteps <= done:
+            raise AgentConfigError(f"timesteps: {work} has trained {done} steps; a new budget "
+                                   f"must exceed them (got {timesteps})")
+        recorded = (yaml.safe_load((work / "config.yml").read_text()) or {}).get("finish", {})
+        evaluate = recorded.get("evaluate", True) if evaluate is None else evaluate
+        eval_episodes = recorded.get("eval_episodes", 50) if eval_episodes is None \
+            else eval_episodes
+        video = recorded.get("video", True) if video is None else video
     else:
         if algo is None or env_id is None:
             raise AgentConfigError("algo, env: a new run needs both")
@@ -610,9 +624,14 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
             from spinstrike.envs.config import resolve_scene
 
             cfg.env_kwargs["scene"] = resolve_scene(cfg.env_kwargs["scene"])
+        evaluate = True if evaluate is None else evaluate
+        eval_episodes = 50 if eval_episodes is None else eval_episodes
+        video = True if video is None else video
         work = _work_dir(run_dir, resume, force)
+    finish = {"evaluate": evaluate, "eval_episodes": eval_episodes, "video": video}
     from spinstrike.agents.imitate import _sigterm_exits
 
+    start = time.time()
     try:
         # SIGTERM (a scheduler's kill) as Ctrl-C: the logs are flushed, the message below says
         # how to go on, and DAgger's workers are stopped (by default it ends the process at once)
@@ -620,13 +639,17 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
             model, wall = _learn(algo, cfg, work, seed=seed, device=device, resume=resume,
                                  progress=progress, eval_freq=eval_freq,
                                  eval_episodes_during=eval_episodes_during, command=command,
-                                 torch_threads=torch_threads, imitate=imitation)
+                                 torch_threads=torch_threads, imitate=imitation,
+                                 finish=finish)
         if work != run_dir:
             if run_dir.exists():
                 shutil.rmtree(run_dir)
             work.rename(run_dir)
     except (KeyboardInterrupt, SystemExit):  # Ctrl-C; SIGTERM (imitate._sigterm_exits)
-        if resume or _latest_checkpoint(work) is not None:
+        last = _latest_checkpoint(work)
+        if resume or last is not None:
+            _record_segment(work, _checkpoint_steps(last) if last is not None else 0,
+                            time.time() - start, interrupted=True)
             print(f"interrupted: continue with --resume --out {run_dir}", file=sys.stderr)
         else:  # e.g. during --imitate's DAgger rounds, before PPO's first checkpoint
             print(f"interrupted before the first checkpoint: nothing to resume ({work} keeps "
@@ -639,10 +662,8 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
         raise
     result = TrainResult(run_dir=str(run_dir), env=env_id, timesteps=int(model.num_timesteps),
                          wall_time=wall)
-    meta = yaml.safe_load((run_dir / "config.yml").read_text())
-    meta.setdefault("runs", []).append({"timesteps": int(model.num_timesteps),
-                                        "wall_time_s": round(wall, 2)})
-    (run_dir / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
+    runs = _record_segment(run_dir, int(model.num_timesteps), wall)
+    total = sum(r["wall_time_s"] for r in runs)
     policy = None
     if evaluate or video:
         from spinstrike.agents.evaluate import load_model_policy
@@ -650,8 +671,25 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
         policy, _ = load_model_policy(run_dir)
     return finish_run(result, policy, env_id, run_dir,
                       cfg.env_kwargs, f"## {algo.upper()} on {env_id} (seed {seed}, "
-                      f"{model.num_timesteps} steps, {wall:.0f} s)",
+                      f"{model.num_timesteps} steps, {total:.0f} s"
+                      f"{f' in {len(runs)} sessions' if len(runs) > 1 else ''})",
                       evaluate=evaluate, eval_episodes=eval_episodes, video=video)
+
+
+def _record_segment(run_dir: Path, timesteps: int, wall: float,
+                    interrupted: bool = False) -> list[dict]:
+    """Add one stretch of training (to ``timesteps``, ``wall`` s) to ``config.yml``'s ``runs``
+    (an interrupted one is marked, and counted in the run's wall time); returns them all."""
+    path = run_dir / "config.yml"
+    if not path.is_file():  # stopped before the run was set up
+        return []
+    meta = yaml.safe_load(path.read_text())
+    entry = {"timesteps": timesteps, "wall_time_s": round(wall, 2)}
+    if interrupted:
+        entry["interrupted"] = True
+    meta.setdefault("runs", []).append(entry)
+    path.write_text(yaml.safe_dump(meta, sort_keys=False))
+    return meta["runs"]
 
 
 def finish_run(result: TrainResult, policy, env_id: str, run_dir: Path, env_kwargs: dict,

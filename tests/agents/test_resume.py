@@ -160,3 +160,31 @@ def test_ctrl_c_ends_with_the_resume_hint_and_no_traceback(tmp_path):
     err = signal_after_checkpoint(args, tmp_path, signal.SIGINT, tmp_path / "run")
     assert f"interrupted: continue with --resume --out {tmp_path / 'run'}" in err
     assert "Traceback" not in err and "Exception ignored" not in err, err
+
+
+def test_a_resumed_run_finishes_as_its_first_command_asked_and_counts_all_its_time(
+        tmp_path, monkeypatch, capsys):
+    """``--resume`` dropped the first command's ``--no-video`` and ``--eval-episodes`` (it filmed
+    and evaluated 50 episodes), its summary showed the last stretch's time only, and a budget
+    below the steps already trained was taken (and nothing trained)."""
+    import json
+
+    run = tmp_path / "run"
+    args = ["train", "--algo", "ppo", "--env", "SpinStrike/RodSpin-v0", "--timesteps", "1024",
+            "--n-envs", "2", "--no-progress", "--no-video", "--eval-episodes", "3", "--out",
+            str(run)]
+    with ctrl_c_after(monkeypatch, 600), contextlib.suppress(KeyboardInterrupt):
+        assert main(args) == 130
+    meta = yaml.safe_load((tmp_path / "run.partial" / "config.yml").read_text())
+    assert meta["finish"] == {"evaluate": True, "eval_episodes": 3, "video": False}
+    [stopped] = meta["runs"]
+    assert stopped["interrupted"] is True and stopped["wall_time_s"] > 0
+    capsys.readouterr()
+    assert main(["train", "--resume", "--out", str(run), "--timesteps", "256"]) == 2
+    assert "has trained 512 steps; a new budget must exceed them" in capsys.readouterr().err
+    assert main(["train", "--resume", "--out", str(run), "--no-progress"]) == 0
+    assert not list(run.glob("*.mp4"))
+    assert [r["episodes"] for r in json.loads((run / "summary.json").read_text())] == [3] * 3
+    runs = yaml.safe_load((run / "config.yml").read_text())["runs"]
+    total = sum(r["wall_time_s"] for r in runs)
+    assert len(runs) == 2 and f"{total:.0f} s in 2 sessions" in (run / "summary.md").read_text()
