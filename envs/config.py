@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import copy
 import os
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Annotated, Any, ClassVar, Literal
 
@@ -246,6 +246,10 @@ GYM_ARGUMENTS = ("render_mode", "max_episode_steps")
 
 def parse_config(model: type[EnvConfig], config: dict | None, kwargs: dict) -> EnvConfig:
     """Merge a ``config`` dict and keyword arguments (keywords win) and validate them."""
+    if config is not None and not isinstance(config, Mapping):
+        raise ConfigError(f"config: must be a mapping of arguments (got {config!r} of type "
+                          f"{type(config).__name__}) [allowed arguments: "
+                          f"{', '.join(sorted(model.model_fields))}]")
     merged = dict(config or {})
     for key in GYM_ARGUMENTS:
         if key in merged:

@@ -292,8 +292,8 @@ class SpinStrikeEnv(gym.Env):
             raise ConfigError(f"render_mode: must be one of {self.metadata['render_modes']} or "
                               f"None (got {render_mode!r})")
         self.render_mode = render_mode
-        self._config = dict(config or {}) | kwargs
         self.cfg = parse_config(self.TASK.CONFIG, config, kwargs)
+        self._config = dict(config or {}) | kwargs
         if "scene" in self._config:  # a scene file as read (config.resolve_scene), for pickles
             self._config["scene"] = self.cfg.scene
         self.task = self.TASK(self.cfg, 1, single=True)
@@ -316,7 +316,8 @@ class SpinStrikeEnv(gym.Env):
     def __getstate__(self) -> dict:
         return {"render_mode": self.render_mode, "config": self._config,
                 "physics": self.get_physics_state(), "stream": self._stream,
-                "np_random": self._np_random, "stream_seeded": self._stream_seeded,
+                "np_random": self._np_random, "np_random_seed": self._np_random_seed,
+                "stream_seeded": self._stream_seeded,
                 "started": self._started, "ended": self._ended}
 
     def __setstate__(self, state: dict) -> None:
@@ -324,6 +325,7 @@ class SpinStrikeEnv(gym.Env):
         self.set_physics_state(state["physics"])
         self._stream = state["stream"]
         self._np_random = state["np_random"]
+        self._np_random_seed = state.get("np_random_seed")
         self._stream_seeded = state["stream_seeded"]
         self._started = state["started"]
         self._ended = state.get("ended", False)
@@ -495,11 +497,18 @@ class SpinStrikeVectorEnv(VectorEnv):
         #: elements whose episode ended at the last step (NEXT_STEP: reset at the next one)
         self._done = np.zeros(self.num_envs, dtype=bool)
         self._everyone = np.ones(self.num_envs, dtype=bool)
+        self._seeds: list[int | None] = [None] * self.num_envs
         self._started = False
 
     @property
     def world(self):
         return self.task.world
+
+    @property
+    def np_random_seed(self) -> tuple[int, ...]:
+        """Each element's seed, as ``SyncVectorEnv`` reports its envs' (``reset(seed=4)``:
+        4, 5, 6, ...); -1 for an element never seeded."""
+        return tuple(-1 if s is None else s for s in self._seeds)
 
     def reset(self, *, seed: int | list | None = None, options: dict | None = None):
         n = self.num_envs
@@ -514,6 +523,8 @@ class SpinStrikeVectorEnv(VectorEnv):
             chosen = [i for i in range(n) if seeds[i] is not None
                       and (mask is None or mask[i])]
             self._stream.seed([seeds[i] for i in chosen], np.asarray(chosen, dtype=np.int64))
+            for i in chosen:
+                self._seeds[i] = seeds[i]
         self._np_random = self._stream.generators[0]
         env = np.arange(n) if mask is None else np.flatnonzero(mask)
         info = self.task.reset(env, self._stream.draw(env))

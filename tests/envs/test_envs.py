@@ -308,6 +308,27 @@ def test_a_copied_native_vector_env_steps_as_the_original(env_id, how):
     clone.close()
 
 
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_np_random_seed_reads_as_gymnasiums_envs_and_survives_a_copy(env_id):
+    """The native vector env reported a random 39-digit number after ``reset(seed=4)`` where
+    ``SyncVectorEnv`` reports (4, 5, 6); a copied single env lost its seed the same way."""
+    import copy
+
+    native = gym.make_vec(env_id, num_envs=3)
+    sync = gym.make_vec(env_id, num_envs=3, vectorization_mode="sync")
+    for seed in (4, [None, 7, None]):
+        native.reset(seed=seed)
+        sync.reset(seed=seed)
+        assert native.np_random_seed == sync.np_random_seed
+    assert pickle.loads(pickle.dumps(native)).np_random_seed == (4, 7, 6)
+    env = gym.make(env_id)
+    env.reset(seed=4)
+    assert copy.deepcopy(env).np_random_seed == 4
+    assert pickle.loads(pickle.dumps(env.unwrapped)).np_random_seed == 4
+    native.close()
+    sync.close()
+
+
 #: a range for every parameter each env can randomise (masses log-uniform, the rest uniform)
 RANGES = {"striker_mass": [0.05, 0.5], "mallet_mass": [0.05, 0.5], "target_mass": [0.05, 0.5],
           "restitution": [0.5, 1.0], "rod_length": [0.2, 0.8], "friction": [0.0, 0.4],

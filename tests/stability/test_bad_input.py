@@ -216,6 +216,7 @@ BAD_KWARGS = [
     ("SpinStrike/RodSpinControl-v0", {"max_force": -1.0}, "max_force"),
     ("SpinStrike/PuckSpeedControl-v0", {"effects": ["rotation"]}, "needs the 'walls' effect"),
     ("SpinStrike/PuckSpeedControl-v0", {"config": {"mallet_mass": math.nan}}, "mallet_mass"),
+    ("SpinStrike/RodSpin-v0", {"config": [1]}, "config: must be a mapping"),  # was a TypeError
 ]
 
 
