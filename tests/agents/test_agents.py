@@ -64,6 +64,17 @@ def test_the_cli_trains_on_dict_and_pixel_observations(kwargs, policy, tmp_path,
     assert main(["evaluate", str(run), "--episodes", "2", "--no-save"]) == 0
 
 
+def test_a_short_ppo_run_evaluates_no_policy_more_than_twice(tmp_path):
+    """The learning curve's interval came from the budget alone: a 64-step smoke run (one
+    rollout of 512 steps on a control env) evaluated the same policy 85 times (50 s)."""
+    run = tmp_path / "run"
+    assert main(["train", "--algo", "ppo", "--env", "SpinStrike/RodSpinControl-v0",
+                 "--timesteps", "64", "--n-envs", "2", "--out", str(run), "--no-video",
+                 "--no-eval", "--no-progress"]) == 0
+    steps = np.load(run / "evaluations.npz")["timesteps"]
+    assert steps.tolist() == [256, 512]  # n_steps 256 x 2 envs: one rollout, half-way too
+
+
 def test_a_run_closes_its_logs_finished_or_interrupted(tmp_path, monkeypatch):
     """``spinstrike train`` closes progress.csv and the TensorBoard events itself, when the run
     finishes and when Ctrl-C stops it. SB3 leaves its logger's files to the garbage collector:
