@@ -22,6 +22,7 @@ from spinstrike.physics.scene import (
     Integer,
     Number,
     Scene,
+    is_path,
     join_by_field,
     packaged_scene,
     read_scene,
@@ -280,7 +281,7 @@ def resolve_scene(source: Any) -> Any:
     ``config.yml`` hold the scene itself, not a path relative to where it was given, and a later
     edit of the file changes no env made from it. Names, YAML text and dicts stay as given."""
     if isinstance(source, os.PathLike) or (isinstance(source, str) and "\n" not in source
-                                           and Path(source).is_file()):
+                                           and is_path(Path(source), "is_file")):
         return read_scene(source)
     return source
 

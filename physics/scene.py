@@ -522,9 +522,9 @@ def read_scene(source: str | Path) -> Any:
     text = source_text = str(source)
     path = Path(text)
     if isinstance(source, Path) or "\n" not in text and (
-            path.suffix.lower() in (".yaml", ".yml") or path.exists()):
-        if not path.is_file():
-            problem = "is not a file" if path.exists() else "does not exist"
+            path.suffix.lower() in (".yaml", ".yml") or is_path(path, "exists")):
+        if not is_path(path, "is_file"):
+            problem = "is not a file" if is_path(path, "exists") else "does not exist"
             raise SceneError(f"scene: {text!r} {problem} (relative paths start at "
                              f"{str(Path.cwd())!r}; a packaged scene loads by its name from "
                              f"anywhere: {packaged_scenes()})")
@@ -541,6 +541,15 @@ def read_scene(source: str | Path) -> Any:
                          f"of a scene (relative paths start at {str(Path.cwd())!r}; packaged: "
                          f"{packaged_scenes()})")
     return data
+
+
+def is_path(path: Path, test: str) -> bool:
+    """``path.exists()`` / ``path.is_file()`` (``test``), False where the OS refuses the name:
+    a one-line YAML scene longer than a file name may be (255 bytes) raised ENAMETOOLONG."""
+    try:
+        return getattr(path, test)()
+    except OSError:
+        return False
 
 
 def load_scene(source: str | Path | dict[str, Any] | Scene) -> Scene:

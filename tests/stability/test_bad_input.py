@@ -8,6 +8,7 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
+import yaml
 
 from spinstrike import envs, physics
 from spinstrike.envs import ConfigError
@@ -96,6 +97,22 @@ def test_a_mistyped_scene_path_or_name_says_so(tmp_path, monkeypatch, source):
         with pytest.raises(SceneError, match="does not exist|is neither a file") as info:
             physics.load_scene(given)
         assert "rod_spin" in str(info.value)  # the packaged scenes are listed
+
+
+def test_a_one_line_yaml_scene_longer_than_a_file_name_loads():
+    """Read as a possible path first, a one-line YAML scene over 255 bytes raised
+    ``OSError: File name too long`` (in ``load_scene`` and in an env's ``scene=``)."""
+    bodies = ", ".join(f"{{name: p{i}, shape: disk, radius: 0.01, mass: 1, position: [{i}, 0]}}"
+                       for i in range(6))
+    text = f"{{effects: [rotation], bodies: [{bodies}]}}"
+    assert len(text) > 300 and "\n" not in text
+    assert len(physics.load_scene(text).bodies) == 6
+    scene = envs.config.load_packaged_scene("rod_spin")
+    yaml_text = yaml.safe_dump(scene, default_flow_style=True, width=10**6).strip()
+    yaml_text = yaml_text.replace(", ", ",    ")  # the same YAML, over 255 bytes
+    assert "\n" not in yaml_text and len(yaml_text) > 255
+    env = gym.make("SpinStrike/RodSpin-v0", scene=yaml_text)
+    env.reset(seed=0)
 
 
 def test_a_scene_names_its_solver_by_mode_as_world_does():
