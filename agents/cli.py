@@ -320,6 +320,23 @@ def cmd_baselines(args) -> int:
     return int(baselines_main(args.rest) or 0)
 
 
+def _step_count(text: str) -> int:
+    """A number of steps: an integer, or a whole number written as a float (``2e6``, as the
+    hyperparameter files' ``n_timesteps`` may be)."""
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number of steps (got {text!r})") \
+            from None
+    if not value.is_integer():
+        raise argparse.ArgumentTypeError(f"must be a whole number of steps (got {text!r})")
+    return int(value)
+
+
 def build_parser() -> argparse.ArgumentParser:
     from spinstrike.agents.config import ALGOS
 
@@ -332,8 +349,9 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--env", help=f"default {DEFAULT_ENV} (resuming: the run's)")
     t.add_argument("--config", help="hyperparameter YAML (default: configs/agents/<algo>.yml)")
     t.add_argument("--seed", type=int, help="default 0 (resuming: the run's)")
-    t.add_argument("--timesteps", type=int, help="override n_timesteps (resuming: a new budget "
-                   "for the run, recorded in its config.yml)")
+    t.add_argument("--timesteps", type=_step_count, help="override n_timesteps, e.g. 2e6 as "
+                   "in an rl-zoo3 file (resuming: a new budget for the run, recorded in its "
+                   "config.yml)")
     t.add_argument("--n-envs", type=int, help="override n_envs")
     t.add_argument("--env-kwargs",
                    help="env constructor arguments as YAML, e.g. '{restitution: 0.8}'")

@@ -238,7 +238,8 @@ def test_bad_input_is_one_error_line_and_writes_nothing(build, words, sandbox, c
     (["train", "--algo", "dqn"], "--algo", "'dqn'"),
     (["bench", "nope"], "which", "'nope'"),
     (["evaluate", "--episodes", "many"], "--episodes", "'many'"),
-], ids=["algo-not-in-list", "bench-unknown", "episodes-not-an-int"])
+    (["train", "--timesteps", "100.5"], "--timesteps", "'100.5'"),
+], ids=["algo-not-in-list", "bench-unknown", "episodes-not-an-int", "timesteps-not-whole"])
 def test_argparse_rejects_choices_with_status_2(argv, argument, value, sandbox, capsys):
     with pytest.raises(SystemExit) as exc:
         main(argv)
@@ -248,6 +249,16 @@ def test_argparse_rejects_choices_with_status_2(argv, argument, value, sandbox, 
     assert f"argument {argument}:" in line and value in line, err
     assert "Traceback" not in err
     assert not any(sandbox.iterdir())
+
+
+def test_the_command_line_takes_a_budget_as_the_hyperparameter_files_write_it():
+    """``--timesteps 1e3`` was refused on the command line while a file's ``1e6`` is read."""
+    from spinstrike.agents.cli import build_parser
+
+    for text, steps in (("1e3", 1000), ("2.5e4", 25000), ("512", 512)):
+        args = build_parser().parse_args(["train", "--algo", "ppo", "--env", ENV,
+                                          "--timesteps", text])
+        assert args.timesteps == steps and isinstance(args.timesteps, int)
 
 
 def test_yaml_1e6_is_accepted_as_an_integer_budget(tmp_path):
