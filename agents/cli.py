@@ -77,8 +77,14 @@ def _policy(args):
             policy, meta = load_rllib_policy(run)
             env_kwargs = meta["hyperparameters"][meta["env"]].get("env_kwargs", {})
             return policy, meta["env"], env_kwargs, "agent"
-        if not (run / "model.zip").is_file() or not (run / "config.yml").is_file():
-            raise AgentConfigError(f"run_dir: {run} has no model.zip/config.yml (not a run)")
+        missing = [f for f in ("model.zip", "config.yml") if not (run / f).is_file()]
+        if missing == ["model.zip"] and list((run / "checkpoints").glob("model_*_steps.zip")):
+            out = run.with_name(run.name.removesuffix(".partial"))
+            raise AgentConfigError(f"run_dir: {run} is an interrupted run (checkpoints, no "
+                                   f"model.zip yet): `spinstrike train --resume --out {out}` "
+                                   f"finishes it")
+        if missing:
+            raise AgentConfigError(f"run_dir: {run} has no {' or '.join(missing)} (not a run)")
         policy, meta = load_model_policy(run)
         env_kwargs = meta["hyperparameters"][meta["env"]].get("env_kwargs", {})
         return policy, meta["env"], env_kwargs, "agent"

@@ -48,6 +48,16 @@ def _fake_run(tmp: Path, name: str, config_text: str | None = None,
     return str(run)
 
 
+def _interrupted(tmp: Path) -> str:
+    """What an interrupted ``spinstrike train`` leaves (in ``RUN.partial``): config.yml and
+    checkpoints but no model.zip (written by hand)."""
+    run = Path(_fake_run(tmp, "stopped"))
+    (run / "model.zip").unlink()
+    (run / "checkpoints").mkdir()
+    (run / "checkpoints" / "model_256_steps.zip").write_bytes(b"not a zip")
+    return str(run)
+
+
 # each case: (id, build(tmp) -> argv, words the error line must contain)
 CASES = [
     ("config-is-a-directory",
@@ -202,6 +212,9 @@ CASES = [
                                                            "n_timesteps": 64}),
                 "--env-kwargs", "{obs_mode: pixels}"],
      ["policy: MultiInputPolicy cannot take pixels observations", "use CnnPolicy"]),
+    ("evaluate-an-interrupted-run",
+     lambda t: ["evaluate", _interrupted(t)],
+     ["is an interrupted run", "spinstrike train --resume --out", "/stopped`"]),
     ("record-size-too-small",
      lambda t: ["record", "--oracle", "--env", ENV, "--size", "8x8", "--out",
                 str(t / "sub" / "v.gif")],
