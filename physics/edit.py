@@ -33,8 +33,6 @@ from spinstrike.physics.kernels import element_overlap
 from spinstrike.physics.layout import (
     ANGLE,
     FRICTION,
-    INV_INERTIA,
-    INV_MASS,
     OMEGA,
     RESTITUTION,
     VX,
@@ -42,7 +40,7 @@ from spinstrike.physics.layout import (
     X,
     Y,
 )
-from spinstrike.physics.scene import SceneError, body_inertia
+from spinstrike.physics.scene import SceneError, body_inertia, invertible
 
 if TYPE_CHECKING:
     from spinstrike.physics.world import World
@@ -77,11 +75,9 @@ def as_batch(value: Any, shape: tuple[int, ...], field: str,
 
 
 def _invertible(arr: np.ndarray, field: str) -> None:
-    """Raise unless every value and its inverse are finite and nonzero: a mass or moment of
-    inertia the impulses divide by (1e-320 kg has an infinite inverse)."""
-    with np.errstate(divide="ignore", over="ignore"):
-        inverse = 1.0 / arr
-    if not (np.all(np.isfinite(arr)) and np.all(np.isfinite(inverse)) and np.all(inverse > 0)):
+    """Raise unless every value is :func:`~physics.scene.invertible` (a mass or moment of
+    inertia the impulses divide by: 1e-320 kg has an infinite inverse)."""
+    if not invertible(arr).all():
         raise SceneError(f"{field}: too small or large for float64 (got {arr.min():g}.."
                          f"{arr.max():g}): its inverse, which the impulses use, is not a finite "
                          f"nonzero number")
@@ -392,83 +388,82 @@ class WorldEdit:
                          f"touching is allowed, overlap beyond the tolerance is not{kept}")
 
 
-def check_snapshot(w: World, a: dict[str, np.ndarray], params: np.ndarray | None) -> None:
+def check_snapshot(w: World, a: dict[str, np.ndarray]) -> None:
     """Raise :class:`SceneError` naming the field and body if the rows of a snapshot that
-    ``restore`` is about to write (``a``: private array name -> rows) hold what no edit of this
-    world could make: fixed bodies off their pins or moving, spin without ``rotation``, forces on
-    bodies that are not driven, parameters out of range or of another shape of body, friction of
-    an effect the scene does not list. Geometry is checked on the exact solver only, whose states
-    never overlap; a fixed or pymunk snapshot may hold the overlap an impact left."""
-    names = [str(n) for n in w.names[:w.n_bodies]]
-
-    def fail(field: str, bodies: np.ndarray, what: str) -> None:
-        where = f" ({[names[i] for i in np.flatnonzero(bodies)]})" if bodies is not None else ""
-        raise SceneError(f"snapshot.{field}{where}: {what}")
-
-    def any_rows(bad: np.ndarray) -> np.ndarray:  # [n, N] -> [N]
-        return bad.reshape(-1, bad.shape[-1]).any(axis=0)
-
-    disk = np.array([shape == "disk" for shape in w.shapes[:w.n_bodies]])
+    ``restore`` is about to write (``a``: private array name -> rows; the parameters too, if it
+    has them) hold what no edit of this world could make: fixed bodies off their pins or moving,
+    spin without ``rotation``, forces on bodies that are not driven, parameters out of range or
+    of another shape of body, friction of an effect the scene does not list. (Geometry is
+    ``restore``'s to check, on the exact solver only, whose states never overlap; a fixed or
+    pymunk snapshot may hold the overlap an impact left.)"""
     s = a.get("_state")
     if s is not None:
         fixed, static = np.asarray(w._fixed), np.asarray(w.static)
-        off = any_rows(np.any(s[..., X:Y + 1] != w._initial[:, X:Y + 1], axis=-1)) & fixed
+        off = _any_element(np.any(s[..., X:Y + 1] != w._initial[:, X:Y + 1], axis=-1)) & fixed
         if off.any():
-            fail("state", off, "static bodies and pivots stay at their pins (the scene's "
-                               "positions)")
-        moving = any_rows(np.any(s[..., VX:VY + 1] != 0, axis=-1)) & fixed
+            _snapshot_error(w, "state", off, "static bodies and pivots stay at their pins (the "
+                                              "scene's positions)")
+        moving = _any_element(np.any(s[..., VX:VY + 1] != 0, axis=-1)) & fixed
         if moving.any():
-            fail("state", moving, "static bodies and pivots have zero velocity")
-        turned = any_rows((s[..., ANGLE] != w._initial[:, ANGLE]) | (s[..., OMEGA] != 0)) & static
-        if turned.any():
-            fail("state", turned, "a static body neither turns nor spins")
+            _snapshot_error(w, "state", moving, "static bodies and pivots have zero velocity")
+        turned = _any_element((s[..., ANGLE] != w._initial[:, ANGLE]) | (s[..., OMEGA] != 0))
+        if (turned & static).any():
+            _snapshot_error(w, "state", turned & static, "a static body neither turns nor spins")
         if not w.rotation and np.any(s[..., OMEGA] != 0):
-            fail("state", any_rows(s[..., OMEGA] != 0),
-                 "spin, but the scene does not list the 'rotation' effect")
+            _snapshot_error(w, "state", _any_element(s[..., OMEGA] != 0),
+                            "spin, but the scene does not list the 'rotation' effect")
     f = a.get("_forces")
     if f is not None:
-        pushed = any_rows(np.any(f != 0, axis=-1)) & ~np.asarray(w.driven)
+        pushed = _any_element(np.any(f != 0, axis=-1)) & ~np.asarray(w.driven)
         if pushed.any():
-            fail("forces", pushed, "only bodies marked 'driven: true' take forces")
-    if params is not None:
-        _check_snapshot_parameters(w, a, params, disk, fail, any_rows)
+            _snapshot_error(w, "forces", pushed, "only bodies marked 'driven: true' take forces")
+    if "_mass" in a:
+        _check_snapshot_parameters(w, a)
 
 
-def _check_snapshot_parameters(w: World, a: dict[str, np.ndarray], params: np.ndarray,
-                               disk: np.ndarray, fail, any_rows) -> None:
+def _check_snapshot_parameters(w: World, a: dict[str, np.ndarray]) -> None:
     """:func:`check_snapshot`'s parameters."""
     dynamic = ~np.asarray(w.static)
+    disk = np.array([shape == "disk" for shape in w.shapes[:w.n_bodies]])
     checks = [
-        ("mass", any_rows(~(a["_mass"] > 0) | ~np.isfinite(a["_mass"])
-                          | ~np.isfinite(params[..., INV_MASS])) & dynamic,
+        ("mass", _any_element(~invertible(a["_mass"])) & dynamic,
          "must be a finite number > 0 kg, with a finite inverse (inf: make the body static)"),
-        ("inertia", any_rows(~(a["_inertia"] > 0) | ~np.isfinite(a["_inertia"])
-                             | ~np.isfinite(params[..., INV_INERTIA])) & dynamic,
+        ("inertia", _any_element(~invertible(a["_inertia"])) & dynamic,
          "must be a finite number > 0 kg m^2, with a finite inverse"),
-        ("radius", any_rows(~(a["_radius"] > 0)) & disk,
+        ("radius", _any_element(~(a["_radius"] > 0)) & disk,
          "a disk's radius must be > 0 m"),
-        ("radius", any_rows(~(a["_radius"] >= 0)) & ~disk,
+        ("radius", _any_element(~(a["_radius"] >= 0)) & ~disk,
          "a rod's half thickness must be >= 0 m"),
-        ("half_length", any_rows(a["_half_length"] != 0) & disk,
+        ("half_length", _any_element(a["_half_length"] != 0) & disk,
          "a disk has no length (is this another scene's snapshot?)"),
-        ("half_length", any_rows(~(a["_half_length"] > 0)) & ~disk,
+        ("half_length", _any_element(~(a["_half_length"] > 0)) & ~disk,
          "a rod's half length must be > 0 m"),
     ]
     for field, bad, what in checks:
         if bad.any():
-            fail(field, bad, what)
+            _snapshot_error(w, field, bad, what)
     mu = a["_table_mu"]
     if np.any(mu < 0) or (not w.table_friction and np.any(mu != 0)):
-        fail("table_friction", None, "must be >= 0, and 0 unless the scene lists the "
-                                     "'table_friction' effect")
+        _snapshot_error(w, "table_friction", None, "must be >= 0, and 0 unless the scene lists "
+                                                   "the 'table_friction' effect")
     if np.any(~(a["_half"] > 0)):
-        fail("table_half_size", None, "must be > 0 m (inf: an unbounded table)")
+        _snapshot_error(w, "table_half_size", None, "must be > 0 m (inf: an unbounded table)")
     m = a["_materials"]
     if np.any((m[..., RESTITUTION] < 0) | (m[..., RESTITUTION] > 1)):
-        fail("materials", None, "restitution must lie in [0, 1]")
+        _snapshot_error(w, "materials", None, "restitution must lie in [0, 1]")
     if np.any(m[..., FRICTION] < 0) or (not w.contact_friction and np.any(m[..., FRICTION] != 0)):
-        fail("materials", None, "friction must be >= 0, and 0 unless the scene lists the "
-                                "'contact_friction' effect")
+        _snapshot_error(w, "materials", None, "friction must be >= 0, and 0 unless the scene "
+                                              "lists the 'contact_friction' effect")
+
+
+def _any_element(bad: np.ndarray) -> np.ndarray:
+    """``[n, N]`` -> ``[N]``: the bodies for which any selected element is ``bad``."""
+    return bad.reshape(-1, bad.shape[-1]).any(axis=0)
+
+
+def _snapshot_error(w: World, field: str, bodies: np.ndarray | None, what: str) -> None:
+    where = "" if bodies is None else f" ({[str(w.names[i]) for i in np.flatnonzero(bodies)]})"
+    raise SceneError(f"snapshot.{field}{where}: {what}")
 
 
 @jit

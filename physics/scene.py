@@ -276,14 +276,14 @@ class Body(_Model):
                      "a static body must have zero velocity and omega")
         else:
             _require(self.mass is not None, "mass", "required for a non-static body, > 0 (kg)")
-            _require(_invertible(self.mass), "mass",
+            _require(invertible(self.mass), "mass",
                      f"{self.mass:g} kg is too small or large for float64: its inverse, which "
                      f"the impulses use, is not a finite nonzero number")
             try:
                 moment = self.moment
             except OverflowError:
                 moment = math.inf
-            _require(_invertible(moment), "inertia",
+            _require(invertible(moment), "inertia",
                      f"the moment of inertia of this mass and size ({moment:g} kg m^2) is too "
                      f"small or large for float64: its inverse is not a finite nonzero number")
         if self.pivot:
@@ -309,10 +309,15 @@ class Body(_Model):
                             self.inertia)
 
 
-def _invertible(x: float) -> bool:
-    """``x`` and ``1 / x`` are both finite and nonzero (a mass or moment the impulses divide by:
-    1e-310 kg has an infinite inverse)."""
-    return math.isfinite(x) and x > 0.0 and math.isfinite(1.0 / x) and 1.0 / x > 0.0
+def invertible(x: Any) -> Any:
+    """Elementwise: ``x`` is a finite number > 0 whose inverse is finite and nonzero too (a
+    mass or moment of inertia the impulses divide by: 1e-310 kg has an infinite inverse).
+    A bool for a scalar, a boolean array for an array."""
+    x = np.asarray(x, dtype=float)
+    with np.errstate(divide="ignore", over="ignore"):
+        inverse = 1.0 / x
+    ok = np.isfinite(x) & (x > 0.0) & np.isfinite(inverse) & (inverse > 0.0)
+    return bool(ok) if ok.ndim == 0 else ok
 
 
 def body_inertia(shape: str, mass, radius, half_length, override=None):

@@ -664,13 +664,11 @@ class World:
                 # parameters may be inf (a static body's mass, an unbounded table)
                 raise SceneError(f"snapshot: {key} must be numbers, not NaN")
             arrays[name] = value[rows]
+        check_snapshot(self, arrays)
         params = None
         if with_params:
-            with np.errstate(over="ignore"):
-                params = self._derive_params(arrays["_mass"], arrays["_inertia"],
-                                             arrays["_radius"], arrays["_half_length"],
-                                             arrays["_table_mu"])
-        check_snapshot(self, arrays, params)
+            params = self._derive_params(arrays["_mass"], arrays["_inertia"], arrays["_radius"],
+                                         arrays["_half_length"], arrays["_table_mu"])
         if isinstance(self.solver, ExactSolver) and len(self._pair_a):
             pm = self._params[rows] if params is None else params
             half = arrays.get("_half", self._half[rows])
