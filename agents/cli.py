@@ -179,11 +179,13 @@ def _train_rllib(args) -> dict:
     if args.num_env_runners < 0:
         raise AgentConfigError(f"--num-env-runners: must be >= 0 (got {args.num_env_runners})")
     from spinstrike.agents.rllib_train import train_rllib
+    from spinstrike.agents.train import FINISH
 
     return train_rllib(args.env, config=args.config, seed=args.seed, timesteps=args.timesteps,
                        out=args.out, n_envs=args.n_envs, num_env_runners=args.num_env_runners,
                        address=args.address, force=args.force, evaluate=not args.no_eval,
-                       eval_episodes=50 if args.eval_episodes is None else args.eval_episodes,
+                       eval_episodes=FINISH["eval_episodes"] if args.eval_episodes is None
+                       else args.eval_episodes,
                        video=not args.no_video, env_kwargs=_kwargs(args.env_kwargs),
                        command="spinstrike " + shlex.join(sys.argv[1:]))
 

@@ -123,10 +123,11 @@ def _latest_checkpoint(run_dir: Path) -> Path | None:
 
 
 def _recorded_run(work: Path, given: dict[str, Any], config,
-                  timesteps) -> tuple[str, RunConfig, int]:
-    """The run as ``work/config.yml`` records it: ``(algo, cfg, seed)``, with the budget set to
-    ``timesteps`` if given. ``given`` maps each command-line flag to its value (None: left out);
-    a value that contradicts the record is refused, all of them in one message."""
+                  timesteps) -> tuple[str, RunConfig, int, dict]:
+    """The run as ``work/config.yml`` records it: ``(algo, cfg, seed, finish)``, with the budget
+    set to ``timesteps`` if given (``finish``: how the first command asked the run to end).
+    ``given`` maps each command-line flag to its value (None: left out); a value that
+    contradicts the record is refused, all of them in one message."""
     meta = yaml.safe_load((work / "config.yml").read_text())
     try:
         algo, env_id, seed = meta["algo"], meta["env"], meta["seed"]
@@ -157,7 +158,7 @@ def _recorded_run(work: Path, given: dict[str, Any], config,
         if isinstance(timesteps, bool) or not isinstance(timesteps, int) or timesteps < 1:
             raise AgentConfigError(f"timesteps: must be an integer >= 1 (got {timesteps!r})")
         cfg.n_timesteps = cfg.raw["n_timesteps"] = timesteps
-    return algo, cfg, seed
+    return algo, cfg, seed, meta.get("finish") or {}
 
 
 def _same_entry(cfg: RunConfig, config) -> bool:
@@ -504,6 +505,9 @@ def _check_env_kwargs(env_id: str, env_kwargs: dict):
     return space
 
 
+#: how a run ends when the command does not say (``train``'s evaluate, eval_episodes, video)
+FINISH = {"evaluate": True, "eval_episodes": 50, "video": True}
+
 #: the SB3 policy each kind of observation needs
 POLICY_FOR = {"vector": "MlpPolicy", "dict": "MultiInputPolicy", "pixels": "CnnPolicy"}
 
@@ -600,19 +604,15 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
         work = _work_dir(run_dir, resume, force)
         given = {"--algo": algo, "--env": env_id, "--seed": seed, "--n-envs": n_envs,
                  "--env-kwargs": env_kwargs, "--imitate": imitate}
-        algo, cfg, seed = _recorded_run(work, given, config, timesteps)
+        algo, cfg, seed, recorded = _recorded_run(work, given, config, timesteps)
         env_id = cfg.env_id
         done = _latest_checkpoint(work)
         done = _checkpoint_steps(done) if done is not None else 0
         if timesteps is not None and timesteps <= done:
             raise AgentConfigError(f"timesteps: {work} has trained {done} steps; a new budget "
                                    f"must exceed them (got {timesteps})")
-        recorded = (yaml.safe_load((work / "config.yml").read_text()) or {}).get("finish", {})
-        evaluate = recorded.get("evaluate", True) if evaluate is None else evaluate
-        eval_episodes = recorded.get("eval_episodes", 50) if eval_episodes is None \
-            else eval_episodes
-        video = recorded.get("video", True) if video is None else video
     else:
+        recorded = {}
         if algo is None or env_id is None:
             raise AgentConfigError("algo, env: a new run needs both")
         cfg, seed = _new_run(algo, env_id, config, seed, timesteps, n_envs, env_kwargs,
@@ -629,11 +629,12 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
             from spinstrike.envs.config import resolve_scene
 
             cfg.env_kwargs["scene"] = resolve_scene(cfg.env_kwargs["scene"])
-        evaluate = True if evaluate is None else evaluate
-        eval_episodes = 50 if eval_episodes is None else eval_episodes
-        video = True if video is None else video
         work = _work_dir(run_dir, resume, force)
-    finish = {"evaluate": evaluate, "eval_episodes": eval_episodes, "video": video}
+    # what is not given: as the run's first command asked (resumed), else the default
+    finish = {key: value if value is not None else recorded.get(key, FINISH[key])
+              for key, value in (("evaluate", evaluate), ("eval_episodes", eval_episodes),
+                                 ("video", video))}
+    evaluate, eval_episodes, video = finish["evaluate"], finish["eval_episodes"], finish["video"]
     from spinstrike.agents.imitate import _sigterm_exits
 
     start = time.time()

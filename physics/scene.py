@@ -524,8 +524,9 @@ def read_scene(source: str | Path) -> Any:
         SceneError: a missing file (with where relative paths start and the packaged scenes),
             an unknown name (with the packaged scenes), or text that is not YAML.
     """
-    text = source_text = str(source)
+    text = str(source)
     path = Path(text)
+    from_file = False
     if isinstance(source, Path) or "\n" not in text and (
             path.suffix.lower() in (".yaml", ".yml") or is_path(path, "exists")):
         if not is_path(path, "is_file"):
@@ -534,14 +535,15 @@ def read_scene(source: str | Path) -> Any:
                              f"{str(Path.cwd())!r}; a packaged scene loads by its name from "
                              f"anywhere: {packaged_scenes()})")
         text = path.read_text()
+        from_file = True
     elif isinstance(source, str) and re.fullmatch(r"[A-Za-z0-9_]+", text):
         return packaged_scene(text)
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         raise SceneError(f"scene: not valid YAML: {exc}") from None
-    if text is source_text and "\n" not in text.strip() and not isinstance(data, dict):
-        # one line that was not read from a file: a mistyped path or name
+    if not from_file and "\n" not in text.strip() and not isinstance(data, dict):
+        # one line given as the scene, no mapping: a mistyped path or name
         raise SceneError(f"scene: {text!r} is neither a file, a packaged scene's name nor YAML "
                          f"of a scene (relative paths start at {str(Path.cwd())!r}; packaged: "
                          f"{packaged_scenes()})")
