@@ -168,6 +168,13 @@ class _ControlTask(Task):
     def snapshot(self) -> dict:
         return {}
 
+    def trace(self) -> dict:
+        return {"trail": list(self._trail), "return": self._return}
+
+    def put_trace(self, trace: dict) -> None:
+        self._trail = deque(trace.get("trail", ()), maxlen=TRAIL_STEPS)
+        self._return = float(trace.get("return", 0.0))
+
     def restore(self, snap: dict) -> None:
         pass
 

@@ -117,6 +117,15 @@ class Task(ABC):
         """Element ``b``'s info as plain Python values (what a single env returns)."""
         return _scalar_info(info, b)
 
+    def trace(self) -> dict[str, Any]:
+        """What element 0's video frames remember of its past (``record_trace``: a strike's
+        clip, a motion trail, the return so far), for a pickled or copied env."""
+        return {}
+
+    def put_trace(self, trace: dict[str, Any]) -> None:
+        """Put back :meth:`trace`'s values (after the physics state)."""
+        return None
+
     @abstractmethod
     def observe(self) -> np.ndarray:
         """Flat observations ``[B, len(LAYOUT)]`` (clipped to the bounds only if
@@ -318,7 +327,9 @@ class SpinStrikeEnv(gym.Env):
                 "physics": self.get_physics_state(), "stream": self._stream,
                 "np_random": self._np_random, "np_random_seed": self._np_random_seed,
                 "stream_seeded": self._stream_seeded,
-                "started": self._started, "ended": self._ended}
+                "started": self._started, "ended": self._ended,
+                # the video's memory: frames not yet rendered, a strike's clip, trails
+                "frames": self._frames, "trace": self.task.trace()}
 
     def __setstate__(self, state: dict) -> None:
         self.__init__(render_mode=state["render_mode"], config=state["config"])
@@ -329,6 +340,8 @@ class SpinStrikeEnv(gym.Env):
         self._stream_seeded = state["stream_seeded"]
         self._started = state["started"]
         self._ended = state.get("ended", False)
+        self._frames = list(state.get("frames", []))
+        self.task.put_trace(state.get("trace", {}))
 
     @property
     def world(self):

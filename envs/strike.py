@@ -319,6 +319,14 @@ class _StrikeTask(Task):
         return {"goal": self.goal.copy(), "result_v": self.result_v.copy(),
                 "result_w": self.result_w.copy(), "result_vs": self.result_vs.copy()}
 
+    def trace(self) -> dict:
+        return {"clip": self.clip, "clip_reward": self._clip_reward}
+
+    def put_trace(self, trace: dict) -> None:
+        self._forget_clip()
+        self.clip = trace.get("clip")
+        self._clip_reward = float(trace.get("clip_reward", 0.0))
+
     def restore(self, snap: dict) -> None:
         self._forget_clip()
         self.goal[:] = snap["goal"]

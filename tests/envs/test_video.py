@@ -581,3 +581,38 @@ def test_readme_media_command_writes_the_readme_images_and_help_writes_nothing(t
     out = subprocess.run([*run, "images"], cwd=tmp_path, capture_output=True, text=True)
     assert out.returncode == 0, out.stderr[-2000:]
     assert {p.name for p in (tmp_path / "images").iterdir()} == shown
+
+
+@pytest.mark.parametrize("env_id", ["SpinStrike/RodSpin-v0", *CONTROL_IDS])
+@pytest.mark.parametrize("how", ["deepcopy", "pickle"])
+def test_a_copied_env_renders_what_the_original_would(env_id, how):
+    """A copy of an env mid-episode (deepcopy; pickle, as SubprocVecEnv and Ray ship envs)
+    keeps the video's memory: the frames not yet rendered (``rgb_array_list``), a strike's
+    clip, the motion trails and the return on the frame. A copy used to start with none."""
+    import copy
+
+    def clone(e):
+        return copy.deepcopy(e) if how == "deepcopy" else pickle.loads(pickle.dumps(e))
+
+    steps = 1 if env_id in STRIKE_IDS else 6
+    for mode in ("rgb_array_list", "rgb_array"):
+        env = gym.make(env_id, render_mode=mode).unwrapped
+        env.reset(seed=3)
+        actions = [env.action_space.sample() for _ in range(steps + 1)]
+        for a in actions[:steps]:
+            env.step(a)
+        twin = clone(env)
+        mine, theirs = env.render(), twin.render()
+        if mode == "rgb_array_list":
+            assert len(theirs) == len(mine) > steps  # the reset's frame, then the steps'
+            mine, theirs = np.stack(mine), np.stack(theirs)
+        np.testing.assert_array_equal(theirs, mine)
+        if env_id in CONTROL_IDS:  # and the trails go on growing alike
+            for e in (env, twin):
+                e.step(actions[steps])
+            np.testing.assert_array_equal(np.stack(twin.render()) if mode == "rgb_array_list"
+                                          else twin.render(),
+                                          np.stack(env.render()) if mode == "rgb_array_list"
+                                          else env.render())
+        env.close()
+        twin.close()
