@@ -25,7 +25,8 @@ class SB3VecEnv(VecEnv):
     episode's first observation).
 
     The envs are one batched world, not separate env objects: ``get_attr`` and ``env_method``
-    act on the vector env and return its answer once per index (a single env's methods, such
+    act on the vector env (a method is called once, for all envs) and return its answer once
+    per index (a single env's methods, such
     as ``get_physics_state``, are not there: use ``make_vec_env`` with ``DummyVecEnv`` for
     them), and ``set_attr`` sets the vector env's attribute, so it refuses ``indices`` that
     select only some envs."""
@@ -106,8 +107,10 @@ class SB3VecEnv(VecEnv):
                                                 np.asarray(desired, dtype=np.float64),
                                                 self.venv.cfg)
             return [result for _ in self._get_indices(indices)]
-        method = getattr(self.venv, method_name)
-        return [method(*args, **kwargs) for _ in self._get_indices(indices)]
+        # once: the envs are one world, and a method called once per index would act N
+        # times on all of them (env_method("step", a) stepped every env N times)
+        result = getattr(self.venv, method_name)(*args, **kwargs)
+        return [result for _ in self._get_indices(indices)]
 
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
         # the adapter reports episodes as SB3's Monitor does, and nothing else wraps the envs

@@ -61,6 +61,18 @@ def test_adapter_set_attr_refuses_to_set_some_envs_only():
     assert vec.get_attr("render_fps_note", indices=[0, 2]) == [3, 3]
 
 
+def test_adapter_env_method_acts_once_on_the_batched_world():
+    """SB3's ``env_method`` on the adapter calls the vector env's method once: it used to call
+    it once per index, so ``env_method("step", a)`` stepped all three envs three times."""
+    vec = make_sb3_vec_env("SpinStrike/RodSpinControl-v0", n_envs=3, seed=0)
+    vec.reset()
+    t0 = vec.venv.world.time.copy()
+    out = vec.env_method("step", np.zeros((3, 2), np.float32))
+    assert len(out) == 3 and all(o is out[0] for o in out)
+    np.testing.assert_allclose(vec.venv.world.time - t0, vec.venv.cfg.dt)
+    vec.close()
+
+
 def test_sac_trains_through_subprocvecenv():
     # worker processes import the package through the "spinstrike:" prefix of the id
     vec = make_vec_env("spinstrike:SpinStrike/RodSpin-v0", n_envs=2, seed=0,
