@@ -38,6 +38,8 @@ ENV_IDS: dict[str, str] = {
 }
 
 #: entry points (single env, native vector env, in ``spinstrike.envs``) and episode step limits
+#: (each the vector env's ``MAX_EPISODE_STEPS``: a test checks; kept here so that registering
+#: imports no env module)
 _ENTRY = {
     "SpinStrike/RodSpin-v0": ("strike:RodSpinEnv", "strike:RodSpinVectorEnv", None),
     "SpinStrike/PuckSpeed-v0": ("strike:PuckSpeedEnv", "strike:PuckSpeedVectorEnv", None),

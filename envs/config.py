@@ -8,6 +8,7 @@ raises :class:`ConfigError` naming the field and what is allowed. Scenes ship in
 from __future__ import annotations
 
 import copy
+import numbers
 import os
 from collections.abc import Iterator, Mapping
 from pathlib import Path
@@ -243,6 +244,20 @@ def _field_errors(err: ValidationError) -> Iterator[tuple[str, str, str]]:
 #: Gymnasium's own arguments of ``gym.make`` / ``gym.make_vec``, never keys of an env's config
 #: (an RLlib env_config may hold them: ``spinstrike.envs.rllib`` passes them to Gymnasium)
 GYM_ARGUMENTS = ("render_mode", "max_episode_steps")
+
+
+def episode_limit(value: Any, registered: int | None,
+                  field: str = "max_episode_steps") -> int | None:
+    """``max_episode_steps`` as ``gym.make`` reads it: ``None`` the registered limit, ``-1`` no
+    limit, else an int >= 1 (``ConfigError`` naming ``field`` otherwise, as ``TimeLimit``
+    refuses it)."""
+    if value is None:
+        return registered
+    if (isinstance(value, bool) or not isinstance(value, numbers.Integral)  # np.int64 too
+            or (value < 1 and value != -1)):
+        raise ConfigError(f"{field}: must be an int >= 1, -1 (no limit) or None (the "
+                          f"registered limit, {registered}) (got {value!r})")
+    return None if value == -1 else int(value)
 
 
 def parse_config(model: type[EnvConfig], config: dict | None, kwargs: dict) -> EnvConfig:

@@ -33,6 +33,8 @@ __all__ = ["PuckSpeedControlEnv", "PuckSpeedControlVectorEnv", "RodSpinControlEn
 
 #: distance (m) kept between the bodies and from the cushions when placing them at reset
 CLEARANCE = 0.02
+#: a control episode's registered length (``max_episode_steps``): 250 steps of 0.02 s
+EPISODE_STEPS = 250
 #: steps over which a body's motion trail reaches back in the video frames
 TRAIL_STEPS = 12
 
@@ -321,9 +323,11 @@ class RodSpinControlVectorEnv(SpinStrikeVectorEnv):
     """Native vector version of :class:`RodSpinControlEnv` (one batched world)."""
 
     TASK = RodSpinControlTask
+    MAX_EPISODE_STEPS = EPISODE_STEPS
 
 
 class PuckSpeedControlVectorEnv(SpinStrikeVectorEnv):
     """Native vector version of :class:`PuckSpeedControlEnv` (one batched world)."""
 
     TASK = PuckSpeedControlTask
+    MAX_EPISODE_STEPS = EPISODE_STEPS

@@ -30,7 +30,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from spinstrike.envs.config import ConfigError, EnvConfig, parse_config
+from spinstrike.envs.config import ConfigError, EnvConfig, episode_limit, parse_config
 from spinstrike.envs.layout import ObsField
 from spinstrike.envs.rendering import Frame, Renderer
 from spinstrike.envs.rng import UniformStream
@@ -475,8 +475,14 @@ class SpinStrikeVectorEnv(VectorEnv):
     * ``DISABLED``: no autoreset; reset finished elements with
       ``reset(options={"reset_mask": mask})`` before the next ``step`` (else ``ResetNeeded``).
 
-    ``max_episode_steps`` truncates by itself.
+    ``max_episode_steps`` truncates by itself, read as ``gym.make`` reads it: ``None`` is the
+    registered limit (``MAX_EPISODE_STEPS``), ``-1`` no limit; the step that reaches the limit
+    is ``truncated`` also when it terminates (as Gymnasium's ``TimeLimit``). Info arrays are as
+    ``SyncVectorEnv``'s: each ``_key`` mask a fresh array, zeros where it is False.
     """
+
+    #: the registered ``max_episode_steps`` (``envs._ENTRY``): what ``None`` means
+    MAX_EPISODE_STEPS: ClassVar[int | None] = None
 
     TASK: ClassVar[type[Task]]
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 50,
@@ -489,15 +495,16 @@ class SpinStrikeVectorEnv(VectorEnv):
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ConfigError(f"render_mode: must be one of {self.metadata['render_modes']} or "
                               f"None (got {render_mode!r})")
-        if int(num_envs) < 1:
-            raise ConfigError(f"num_envs: must be >= 1 (got {num_envs})")
+        if (isinstance(num_envs, (bool, np.bool_)) or not isinstance(num_envs, (int, np.integer))
+                or num_envs < 1):
+            raise ConfigError(f"num_envs: must be an int >= 1 (got {num_envs!r})")
         self.autoreset_mode = parse_autoreset_mode(autoreset_mode)
         # per instance: the class-level dict is shared by every instance of the class
         self.metadata = dict(self.metadata, autoreset_mode=self.autoreset_mode)
         self._same_step = self.autoreset_mode is AutoresetMode.SAME_STEP
         self.num_envs = int(num_envs)
         self.render_mode = render_mode
-        self.max_episode_steps = max_episode_steps
+        self.max_episode_steps = episode_limit(max_episode_steps, self.MAX_EPISODE_STEPS)
         self.cfg = parse_config(self.TASK.CONFIG, config, kwargs)
         self.task = self.TASK(self.cfg, self.num_envs)
         self.metadata["render_fps"] = self.task.render_fps  # as the single env's (a control dt)
@@ -509,7 +516,6 @@ class SpinStrikeVectorEnv(VectorEnv):
         self._steps = np.zeros(self.num_envs, dtype=np.int64)
         #: elements whose episode ended at the last step (NEXT_STEP: reset at the next one)
         self._done = np.zeros(self.num_envs, dtype=bool)
-        self._everyone = np.ones(self.num_envs, dtype=bool)
         self._seeds: list[int | None] = [None] * self.num_envs
         self._started = False
 
@@ -552,54 +558,22 @@ class SpinStrikeVectorEnv(VectorEnv):
                 else self._step_disabled(actions)
         if not self._started:
             raise gym.error.ResetNeeded("call reset() before step()")
-        reward, terminated, info = self.task.step(actions)
-        self._steps += 1
-        truncated = np.zeros(self.num_envs, dtype=bool)
-        if self.max_episode_steps is not None:
-            truncated = (self._steps >= self.max_episode_steps) & ~terminated
-        done = terminated | truncated
+        reward, terminated, truncated, info = self._physics_step(actions)
         obs = self.task.observations()
-        everyone = np.ones(self.num_envs, dtype=bool)
-        out = {}
-        for k, v in info.items():
-            out[k] = v
-            out[f"_{k}"] = everyone
-        if done.any():
+        done = terminated | truncated
+        if done.any():  # as SyncVectorEnv: a reset element's info is its reset's
             env = np.flatnonzero(done)
             final_obs = np.full(self.num_envs, None, dtype=object)
             for i in env:
                 final_obs[i] = _take(obs, i)
-            final_info = {}
-            for k, v in info.items():
-                final_info[k] = v
-                final_info[f"_{k}"] = done
+            final_info = _only(info, done)
             reset_info = self.task.reset(env, self._stream.draw(env))
             self._steps[env] = 0
             obs = self.task.observations()
-            # as SyncVectorEnv: a reset element's info is its reset's (the step's is final_info)
-            out = {}
-            if len(env) < self.num_envs:
-                live = ~done
-                for k, v in info.items():
-                    out[k] = v
-                    out[f"_{k}"] = live
-            for k, v in reset_info.items():
-                v = np.asarray(v)
-                if len(env) == self.num_envs:
-                    full = v
-                    out[f"_{k}"] = done
-                elif k in out:
-                    full = out[k].copy()
-                    out[f"_{k}"] = everyone
-                else:
-                    full = np.zeros((self.num_envs, *v.shape[1:]), dtype=v.dtype)
-                    out[f"_{k}"] = done
-                full[env] = v
-                out[k] = full
-            out.update(final_obs=final_obs, _final_obs=done, final_info=final_info,
-                       _final_info=done)
-        info = out
-        return obs, reward.astype(np.float64), terminated, truncated, info
+            info = _merge(_only(info, ~done), _masked(reset_info, env, self.num_envs))
+            info.update(final_obs=final_obs, _final_obs=done, final_info=final_info,
+                        _final_info=done.copy())
+        return obs, reward, terminated, truncated, info
 
     def _physics_step(self, actions):
         """Step every element: (reward, terminated, truncated, info with ``_key`` masks)."""
@@ -607,11 +581,11 @@ class SpinStrikeVectorEnv(VectorEnv):
         self._steps += 1
         truncated = np.zeros(self.num_envs, dtype=bool)
         if self.max_episode_steps is not None:
-            truncated = (self._steps >= self.max_episode_steps) & ~terminated
+            truncated = self._steps >= self.max_episode_steps
         out = {}
         for k, v in info.items():
             out[k] = v
-            out[f"_{k}"] = self._everyone
+            out[f"_{k}"] = np.ones(self.num_envs, dtype=bool)
         return reward.astype(np.float64), terminated, truncated, out
 
     def _step_disabled(self, actions):
@@ -655,18 +629,7 @@ class SpinStrikeVectorEnv(VectorEnv):
             reward[env] = 0.0
             terminated[env] = False
             truncated[env] = False
-            stepped = ~pending
-            for k in [k for k in info if not k.startswith("_")]:
-                info[f"_{k}"] = stepped
-            for k, v in _masked(reset_info, env, n).items():
-                if k.startswith("_"):
-                    continue
-                if k in info:
-                    full = info[k].copy()
-                    full[env] = v[env]
-                    info[k], info[f"_{k}"] = full, self._everyone
-                else:
-                    info[k], info[f"_{k}"] = v, pending
+            info = _merge(_only(info, ~pending), _masked(reset_info, env, n))
         self._done = terminated | truncated
         return self.task.observations(), reward, terminated, truncated, info
 
@@ -682,6 +645,36 @@ class SpinStrikeVectorEnv(VectorEnv):
             task.close()
 
 
+def _only(info: dict[str, np.ndarray], mask: np.ndarray) -> dict[str, np.ndarray]:
+    """Vector infos (``key`` and ``_key`` mask) kept for elements ``mask`` only: zeros
+    elsewhere, as ``SyncVectorEnv`` leaves an element that did not report a key; no keys
+    when ``mask`` selects none."""
+    out = {}
+    if not mask.any():
+        return out
+    for k, v in info.items():
+        if k.startswith("_"):
+            continue
+        v = np.where(mask.reshape(-1, *[1] * (v.ndim - 1)), v, np.zeros((), v.dtype))
+        out[k], out[f"_{k}"] = v, mask.copy()
+    return out
+
+
+def _merge(info: dict[str, np.ndarray], more: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Two vector infos over disjoint elements in one (a key in both: each one's values)."""
+    out = dict(info)
+    for k, v in more.items():
+        if k.startswith("_"):
+            continue
+        m = more[f"_{k}"]
+        if k in out:
+            out[k] = np.where(m.reshape(-1, *[1] * (v.ndim - 1)), v, out[k])
+            out[f"_{k}"] = out[f"_{k}"] | m
+        else:
+            out[k], out[f"_{k}"] = v, m.copy()
+    return out
+
+
 def _masked(info: dict[str, np.ndarray], env: np.ndarray, n: int) -> dict[str, np.ndarray]:
     """Arrays over elements ``env`` as Gymnasium vector infos: ``[n, ...]`` values (zeros
     elsewhere) with ``_key`` masks."""
@@ -695,5 +688,5 @@ def _masked(info: dict[str, np.ndarray], env: np.ndarray, n: int) -> dict[str, n
         else:
             full = np.zeros((n, *v.shape[1:]), dtype=v.dtype)
             full[env] = v
-        out[k], out[f"_{k}"] = full, mask
+        out[k], out[f"_{k}"] = full, mask.copy()
     return out

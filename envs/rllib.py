@@ -42,7 +42,13 @@ import gymnasium as gym
 from gymnasium.vector import AutoresetMode
 
 from spinstrike.envs import ENV_IDS
-from spinstrike.envs.config import GYM_ARGUMENTS, ConfigError, EnvConfig, parse_config
+from spinstrike.envs.config import (
+    GYM_ARGUMENTS,
+    ConfigError,
+    EnvConfig,
+    episode_limit,
+    parse_config,
+)
 
 __all__ = ["check_env_config", "configure", "make_env", "register_envs"]
 
@@ -64,8 +70,6 @@ def make_env(env_id: str, env_config: Any = None) -> gym.Env | gym.vector.Vector
 
     cfg, args = _split(env_config)
     num_envs = args.pop("num_envs", None)
-    if "max_episode_steps" in args:
-        args["max_episode_steps"] = int(args["max_episode_steps"])
     if num_envs is None:
         return gym.make(env_id, config=cfg, **args)
     return gym.make_vec(env_id, num_envs=int(num_envs), vectorization_mode="vector_entry_point",
@@ -93,11 +97,12 @@ def check_env_config(env_id: str, env_config: Any = None, *, vector: bool = Fals
     ``env_config`` holds ``num_envs``), whose ``render_mode`` can only be ``"rgb_array"``.
     Returns the parsed config."""
     cfg, args = _split(env_config)
-    for key in ("num_envs", "max_episode_steps"):
-        value = args.get(key)
-        if value is not None and (isinstance(value, bool) or not isinstance(value, int)
-                                  or value < 1):
-            raise ConfigError(f"env_config[{key!r}]: must be an int >= 1 (got {value!r})")
+    value = args.get("num_envs")
+    if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
+        raise ConfigError(f"env_config['num_envs']: must be an int >= 1 (got {value!r})")
+    # as gym.make and the native vector env read it (None: the registered limit; -1: none)
+    episode_limit(args.get("max_episode_steps"), gym.spec(_bare_id(env_id)).max_episode_steps,
+                  "env_config['max_episode_steps']")
     env_class = _env_class(env_id, vector or "num_envs" in args)
     modes = env_class.metadata["render_modes"]
     if args.get("render_mode") not in (None, *modes):

@@ -3,7 +3,8 @@
 Each mode (``NEXT_STEP``, the default; ``SAME_STEP``; ``DISABLED``) is compared bit for bit with
 Gymnasium's own ``SyncVectorEnv`` of single envs in the same mode, for every env id, over
 episodes with resets: observations, rewards, terminated, truncated and the info dicts (values,
-``_key`` masks, ``final_obs`` / ``final_info``). Gymnasium's vector wrappers run on the native
+``_key`` masks, ``final_obs`` / ``final_info``; zeros under a False mask, as SyncVectorEnv
+leaves them). Gymnasium's vector wrappers run on the native
 env in NEXT_STEP mode (they refuse SAME_STEP).
 """
 
@@ -29,10 +30,11 @@ def _short(env_id: str) -> dict:
 
 
 def _pair(env_id: str, n: int, mode: AutoresetMode, **kwargs):
+    kwargs = _short(env_id) | kwargs
     native = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point",
-                          autoreset_mode=mode, **_short(env_id), **kwargs)
+                          autoreset_mode=mode, **kwargs)
     sync = gym.make_vec(env_id, num_envs=n, vectorization_mode="sync",
-                        vector_kwargs={"autoreset_mode": mode}, **_short(env_id), **kwargs)
+                        vector_kwargs={"autoreset_mode": mode}, **kwargs)
     return native, sync
 
 
@@ -58,40 +60,22 @@ def assert_same(got, want, where: str) -> None:
     np.testing.assert_array_equal(got, want, err_msg=where)
 
 
-def _masked_info(info: dict) -> dict:
-    """An info dict with the values under False masks zeroed (they are unspecified: Gymnasium
-    leaves zeros there, a batched env what its batch holds)."""
-    out = {}
-    for k, v in info.items():
-        if isinstance(v, dict):
-            out[k] = _masked_info(v)
-        elif not k.startswith("_") and f"_{k}" in info and isinstance(v, np.ndarray) \
-                and v.dtype != object:
-            v = v.copy()
-            v[~info[f"_{k}"]] = 0
-            out[k] = v
-        else:
-            out[k] = v
-    return out
-
-
-def _run(env_id: str, mode: AutoresetMode, n: int = 3, steps: int = 14, seed: int = 5) -> int:
-    native, sync = _pair(env_id, n, mode)
+def _run(env_id: str, mode: AutoresetMode, n: int = 3, steps: int = 14, seed: int = 5,
+         **kwargs) -> int:
+    native, sync = _pair(env_id, n, mode, **kwargs)
     assert native.metadata["autoreset_mode"] is mode
     rng = np.random.default_rng(seed)
     acts = rng.uniform(-1, 1, (steps, n, native.single_action_space.shape[0]))
     acts = acts.astype(np.float32)
     got, want = native.reset(seed=seed), sync.reset(seed=seed)
     for part, g, w in zip(("obs", "info"), got, want, strict=True):
-        assert_same(_masked_info(g) if part == "info" else g,
-                    _masked_info(w) if part == "info" else w, f"reset {part}")
+        assert_same(g, w, f"reset {part}")
     episodes = 0
     for k in range(steps):
         got, want = native.step(acts[k]), sync.step(acts[k])
         for part, g, w in zip(("obs", "reward", "terminated", "truncated", "info"), got, want,
                               strict=True):
-            assert_same(_masked_info(g) if part == "info" else g,
-                        _masked_info(w) if part == "info" else w, f"step {k} {part}")
+            assert_same(g, w, f"step {k} {part}")
         done = got[2] | got[3]
         episodes += int(done.sum())
         if mode is AutoresetMode.DISABLED and done.any():
@@ -99,7 +83,7 @@ def _run(env_id: str, mode: AutoresetMode, n: int = 3, steps: int = 14, seed: in
             got = native.reset(options=dict(opts))
             want = sync.reset(options=dict(opts))
             assert_same(got[0], want[0], f"reset {k} obs")
-            assert_same(_masked_info(got[1]), _masked_info(want[1]), f"reset {k} info")
+            assert_same(got[1], want[1], f"reset {k} info")
     native.close()
     sync.close()
     return episodes
@@ -127,15 +111,14 @@ def test_next_step_after_a_partial_reset_matches_sync_vector_env(env_id):
         got, want = native.step(a), sync.step(a)
         for part, g, w in zip(("obs", "reward", "terminated", "truncated", "info"), got, want,
                               strict=True):
-            assert_same(_masked_info(g) if part == "info" else g,
-                        _masked_info(w) if part == "info" else w, f"step {k} {part}")
+            assert_same(g, w, f"step {k} {part}")
         if k in (1, 6):
             mask = np.zeros(n, dtype=bool)
             mask[k % n] = True
             got = native.reset(options={"reset_mask": mask})
             want = sync.reset(options={"reset_mask": mask.copy()})
             assert_same(got[0], want[0], "masked reset obs")
-            assert_same(_masked_info(got[1]), _masked_info(want[1]), "masked reset info")
+            assert_same(got[1], want[1], "masked reset info")
 
 
 def test_one_strike_next_step_alternates_strikes_and_resets():
@@ -229,3 +212,87 @@ def test_vector_env_whose_init_raises_prints_no_attribute_error(capfd):
     gc.collect()
     err = capfd.readouterr().err
     assert "AttributeError" not in err and "Exception ignored" not in err
+
+
+@pytest.mark.parametrize("mode", MODES, ids=lambda m: m.name)
+def test_unmasked_infos_match_sync_vector_env_too(mode):
+    """Values under a False ``_key`` mask are zeros, as SyncVectorEnv leaves them (the native
+    env left the batch's values there: the same masked values, other unmasked means)."""
+    native, sync = _pair("SpinStrike/RodSpinControl-v0", 3, mode, max_episode_steps=3)
+    native.reset(seed=2)
+    sync.reset(seed=2)
+    a = np.full((3, 2), 0.8, np.float32)
+    native.step(a)
+    sync.step(a)
+    native.reset(options={"reset_mask": np.array([True, False, False])})  # out of step
+    sync.reset(options={"reset_mask": np.array([True, False, False])})
+    for k in range(8):
+        got, want = native.step(a), sync.step(a)
+        assert_same(got[4], want[4], f"step {k} info")
+        if mode is AutoresetMode.DISABLED and (got[2] | got[3]).any():
+            opts = {"reset_mask": got[2] | got[3]}
+            assert_same(native.reset(options=dict(opts))[1],
+                        sync.reset(options=dict(opts))[1], "reset info")
+
+
+@pytest.mark.parametrize("mode", MODES, ids=lambda m: m.name)
+def test_masks_are_fresh_arrays_each_step(mode):
+    """A user editing one ``_key`` mask in place (e.g. to drop an element) changes nothing
+    else: every mask was one shared array, so the edit hid element 0 in every later step."""
+    vec = gym.make_vec("SpinStrike/RodSpinControl-v0", num_envs=3, autoreset_mode=mode)
+    vec.reset(seed=0)
+    a = np.zeros((3, 2), np.float32)
+    info = vec.step(a)[4]
+    masks = [v for k, v in info.items() if k.startswith("_")]
+    assert len({id(m) for m in masks}) == len(masks)
+    for m in masks:
+        m[0] = False
+    later = vec.step(a)[4]
+    assert all(v[0] for k, v in later.items() if k.startswith("_")), later
+
+
+@pytest.mark.parametrize("limit", [None, -1, 1, 3])
+@pytest.mark.parametrize("env_id", ["SpinStrike/RodSpin-v0", "SpinStrike/RodSpinControl-v0"])
+def test_max_episode_steps_reads_as_gymnasium_reads_it(env_id, limit):
+    """``max_episode_steps`` as ``gym.make`` and SyncVectorEnv read it: None is the registered
+    limit (the native env had none), -1 no limit (the native env truncated every step), and
+    the step that reaches the limit is truncated also when it terminates (one-strike envs)."""
+    for mode in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+        native, sync = _pair(env_id, 2, mode, max_episode_steps=limit)
+        native.reset(seed=3)
+        sync.reset(seed=3)
+        a = np.zeros((2, native.single_action_space.shape[0]), np.float32)
+        ends = 0
+        for k in range(260 if "Control" in env_id else 4):
+            got, want = native.step(a), sync.step(a)
+            for part, g, w in zip(("obs", "reward", "terminated", "truncated", "info"), got,
+                                  want, strict=True):
+                assert_same(g, w, f"{mode.name} step {k} {part}")
+            ends += int(got[3].sum())
+        expected = {None: 2 if "Control" in env_id else 0, -1: 0}.get(limit)
+        if expected is not None:
+            assert ends == expected, (limit, ends)
+        native.close()
+        sync.close()
+
+
+@pytest.mark.parametrize("bad", [0, -2, 2.5, "10", True])
+def test_a_bad_max_episode_steps_names_the_argument(bad):
+    with pytest.raises(ConfigError, match=r"max_episode_steps: must be an int >= 1, -1"):
+        gym.make_vec("SpinStrike/RodSpinControl-v0", num_envs=2, max_episode_steps=bad)
+
+
+@pytest.mark.parametrize("bad", [2.5, "2", 0, True])
+def test_a_bad_num_envs_names_the_argument(bad):
+    with pytest.raises(ConfigError, match=r"num_envs: must be an int >= 1"):
+        gym.make_vec("SpinStrike/RodSpinControl-v0", num_envs=bad,
+                     vectorization_mode="vector_entry_point")
+
+
+def test_registered_limits_are_the_vector_envs_defaults():
+    for env_id in IDS:
+        spec = gym.spec(env_id)
+        module, name = spec.vector_entry_point.split(":")
+        import importlib
+        cls = getattr(importlib.import_module(module), name)
+        assert cls.MAX_EPISODE_STEPS == spec.max_episode_steps, env_id

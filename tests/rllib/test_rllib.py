@@ -95,6 +95,16 @@ def test_creator_returns_a_single_env_or_the_native_vector_env():
     assert vec.num_envs == 3 and vec.cfg.max_force == 5.0
     assert vec.metadata["autoreset_mode"] is gym.vector.AutoresetMode.NEXT_STEP
     assert vec.max_episode_steps == 250
+    # max_episode_steps as gym.make reads it: None the registered 250 (was int(None), a
+    # TypeError in every runner, after check_env_config had passed it), -1 no limit
+    for limit, steps in ((None, 250), (-1, None), (7, 7)):
+        cfg = {"max_episode_steps": limit}
+        configure(PPOConfig(), CONTROL, cfg)  # checked in the driver: accepted
+        assert make_env(CONTROL, cfg | {"num_envs": 2}).max_episode_steps == steps
+        single = make_env(CONTROL, cfg)
+        assert single.spec.max_episode_steps == (steps if limit != -1 else None)
+    with pytest.raises(ConfigError, match=r"env_config\['max_episode_steps'\]: must be an int"):
+        configure(PPOConfig(), CONTROL, {"max_episode_steps": 2.5})
 
 
 def _counting_creator(env_id):
