@@ -21,6 +21,7 @@ one-strike step) and ``human`` (the same frames in a window, at ``render_fps``).
 
 from __future__ import annotations
 
+import copy
 from abc import ABC, abstractmethod
 from typing import Any, ClassVar
 
@@ -302,7 +303,9 @@ class SpinStrikeEnv(gym.Env):
                               f"None (got {render_mode!r})")
         self.render_mode = render_mode
         self.cfg = parse_config(self.TASK.CONFIG, config, kwargs)
-        self._config = dict(config or {}) | kwargs
+        # the arguments as given, for pickles and copies: a deep copy, so that a dict the
+        # caller edits afterwards (a randomize range reused in a sweep) stays out of them
+        self._config = copy.deepcopy(dict(config or {}) | kwargs)
         if "scene" in self._config:  # a scene file as read (config.resolve_scene), for pickles
             self._config["scene"] = self.cfg.scene
         self.task = self.TASK(self.cfg, 1, single=True)
@@ -313,8 +316,6 @@ class SpinStrikeEnv(gym.Env):
         self._frames: list[Frame] = []
         self.action_space = self.task.action_space
         self.observation_space = self.task.observation_space()
-        self._stream = UniformStream(1, self.TASK.UNIFORMS)
-        self._stream_seeded = False
         self._started = False
         #: the last step ended the episode (terminated): the next must be a reset
         self._ended = False
@@ -324,9 +325,8 @@ class SpinStrikeEnv(gym.Env):
     # pickling (SubprocVecEnv, Ray): rebuild from the arguments, then put back the live state
     def __getstate__(self) -> dict:
         return {"render_mode": self.render_mode, "config": self._config,
-                "physics": self.get_physics_state(), "stream": self._stream,
+                "physics": self.get_physics_state(),
                 "np_random": self._np_random, "np_random_seed": self._np_random_seed,
-                "stream_seeded": self._stream_seeded,
                 "started": self._started, "ended": self._ended,
                 # the video's memory: frames not yet rendered, a strike's clip, trails
                 "frames": self._frames, "trace": self.task.trace()}
@@ -334,10 +334,8 @@ class SpinStrikeEnv(gym.Env):
     def __setstate__(self, state: dict) -> None:
         self.__init__(render_mode=state["render_mode"], config=state["config"])
         self.set_physics_state(state["physics"])
-        self._stream = state["stream"]
         self._np_random = state["np_random"]
         self._np_random_seed = state.get("np_random_seed")
-        self._stream_seeded = state["stream_seeded"]
         self._started = state["started"]
         self._ended = state.get("ended", False)
         self._frames = list(state.get("frames", []))
@@ -350,11 +348,11 @@ class SpinStrikeEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        if seed is not None or not self._stream_seeded:
-            self._stream.use(0, self.np_random)
-            self._stream_seeded = True
-        env = np.zeros(1, dtype=np.int64)
-        info = self.task.reset(env, self._stream.draw(env))
+        # straight from np_random, each reset: a generator the user puts in (the np_random
+        # setter) or winds back (its bit_generator.state) draws the next episodes; the same
+        # numbers as a vector env's element, which draws them in blocks (envs.rng)
+        uniforms = self.np_random.random((1, self.TASK.UNIFORMS))
+        info = self.task.reset(np.zeros(1, dtype=np.int64), uniforms)
         self._started = True
         self._ended = False
         if self.render_mode == "rgb_array_list":

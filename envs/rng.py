@@ -4,7 +4,8 @@ Element ``i`` of a vector env seeded ``s`` draws exactly what a single env seede
 (Gymnasium's convention): each element owns a ``numpy.random.Generator`` made by
 ``gymnasium.utils.seeding.np_random``, and every episode consumes one row of uniforms from it.
 Rows are drawn in blocks, so the Python loop over elements runs once per ``BLOCK`` resets of an
-element, not at every reset.
+element, not at every reset; a single env draws its row from ``np_random`` at each reset (the
+same numbers: a block is the rows drawn one after another).
 """
 
 from __future__ import annotations
@@ -35,11 +36,6 @@ class UniformStream:
         for i, s in zip(idx, seeds, strict=True):
             self.generators[i] = seeding.np_random(None if s is None else int(s))[0]
             self._next[i] = BLOCK
-
-    def use(self, env: int, generator: np.random.Generator) -> None:
-        """Draw element ``env`` from an existing generator (a single env's ``np_random``)."""
-        self.generators[env] = generator
-        self._next[env] = BLOCK
 
     def draw(self, env: np.ndarray) -> np.ndarray:
         """One row of uniforms for each element in ``env``: ``[len(env), width]``."""

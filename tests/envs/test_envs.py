@@ -655,3 +655,42 @@ def test_a_finished_strike_needs_a_reset(env_id):
             e.step(action)
     env.reset()
     assert env.step(action)[2]
+
+
+@pytest.mark.parametrize("env_id", ["SpinStrike/RodSpin-v0", "SpinStrike/RodSpinControl-v0"])
+def test_np_random_set_or_wound_back_draws_the_next_episodes(env_id):
+    """Gymnasium's reproducibility handles, as on its own envs: an ``np_random`` put in with
+    the setter draws the next episodes, and winding its ``bit_generator.state`` back replays
+    them. The env drew from the generator captured at its first reset, 64 episodes ahead."""
+    from gymnasium.utils import seeding
+
+    a, b = gym.make(env_id), gym.make(env_id)
+    a.reset(seed=1)
+    b.reset(seed=2)
+    a.unwrapped.np_random = seeding.np_random(123)[0]
+    b.unwrapped.np_random = seeding.np_random(123)[0]
+    np.testing.assert_array_equal(a.reset()[0], b.reset()[0])
+    state = a.unwrapped.np_random.bit_generator.state
+    first = [a.reset()[0] for _ in range(3)]
+    a.unwrapped.np_random.bit_generator.state = state
+    np.testing.assert_array_equal([a.reset()[0] for _ in range(3)], first)
+    # and still the numbers a vector env's element draws (it draws them in blocks)
+    single = gym.make(env_id)
+    vec = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point")
+    got = [vec.reset(seed=7)[0][1]] + [vec.reset()[0][1] for _ in range(3)]
+    want = [single.reset(seed=8)[0]] + [single.reset()[0] for _ in range(3)]
+    np.testing.assert_array_equal(got, want)
+
+
+def test_a_copy_is_the_env_made_not_the_arguments_edited_since():
+    """An env pickles and copies from the arguments it was made with; a ``randomize`` dict the
+    caller edits afterwards (reused in a sweep) used to change every later copy's episodes."""
+    import copy
+
+    ranges = {"striker_mass": [0.05, 0.06]}
+    env = gym.make("SpinStrike/RodSpin-v0", randomize=ranges)
+    env.reset(seed=0)
+    ranges["striker_mass"] = [5.0, 6.0]
+    for twin in (copy.deepcopy(env.unwrapped), pickle.loads(pickle.dumps(env.unwrapped))):
+        twin.reset()
+        assert 0.05 <= twin.world.mass[0, twin.task.js] <= 0.06
