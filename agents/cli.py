@@ -3,8 +3,10 @@
     spinstrike train    --algo ppo --env SpinStrike/RodSpin-v0 [--seed 0] [--timesteps N]
     spinstrike train    --algo ppo --env ID --imitate planner   (DAgger first, then PPO)
     spinstrike train    --backend rllib --env ID [--num-env-runners N] [--address ADDR]
-    spinstrike evaluate RUN_DIR | --oracle/--random/--planner --env ID [--episodes 50] [--json]
-    spinstrike record   RUN_DIR | --oracle/--planner --env ID  [--out rollout.mp4|.gif] [--grid]
+    spinstrike evaluate RUN_DIR | --oracle/--random/--planner --env ID [--env-kwargs YAML]
+                        [--episodes 50] [--json]
+    spinstrike record   RUN_DIR | --oracle/--random/--planner --env ID [--env-kwargs YAML]
+                        [--out rollout.mp4|.gif] [--grid]
     spinstrike record   --scene break [--seconds 3] [--dt 0.02]   (a physics scene, no policy)
     spinstrike envs
     spinstrike cache    [--clear]
@@ -66,6 +68,10 @@ def _policy(args):
     from spinstrike.agents.config import AgentConfigError
     from spinstrike.agents.oracle import RandomPolicy, oracle_for
 
+    if args.run_dir and args.env_kwargs:
+        raise AgentConfigError("--env-kwargs: a run is evaluated and filmed on the env it was "
+                               "trained on (its config.yml's env_kwargs); the option goes with "
+                               "--oracle, --random or --planner")
     if args.run_dir:
         from spinstrike.agents.evaluate import load_model_policy
 
@@ -90,23 +96,28 @@ def _policy(args):
         return policy, meta["env"], env_kwargs, "agent"
     if not args.env:
         for flag in ("oracle", "random", "planner"):
-            if getattr(args, flag, False):
+            if getattr(args, flag):
                 raise AgentConfigError(f"--{flag}: needs --env ID; ids: {list(envs.ENV_IDS)}")
         raise AgentConfigError("give a run directory, or --oracle, --random or --planner "
                                "with --env ID")
     _check_env_id(args.env)
-    if getattr(args, "random", False):
-        return RandomPolicy(args.seed), args.env, {}, "random"
-    if getattr(args, "oracle", False):
-        return oracle_for(args.env), args.env, {}, "oracle"
-    if getattr(args, "planner", False):
+    env_kwargs = _kwargs(args.env_kwargs)
+    if env_kwargs:
+        from spinstrike.agents.train import check_env_kwargs
+
+        check_env_kwargs(args.env, env_kwargs)  # a bad one: a ConfigError naming it
+    if args.random:
+        return RandomPolicy(args.seed), args.env, env_kwargs, "random"
+    if args.oracle:
+        return oracle_for(args.env), args.env, env_kwargs, "oracle"
+    if args.planner:
         from spinstrike.agents.planner import CEMPlanner
 
         if "Control" not in args.env:
             raise AgentConfigError(f"--planner: drives the control envs only "
                                    f"(SpinStrike/RodSpinControl-v0, SpinStrike/PuckSpeedControl-v0)"
                                    f"; got {args.env!r}")
-        return CEMPlanner(), args.env, {}, "planner"
+        return CEMPlanner(), args.env, env_kwargs, "planner"
     raise AgentConfigError("give a run directory, or --oracle, --random or --planner with "
                            "--env ID")
 
@@ -409,8 +420,10 @@ def build_parser() -> argparse.ArgumentParser:
         e.add_argument("--oracle", action="store_true")
         e.add_argument("--planner", action="store_true",
                        help="the CEM planner (control envs; agents/planner.py)")
+        e.add_argument("--random", action="store_true", help="uniformly random actions")
+        e.add_argument("--env-kwargs", help="with --oracle, --random or --planner: env "
+                       "arguments as YAML, e.g. '{restitution: 0.8}' (a run uses its own)")
         if name == "evaluate":
-            e.add_argument("--random", action="store_true")
             e.add_argument("--episodes", type=int, default=50)
             e.add_argument("--seed", type=int, default=1000)
             e.add_argument("--json", action="store_true")
@@ -473,6 +486,8 @@ def main(argv: list[str] | None = None) -> int:
     from spinstrike.envs.config import ConfigError
     from spinstrike.physics import SceneError
 
+    if getattr(args, "env", None):  # gym.make's module-qualified id, as the README shows it
+        args.env = args.env.removeprefix("spinstrike:")
     try:
         return args.func(args)
     except (AgentConfigError, ConfigError, SceneError) as exc:

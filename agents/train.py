@@ -488,7 +488,7 @@ def _refuse_render_mode(env_kwargs: dict) -> None:
                                f"nothing, the video uses rgb_array_list): drop it")
 
 
-def _check_env_kwargs(env_id: str, env_kwargs: dict):
+def check_env_kwargs(env_id: str, env_kwargs: dict):
     """Build the env once with ``env_kwargs``: its own validation (a ConfigError naming the
     argument) speaks before anything about the run folder. Returns its observation space."""
     import gymnasium as gym
@@ -623,7 +623,7 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
             imitation = settings(imitate, algo, env_id, bool(cfg.normalize), imitate_rounds,
                                  imitate_episodes)
         # a bad argument first, before "out exists"
-        cfg.policy = cfg.raw["policy"] = _policy_for(cfg, _check_env_kwargs(env_id,
+        cfg.policy = cfg.raw["policy"] = _policy_for(cfg, check_env_kwargs(env_id,
                                                                             cfg.env_kwargs))
         if "scene" in cfg.env_kwargs:  # config.yml records the scene, not a relative path
             from spinstrike.envs.config import resolve_scene

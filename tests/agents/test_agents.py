@@ -184,6 +184,32 @@ def test_cli_train_evaluate_record_envs(tmp_path, capsys):
     assert "SpinStrike/RodSpinControl-v0" in capsys.readouterr().out
 
 
+def test_cli_evaluates_and_films_the_baselines_on_the_env_asked(tmp_path, capsys):
+    """``--env`` takes the README's ``spinstrike:`` id, ``record`` takes ``--random`` (its own
+    error named it, the parser refused it), and ``--env-kwargs`` varies the env of
+    ``--oracle``/``--random``/``--planner`` as ``train``'s does (a variant could be trained
+    but not evaluated or filmed)."""
+    ask = ["--env", "spinstrike:SpinStrike/RodSpin-v0", "--episodes", "4", "--json"]
+    assert main(["evaluate", "--random", *ask]) == 0
+    plain = json.loads(capsys.readouterr().out)["random"]["mean"]
+    kwargs = "{restitution: 0.3, striker_mass: 0.05}"
+    assert main(["evaluate", "--random", *ask, "--env-kwargs", kwargs]) == 0
+    varied = json.loads(capsys.readouterr().out)["random"]["mean"]
+    direct = evaluate("SpinStrike/RodSpin-v0", None, 4, 1000,
+                      {"restitution": 0.3, "striker_mass": 0.05})
+    assert varied == next(r.mean for r in direct if r.policy == "random") != plain
+    video = tmp_path / "random.mp4"
+    assert main(["record", "--random", "--env", "spinstrike:SpinStrike/RodSpin-v0",
+                 "--env-kwargs", kwargs, "--out", str(video), "--episodes", "1"]) == 0
+    assert imageio_ffmpeg.count_frames_and_secs(str(video))[0] > 15
+    capsys.readouterr()
+    assert main(["evaluate", "--oracle", *ask, "--env-kwargs", "{nope: 1}"]) == 2
+    assert "nope" in capsys.readouterr().err
+    assert main(["record", str(tmp_path), "--env-kwargs", kwargs]) == 2
+    assert "a run is evaluated and filmed on the env it was trained on" in \
+        capsys.readouterr().err
+
+
 def test_installed_entry_point_lists_envs():
     out = subprocess.run(["spinstrike", "envs"], capture_output=True, text=True, check=True)
     for env_id in envs.ENV_IDS:
