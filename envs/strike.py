@@ -108,6 +108,10 @@ class _StrikeTask(Task):
         self.clip: StrikeClip | None = None
         self._clip_reward = 0.0
         self._clip_frames_cache: list[Frame] | None = None
+        #: each element struck since its reset, and the strike's reward (the frame of an
+        #: element with no clip: a native vector env's, which records none)
+        self._struck = np.zeros(batch_size, dtype=bool)
+        self._last_reward = np.zeros(batch_size)
         self._zero_result()
         self._check_observable()
 
@@ -239,6 +243,7 @@ class _StrikeTask(Task):
             e.set_state(positions=pos, angles=angles, velocities=0.0, omegas=0.0)
         self._sample_goal(env, u[:, 3:])
         self._zero_result_rows(env)
+        self._struck[env] = False
         if self.clip is not None and 0 in env:
             self._forget_clip()
         return self._reset_info(env)
@@ -308,6 +313,8 @@ class _StrikeTask(Task):
         reward, terms = self._reward()
         reward = self.dict_reward(reward)
         info = {**sim, **terms, **self._result_info()}
+        self._struck[:] = True
+        self._last_reward[:] = reward
         if self.record_trace:
             self.clip = self._record_clip()
             self._clip_reward = float(reward[0])
@@ -382,7 +389,8 @@ class _StrikeTask(Task):
         bodies = body_draws(self.world, b, S)
         target = bodies[self.it]
         pace = f"slow motion x{slow_motion}" if slow_motion > 1 else "real time (x1)"
-        when = f"t = {1000 * t:6.1f} ms   {pace}" if slow_motion else "before the strike"
+        when = (f"t = {1000 * t:6.1f} ms   {pace}" if slow_motion
+                else "after the strike" if reward is not None else "before the strike")
         score = "reward: after the last contact" if reward is None else f"reward {reward:.3f}"
         return Frame(bodies, tuple(self.world.table_half_size[b]),
                      walls="walls" in self.world.effects, trails=list(trails),
@@ -396,7 +404,9 @@ class _StrikeTask(Task):
                          walls="walls" in self.world.effects, text=self._caption(b))
         if b == 0 and self.clip is not None:
             return self._strike_frames()[-1]
-        return self._video_frame(b, None, 0.0, 0, None)
+        # no clip (a native vector env's element): the state now, before or after its strike
+        return self._video_frame(b, None, 0.0, 0,
+                                 float(self._last_reward[b]) if self._struck[b] else None)
 
     def step_frames(self) -> list[Frame]:
         """Element 0's last strike, frame by frame (needs ``record_trace``)."""

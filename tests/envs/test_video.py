@@ -616,3 +616,21 @@ def test_a_copied_env_renders_what_the_original_would(env_id, how):
                                           else env.render())
         env.close()
         twin.close()
+
+
+def test_a_native_vector_envs_frame_says_the_strike_is_done():
+    """The native vector env films no strike clip; an element's frame after its strike (NEXT_STEP
+    keeps the struck state until the next step) said "before the strike" and "reward: after
+    the last contact" beside the spin already gained. It now says after, with the reward."""
+    vec = gym.make_vec("SpinStrike/RodSpin-v0", num_envs=2, render_mode="rgb_array",
+                       vectorization_mode="vector_entry_point")
+    vec.reset(seed=0)
+    before = vec.unwrapped.task.frame(1).panel
+    assert "before the strike" in before[0] and before[2] == "reward: after the last contact"
+    _, reward, *_ = vec.step(np.tile(vec.single_action_space.sample(), (2, 1)))
+    after = vec.unwrapped.task.frame(1).panel
+    assert "after the strike" in after[0] and after[2] == f"reward {reward[1]:.3f}"
+    assert len(vec.render()) == 2
+    vec.step(np.zeros((2, 3), np.float32))  # NEXT_STEP: the reset step
+    assert "before the strike" in vec.unwrapped.task.frame(1).panel[0]
+    vec.close()
