@@ -194,8 +194,9 @@ class Task(ABC):
             w, h = self.cfg.obs_size
             return spaces.Box(0, 255, (h, w, 3), dtype=np.uint8)
         if self.GOAL is None:
-            raise ConfigError(f"obs_mode: 'dict' needs a goal-conditioned env (goal='target'); "
-                              f"{type(self).__name__} has none")
+            raise ConfigError(f"obs_mode: 'dict' needs a goal-conditioned env (the strike "
+                              f"envs with goal='target'); {type(self).__name__} has no goal: "
+                              f"use 'vector' or 'pixels'")
         keep = np.ones(len(self.LAYOUT), bool)
         keep[self.GOAL] = False
         glow = np.array([f.low for f in self.ACHIEVED], np.float32)

@@ -541,6 +541,9 @@ def test_compute_reward_of_one_goal_is_the_reward_step_paid(env_id):
 def test_dict_mode_needs_a_goal():
     with pytest.raises(ConfigError, match="obs_mode: 'dict' needs goal='target'"):
         gym.make("SpinStrike/RodSpin-v0", obs_mode="dict", goal="max")
+    # a control env has no goal argument: the message does not send the user to one
+    with pytest.raises(ConfigError, match="RodSpinControlTask has no goal: use 'vector' or "):
+        gym.make("SpinStrike/RodSpinControl-v0", obs_mode="dict")
 
 
 def test_scenes_the_env_cannot_run_are_refused_when_it_is_made():
