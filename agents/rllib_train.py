@@ -201,6 +201,7 @@ def train_rllib(env_id: str, *, config: str | Path | None = None, seed: int = 0,
         ray.init(address=address or "local", include_dashboard=False, log_to_driver=False)
         started = True
     try:
+        _check_cpus(ray, num_env_runners)
         policy, steps, wall = _learn(algo_config, cfg, work, seed=seed, address=address,
                                      num_env_runners=num_env_runners, eval_every=eval_every,
                                      eval_episodes_during=eval_episodes_during,
@@ -218,6 +219,18 @@ def train_rllib(env_id: str, *, config: str | Path | None = None, seed: int = 0,
     return finish_run(result, policy, env_id, run_dir, cfg.env_kwargs,
                       f"## PPO (RLlib) on {env_id} (seed {seed}, {steps} steps, {wall:.0f} s)",
                       evaluate=evaluate, eval_episodes=eval_episodes, video=video)
+
+
+def _check_cpus(ray, num_env_runners: int) -> None:
+    """Refuse more env runners than the Ray cluster has CPUs: Ray places one runner per CPU
+    and waited without end, silently, for the CPUs that were not there."""
+    cpus = ray.cluster_resources().get("CPU", 0.0)
+    if num_env_runners > cpus:
+        raise AgentConfigError(
+            f"num_env_runners: {num_env_runners} env runners need {num_env_runners} CPUs, and "
+            f"the Ray cluster has {cpus:g} (Ray places one runner per CPU and would wait for "
+            f"the others without end): use --num-env-runners {int(cpus)} or fewer, or a "
+            f"larger cluster (--address)")
 
 
 def _compile_kernels(env_id: str, env_kwargs: dict) -> None:

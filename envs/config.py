@@ -379,6 +379,13 @@ def _check_bodies(data: dict, body_overrides: dict[str, dict]) -> None:
             f"scene: bodies: {extra} are not this env's: it places, observes and rewards only "
             f"{sorted(body_overrides)}, so other bodies would be moved at every reset (build "
             f"larger scenes with spinstrike.physics.World)")
+    for body in data.get("bodies", []):
+        pinned = [flag for flag in ("static", "pivot") if body.get(flag)]
+        if pinned:  # refused here, not by every reset ("pivots cannot move")
+            raise ConfigError(
+                f"scene: bodies: {body['name']!r} is {pinned[0]}: the env places its bodies at "
+                f"every reset, so they must be free to move; drop {pinned[0]!r} (pinned bodies "
+                f"fit larger scenes built with spinstrike.physics.World)")
 
 
 def build_scene(default: str, cfg: EnvConfig, body_overrides: dict[str, dict]) -> Scene:

@@ -35,6 +35,7 @@ not import Ray; :func:`register_envs` and :func:`configure` do.
 from __future__ import annotations
 
 import importlib
+import numbers
 import os
 from typing import Any
 
@@ -50,7 +51,7 @@ from spinstrike.envs.config import (
     parse_config,
 )
 
-__all__ = ["check_env_config", "configure", "make_env", "register_envs"]
+__all__ = ["RunnerSeeds", "check_env_config", "configure", "make_env", "register_envs"]
 
 #: the prefix of Gymnasium's module-qualified ids (``"spinstrike:SpinStrike/RodSpin-v0"``)
 PREFIX = "spinstrike:"
@@ -72,8 +73,31 @@ def make_env(env_id: str, env_config: Any = None) -> gym.Env | gym.vector.Vector
     num_envs = args.pop("num_envs", None)
     if num_envs is None:
         return gym.make(env_id, config=cfg, **args)
-    return gym.make_vec(env_id, num_envs=int(num_envs), vectorization_mode="vector_entry_point",
-                        autoreset_mode=AutoresetMode.NEXT_STEP, config=cfg, **args)
+    return RunnerSeeds(gym.make_vec(env_id, num_envs=int(num_envs),
+                                    vectorization_mode="vector_entry_point",
+                                    autoreset_mode=AutoresetMode.NEXT_STEP, config=cfg, **args))
+
+
+class RunnerSeeds(gym.vector.VectorWrapper):
+    """A runner's native vector env, its elements seeded apart from the other runners'.
+
+    RLlib resets runner ``w``'s env with ``seed + w``, and a Gymnasium vector env seeds element
+    ``i`` with ``seed + i``: runner ``w``'s element ``i + 1`` drew the tasks of runner
+    ``w + 1``'s element ``i`` (with 2 runners of 8 envs, 7 of 8 task streams twice in every
+    batch). Here ``reset(seed=s)`` seeds element ``i`` with ``s * num_envs + i``: no two
+    elements of a run share a stream. A list of seeds passes through. Other attributes are
+    the vector env's."""
+
+    def reset(self, *, seed=None, options=None):
+        if isinstance(seed, numbers.Integral) and not isinstance(seed, bool):
+            seed = [int(seed) * self.num_envs + i for i in range(self.num_envs)]
+        return self.env.reset(seed=seed, options=options)
+
+    def __getattr__(self, name: str):
+        env = self.__dict__.get("env")  # absent while unpickling
+        if env is None or name.startswith("__"):
+            raise AttributeError(name)
+        return getattr(env, name)
 
 
 def _bare_id(env_id: str) -> str:
@@ -109,7 +133,16 @@ def check_env_config(env_id: str, env_config: Any = None, *, vector: bool = Fals
         kind = "the native vector env" if vector or "num_envs" in args else "the env"
         raise ConfigError(f"env_config['render_mode']: must be one of {modes} or None for "
                           f"{kind} (got {args['render_mode']!r})")
-    return parse_config(env_class.TASK.CONFIG, cfg, {})
+    parsed = parse_config(env_class.TASK.CONFIG, cfg, {})
+    # and the env itself, once: what only a built env can tell (its scene's bodies, overlaps,
+    # a table too small) is refused here, not in every runner with an IndexError in the driver
+    env = env_class(num_envs=1, config=cfg) if vector or "num_envs" in args else \
+        env_class(config=cfg)
+    try:
+        env.reset(seed=0)
+    finally:
+        env.close()
+    return parsed
 
 
 def _creator(env_id: str, init_file: str):

@@ -560,6 +560,13 @@ def test_scenes_the_env_cannot_run_are_refused_when_it_is_made():
     with pytest.raises(ConfigError, match="the name 'rod' is used twice"):
         gym.make("SpinStrike/RodSpinControl-v0",
                  scene=dict(control, bodies=[*control["bodies"], control["bodies"][0]]))
+    for flag in ("pivot", "static"):  # gym.make took them, then every reset failed
+        for env_id in ("SpinStrike/RodSpinControl-v0", "SpinStrike/RodSpin-v0"):
+            scene = control if "Control" in env_id else load_packaged_scene("rod_spin")
+            pinned = [dict(b, **{flag: True}) if b["name"] == "rod" else b
+                      for b in scene["bodies"]]
+            with pytest.raises(ConfigError, match=rf"bodies: 'rod' is {flag}: the env places"):
+                gym.make(env_id, scene=dict(scene, bodies=pinned))
     with pytest.raises(ConfigError, match="scene: bodies: 'rod' and 'mallet' overlap"):
         gym.make("SpinStrike/RodSpinControl-v0", scene=dict(
             control, bodies=[dict(b, position=[0.0, 0.0]) for b in control["bodies"]]))

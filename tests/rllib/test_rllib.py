@@ -76,12 +76,42 @@ def test_ppo_trains_two_iterations_with_two_env_runners(local_ray, env_id):
         algo.stop()
 
 
+def test_seeded_runners_draw_different_tasks(local_ray):
+    """With a seed (``spinstrike train --backend rllib`` always sets one) RLlib resets runner
+    ``w`` with ``seed + w`` and a vector env seeds element ``i`` with ``seed + i``: runner 1's
+    element ``i + 1`` drew runner 2's element ``i``'s tasks, 3 of 4 streams twice in each batch.
+    Now no task is drawn by both runners."""
+    config = tiny(configure(PPOConfig(), STRIKE)).debugging(seed=0)
+    algo = config.build_algo()
+    try:
+        tasks = algo.env_runner_group.foreach_env_runner(
+            lambda r: [e.get_observations(0).tobytes() for e in r.sample(num_timesteps=32)],
+            local_env_runner=False)
+    finally:
+        algo.stop()
+    first, second = (set(t) for t in tasks)
+    assert len(first) >= 12 and len(second) >= 12
+    assert not first & second
+
+
 def test_bad_env_config_raises_in_the_driver_before_runners_start():
     assert not ray.is_initialized()
     with pytest.raises(ConfigError, match="no_such_key"):
         configure(PPOConfig(), STRIKE, {"no_such_key": 1})
     with pytest.raises(ConfigError, match="restitution"):
         configure(PPOConfig(), STRIKE, {"restitution": 7.0})
+    # what only a built env refuses (was an IndexError in the driver after the runners died,
+    # or a minute's wait for samples that never came, the reason in the runners' logs)
+    from spinstrike.envs.config import load_packaged_scene
+
+    scene = load_packaged_scene("rod_control")
+    post = dict(scene["bodies"][0], name="post", position=[0.5, 0.3])
+    pinned = [dict(b, pivot=True) if b["name"] == "rod" else b for b in scene["bodies"]]
+    for bad, words in ((dict(scene, bodies=[*scene["bodies"], post]), "are not this env's"),
+                       (dict(scene, bodies=pinned), "'rod' is pivot")):
+        for vectorize in (True, False):
+            with pytest.raises(ConfigError, match=words):
+                configure(PPOConfig(), CONTROL, {"scene": bad}, vectorize=vectorize)
     with pytest.raises(ValueError, match="env: must be one of"):
         configure(PPOConfig(), "SpinStrike/Nope-v0")
     assert not ray.is_initialized()  # nothing started
@@ -95,6 +125,10 @@ def test_creator_returns_a_single_env_or_the_native_vector_env():
     assert vec.num_envs == 3 and vec.cfg.max_force == 5.0
     assert vec.metadata["autoreset_mode"] is gym.vector.AutoresetMode.NEXT_STEP
     assert vec.max_episode_steps == 250
+    # a runner's elements are seeded seed * num_envs + i, so runners seeded 0 and 1 (RLlib's
+    # seed + worker index) share no task stream
+    tasks = [set(map(bytes, vec.reset(seed=s)[0])) for s in (0, 1)]
+    assert len(tasks[0]) == len(tasks[1]) == 3 and not tasks[0] & tasks[1]
     # max_episode_steps as gym.make reads it: None the registered 250 (was int(None), a
     # TypeError in every runner, after check_env_config had passed it), -1 no limit
     for limit, steps in ((None, 250), (-1, None), (7, 7)):
@@ -319,6 +353,31 @@ def test_cli_backend_rllib_starts_its_own_ray_beside_a_running_cluster(tmp_path)
         assert "Connecting to existing Ray cluster" not in done.stderr
         assert "does not use policy_kwargs.log_std_init" in done.stderr
         assert (out / "summary.md").is_file()
+    finally:
+        cluster.shutdown()
+
+
+def test_cli_backend_rllib_refuses_more_runners_than_the_cluster_has_cpus(tmp_path):
+    """Was a silent wait without end after "Started a local Ray instance" (Ray places one
+    runner per CPU), and no run folder."""
+    from ray.cluster_utils import Cluster
+
+    if ray.is_initialized():
+        ray.shutdown()
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1,
+                                                            "include_dashboard": False})
+    try:
+        cmd = [sys.executable, "-m", "spinstrike.agents.cli", "train", "--backend", "rllib",
+               "--env", STRIKE, "--address", cluster.address, "--num-env-runners", "2",
+               "--n-envs", "4", "--timesteps", "256", "--no-video", "--out",
+               str(tmp_path / "run")]
+        done = subprocess.run(cmd, capture_output=True, text=True, timeout=300,
+                              env=dict(os.environ, SDL_VIDEODRIVER="dummy",
+                                       SDL_AUDIODRIVER="dummy"))
+        assert done.returncode == 2, done.stderr[-3000:]
+        assert ("num_env_runners: 2 env runners need 2 CPUs, and the Ray cluster has 1"
+                in done.stderr)
+        assert not (tmp_path / "run").exists()
     finally:
         cluster.shutdown()
 
