@@ -403,9 +403,7 @@ class Scene(_Model):
 
     def _check_inside_table(self) -> None:
         half_w, half_h = 0.5 * self.table.size[0], 0.5 * self.table.size[1]
-        for i, b in enumerate(self.bodies):
-            if b.static:
-                continue
+        for i, b in enumerate(self.bodies):  # static bodies too: one outside is a typo
             reach_x = b.half_length * abs(math.cos(b.angle)) + b.core_radius
             reach_y = b.half_length * abs(math.sin(b.angle)) + b.core_radius
             x, y = b.position

@@ -129,6 +129,20 @@ def test_static_body_must_not_move():
         load_scene(scene)
 
 
+@pytest.mark.parametrize("position", [[0.0, -0.48], [5.0, 5.0]])
+def test_a_static_body_outside_the_walled_table_is_refused(position):
+    """As a movable body is (a post straddling the cushion, or a typo far off the table, was
+    accepted when static)."""
+    scene = {"table": {"size": [1.2, 1.0]}, "effects": ["walls"],
+             "bodies": [{"name": "post", "shape": "disk", "radius": 0.05, "static": True,
+                         "position": position},
+                        {"name": "puck", "shape": "disk", "radius": 0.05, "mass": 0.1}]}
+    with pytest.raises(SceneError, match=r"bodies\[0\].position: 'post' must lie inside"):
+        physics.World(scene)
+    scene["bodies"][0]["position"] = [0.0, -0.45]  # touching the cushion: legal
+    physics.World(scene)
+
+
 def test_overlap_at_start_is_an_error_but_touching_is_not():
     scene = copy.deepcopy(BASE)
     # rod along x from -0.2..0.2 (radius 0.01); striker radius 0.04

@@ -246,7 +246,7 @@ def test_bad_env_arguments_are_one_config_error(env_id, kw, names):
 
 
 def test_bad_vector_env_arguments_are_config_errors():
-    for kw, names in (({"num_envs": 0}, "num_envs: must be >= 1"),
+    for kw, names in (({"num_envs": 0}, "num_envs: must be an int >= 1"),
                       ({"num_envs": 2, "render_mode": "hologram"}, "render_mode"),
                       ({"num_envs": 2, "autoreset_mode": "sometimes"},
                        "autoreset_mode")):
