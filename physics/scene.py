@@ -283,7 +283,9 @@ class Body(_Model):
                 moment = self.moment
             except OverflowError:
                 moment = math.inf
-            _require(invertible(moment), "inertia",
+            # named after what the user set: the inertia, or the size it is derived from
+            size = "radius" if self.shape == "disk" else "length"
+            _require(invertible(moment), "inertia" if self.inertia is not None else size,
                      f"the moment of inertia of this mass and size ({moment:g} kg m^2) is too "
                      f"small or large for float64: its inverse is not a finite nonzero number")
         if self.pivot:

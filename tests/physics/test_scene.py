@@ -92,6 +92,10 @@ INVALID = [
     (_set("solver", {"tolerance": 1e-6}), ["solver: needs 'mode', one of 'exact', 'fixed'"]),
     (_set("bodies.0.inertia", "solid"),
      ["bodies[0].inertia: Input should be a valid number, or 'thin_rod' (got 'solid')"]),
+    # a moment of inertia float64 cannot invert, named after what the user set (it named an
+    # inertia the user never gave)
+    (_set("bodies.1.radius", 1e-300), ["bodies[1].radius: the moment of inertia"]),
+    (_set("bodies.0.inertia", 1e-320), ["bodies[0].inertia: the moment of inertia"]),
 ]
 
 

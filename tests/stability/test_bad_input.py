@@ -65,7 +65,7 @@ BAD_SCENE_FILES = [
     ("table: {gravity: 100}\nbodies:\n  - {name: p, shape: disk, radius: 1, mass: 1}\n",
      "table.gravity"),
     ("bodies:\n  - {name: p, shape: disk, radius: 1, mass: 1.0e-310}\n", "bodies[0].mass"),
-    ("bodies:\n  - {name: p, shape: disk, radius: 1.0e+300, mass: 1}\n", "bodies[0].inertia"),
+    ("bodies:\n  - {name: p, shape: disk, radius: 1.0e+300, mass: 1}\n", "bodies[0].radius"),
 ]
 
 
