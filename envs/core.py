@@ -651,10 +651,12 @@ def _only(info: dict[str, np.ndarray], mask: np.ndarray) -> dict[str, np.ndarray
     out = {}
     if not mask.any():
         return out
+    everyone = mask.all()  # nothing to zero (a one-strike env's every step)
     for k, v in info.items():
         if k.startswith("_"):
             continue
-        v = np.where(mask.reshape(-1, *[1] * (v.ndim - 1)), v, np.zeros((), v.dtype))
+        if not everyone:
+            v = np.where(mask.reshape(-1, *[1] * (v.ndim - 1)), v, np.zeros((), v.dtype))
         out[k], out[f"_{k}"] = v, mask.copy()
     return out
 
