@@ -83,12 +83,8 @@ class _StrikeTask(Task):
         scene = build_scene(self.SCENE, cfg, self._body_overrides(cfg))
         self.world = build_world(self._park_striker(scene), batch_size)
         w = self.world
-        if w.walls:
-            self._check_room(cfg)
-        if "walls" in w.effects or "table_friction" in w.effects:
-            self._free = False
-        else:
-            self._free = True
+        self._check_free_table(cfg)
+        self._free = True
         self.it = w.index(self.TARGET)
         self.js = w.index("striker")
         B = batch_size
@@ -144,23 +140,27 @@ class _StrikeTask(Task):
 
     GOAL_WIDTH: ClassVar[int] = 1
 
-    def _check_room(self, cfg) -> None:
-        """On a walled table every launch must start inside the cushions: the striker starts
-        up to twice the target's reach plus its own size from the target's centre (which
-        lies within 0.1 m of the table's)."""
-        w = self.world
-        it, js = w.index(self.TARGET), w.index("striker")
-        half_length = w.half_length[0, it]
-        if "rod_length" in cfg.randomize:
-            half_length = max(half_length, 0.5 * cfg.randomize["rod_length"][1])
-        reach, rs = half_length + w.radius[0, it], w.radius[0, js]
-        need = 0.1 * math.sqrt(2) + 2 * (reach + rs) + START_MARGIN + rs
-        half = w.table_half_size[0]
-        if (half < need).any():
+    def _check_free_table(self, cfg) -> None:
+        """A strike is measured on an unbounded frictionless table: once no further contact
+        can happen, the target's spin and velocity are the strike's (the closed forms behind
+        ``best_reward`` and the oracles assume it). Cushions turn the target and cloth friction
+        stops it before then: the strike was measured at rest or at ``time_cap`` (PuckSpeed with
+        ``table_friction=0.3`` paid 0 where ``best_reward`` said 1), so they are refused."""
+        effects = self.world.effects
+        if "table_friction" in effects:
+            what = ("table_friction: must be 0" if cfg.table_friction
+                    else "effects: 'table_friction' is not allowed")
             raise ConfigError(
-                f"scene: table: size {[2 * float(h) for h in half]} m is too small for a strike "
-                f"env with walls: a launch may start up to {need:.3g} m from the table's centre, "
-                f"so each side needs at least {2 * need:.3g} m (or drop the 'walls' effect)")
+                f"{what} for a strike env: the strike is measured once no further contact can "
+                f"happen, on an unbounded frictionless table, and cloth friction would stop the "
+                f"{self.TARGET} first (reward 0). Table friction is for the control envs and "
+                f"spinstrike.physics.World scenes")
+        if "walls" in effects:
+            raise ConfigError(
+                f"effects: 'walls' is not allowed for a strike env: the strike is measured once "
+                f"no further contact can happen, on an unbounded table, and cushions would turn "
+                f"the {self.TARGET} first (it was measured at time_cap). Walls are for the "
+                f"control envs and spinstrike.physics.World scenes")
 
     #: the arguments that set each observed parameter (else the scene sets it)
     _SET_BY: ClassVar[dict[str, tuple[str, ...]]] = {
