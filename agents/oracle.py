@@ -95,7 +95,10 @@ class RodSpinOracle:
     def __call__(self, env, obs) -> np.ndarray:
         task = env.unwrapped.task
         acts = self.candidates(task)
-        if self._scratch is None or self._scratch.batch_size != len(acts):
+        # a what-if copy of this env's task: rebuilt for another env's config (one oracle used
+        # on two envs planned the second's strikes with the first's speed range and scene)
+        if (self._scratch is None or self._scratch.batch_size != len(acts)
+                or self._scratch.cfg is not task.cfg):
             self._scratch = RodSpinTask(task.cfg, len(acts))
         scratch = self._scratch
         scratch.world.load_element(task.world, 0)

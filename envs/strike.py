@@ -770,8 +770,12 @@ class RodSpinEnv(_StrikeEnv):
     ``target_spin``) and ``reward = exp(-((w - w*) / (reward_width |w*|))^2 / 2)``: 1 at the
     target, 0.61 one width away; a miss scores ``exp(-1/(2 reward_width^2))``, what the formula
     gives for zero spin. ``goal='max'``: ``reward = |w| / w_max`` with ``w_max`` the analytic
-    largest spin over all strikes (lever ``min(h, sqrt(I (1/m_s + 1/m_r)))``, not always at the
-    tip). ``info['best_reward']`` is the best reward the closed forms allow.
+    largest spin of a strike of one impact (lever ``min(h, sqrt(I (1/m_s + 1/m_r)))``, not
+    always at the tip). ``info['best_reward']`` is the best reward the closed forms of one impact
+    allow. A strike of several contacts can beat them: at low restitution the striker may
+    stay on the rod and push it round (``restitution=0``: |w| up to 1.37 ``w_max``, 105
+    contacts), so with ``goal='max'`` a reward above 1 is possible; ``info['n_contacts']`` shows
+    such strikes.
 
     ## Starting State
     Rod at rest, angle uniform, centre within 0.1 m of the origin; striker parked beside it.

@@ -8,6 +8,7 @@ import subprocess
 import sys
 import warnings
 
+import gymnasium as gym
 import imageio_ffmpeg
 import numpy as np
 import pytest
@@ -342,3 +343,19 @@ def test_cli_train_names_the_control_envs_reference(tmp_path, capsys):
                  "--timesteps", "64", "--n-envs", "2", "--out", str(tmp_path / "run"),
                  "--eval-episodes", "1", "--no-progress", "--no-video"]) == 0
     assert "oracle (chase-and-hit): " in capsys.readouterr().out
+
+
+def test_one_rod_oracle_serves_envs_of_different_configs():
+    """The oracle's what-if copy is the env's own: used on an env with another speed range
+    after a first env, it planned with the first's (its copy was rebuilt only when the number
+    of candidate strikes changed), and scored 0 on some episodes a fresh oracle solved."""
+    from spinstrike.agents.oracle import RodSpinOracle
+
+    first = gym.make("SpinStrike/RodSpin-v0")
+    second = gym.make("SpinStrike/RodSpin-v0", speed_range=[0.25, 2.0], approach_max=40.0,
+                      target_spin=[1.0, 10.0])
+    shared = RodSpinOracle()
+    for seed in range(40):  # alternating, as an evaluation of two variants would
+        shared(first, first.reset(seed=seed)[0])
+        obs, _ = second.reset(seed=2000 + seed)
+        np.testing.assert_array_equal(shared(second, obs), RodSpinOracle()(second, obs))
