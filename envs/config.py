@@ -57,8 +57,11 @@ class EnvConfig(BaseModel):
             match (``striker``/``mallet`` and ``rod``/``puck``).
         solver: solver block overriding the scene's, e.g. ``{"mode": "fixed", "substeps": 8}``.
         effects: effect list replacing the scene's.
-        restitution: e in [0, 1] of every pair.
-        friction: contact friction mu >= 0 (needs ``contact_friction``; added when > 0).
+        restitution: e in [0, 1] of the target's pair with the striker or mallet (the one the
+            observation shows; a scene's own value for that pair too), and of every pair the
+            scene sets no value for (the packaged control scenes set the cushions').
+        friction: contact friction mu >= 0 (needs ``contact_friction``; added when > 0), set as
+            ``restitution`` is.
         table_friction: cloth friction mu_t >= 0 (needs ``table_friction``; added when > 0).
         randomize: ranges ``{param: [low, high]}`` drawn per episode (masses log-uniformly, the
             rest uniformly); the allowed params are listed by each env.
@@ -388,8 +391,11 @@ def _check_bodies(data: dict, body_overrides: dict[str, dict]) -> None:
                 f"fit larger scenes built with spinstrike.physics.World)")
 
 
-def build_scene(default: str, cfg: EnvConfig, body_overrides: dict[str, dict]) -> Scene:
-    """Packaged (or user) scene with the env's overrides applied, validated once."""
+def build_scene(default: str, cfg: EnvConfig, body_overrides: dict[str, dict],
+                pair: tuple[str, str]) -> Scene:
+    """Packaged (or user) scene with the env's overrides applied, validated once. ``pair``:
+    the task's pair (target and striker or mallet), whose material ``restitution`` and
+    ``friction`` set even where the scene names that pair (as ``randomize`` does)."""
     data = load_packaged_scene(default) if cfg.scene is None else _scene_data(cfg.scene)
     effects = list(cfg.effects) if cfg.effects is not None else list(data.get("effects", []))
     if cfg.friction and "contact_friction" not in effects:
@@ -410,6 +416,15 @@ def build_scene(default: str, cfg: EnvConfig, body_overrides: dict[str, dict]) -
         mats["restitution"] = cfg.restitution
     if cfg.friction is not None:
         mats["friction"] = cfg.friction
+    task_pair = []  # the scene's entries for the task's pair: the arguments win there too
+    for entry in mats.get("pairs", []):
+        entry = dict(entry)
+        if sorted(entry.get("bodies", [])) == sorted(pair):
+            entry.update({k: v for k, v in (("restitution", cfg.restitution),
+                                            ("friction", cfg.friction)) if v is not None})
+        task_pair.append(entry)
+    if "pairs" in mats:
+        mats["pairs"] = task_pair
     data["materials"] = mats
     if cfg.table_friction is not None:
         data["table"] = dict(data.get("table", {}), friction=cfg.table_friction)

@@ -53,7 +53,8 @@ class _ControlTask(Task):
         super().__init__(cfg, batch_size, single)
         self.render_fps = int(round(1.0 / cfg.dt))
         overrides = {"mallet": {"mass": cfg.mallet_mass}, self.TARGET: {"mass": cfg.target_mass}}
-        self.world = build_world(build_scene(self.SCENE, cfg, overrides), batch_size)
+        scene = build_scene(self.SCENE, cfg, overrides, (self.TARGET, "mallet"))
+        self.world = build_world(scene, batch_size)
         w = self.world
         if not w.walls or not w.driven[w.index("mallet")]:
             raise ConfigError("scene: a control env needs the 'walls' effect and a driven "

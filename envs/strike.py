@@ -80,7 +80,8 @@ class _StrikeTask(Task):
 
     def __init__(self, cfg, batch_size: int, single: bool = False) -> None:
         super().__init__(cfg, batch_size, single)
-        scene = build_scene(self.SCENE, cfg, self._body_overrides(cfg))
+        scene = build_scene(self.SCENE, cfg, self._body_overrides(cfg),
+                            (self.TARGET, "striker"))
         self.world = build_world(self._park_striker(scene), batch_size)
         w = self.world
         self._check_free_table(cfg)

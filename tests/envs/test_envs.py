@@ -708,3 +708,29 @@ def test_a_copy_is_the_env_made_not_the_arguments_edited_since():
     for twin in (copy.deepcopy(env.unwrapped), pickle.loads(pickle.dumps(env.unwrapped))):
         twin.reset()
         assert 0.05 <= twin.world.mass[0, twin.task.js] <= 0.06
+
+
+def test_restitution_and_friction_arguments_win_over_the_scenes_task_pair():
+    """``restitution=`` / ``friction=`` set the target's pair with the striker or mallet (the
+    one the observation shows), also where the scene names that pair: a user scene's rod-striker
+    pair at e = 0.6 kept 0.6 under ``restitution=0.8``, observed and simulated. Other pairs the
+    scene sets (the control scenes' cushions) keep their values."""
+    scene = {"effects": ["rotation", "contact_friction"],
+             "materials": {"restitution": 0.9,
+                           "pairs": [{"bodies": ["striker", "rod"], "restitution": 0.6,
+                                      "friction": 0.1}]},
+             "bodies": [{"name": "rod", "shape": "rod", "length": 0.7, "thickness": 0.04,
+                         "mass": 0.3},
+                        {"name": "striker", "shape": "disk", "radius": 0.05, "mass": 0.2,
+                         "position": [0.0, 1.0]}]}
+    env = gym.make("SpinStrike/RodSpin-v0", scene=scene, restitution=0.8, friction=0.3)
+    obs, _ = env.reset(seed=0)
+    world = env.unwrapped.world
+    assert world.restitution("rod", "striker")[0] == 0.8 == pytest.approx(obs[2])
+    assert world.friction("rod", "striker")[0] == 0.3
+    plain = gym.make("SpinStrike/RodSpin-v0", scene=scene).unwrapped.world
+    assert plain.restitution("rod", "striker")[0] == 0.6  # without the argument: the scene's
+    control = gym.make("SpinStrike/RodSpinControl-v0", restitution=1.0).unwrapped.world
+    default = gym.make("SpinStrike/RodSpinControl-v0").unwrapped.world
+    assert control.restitution("rod", "mallet")[0] == 1.0
+    assert control.restitution("rod", "walls")[0] == default.restitution("rod", "walls")[0]
