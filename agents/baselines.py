@@ -62,9 +62,15 @@ def _name(algo: str, env_id: str, tag: str, seed: int) -> str:
 
 
 def _commit() -> str:
+    """The commit of the code that runs (the checkout this module is in; not the folder the
+    command runs from, which recorded another repository's commit), or "unknown" (a wheel)."""
+    here = Path(__file__).resolve().parent
     try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
-                              text=True, check=True).stdout.strip()
+        # this file tracked there: an installed copy inside some repository is not its code
+        subprocess.run(["git", "-C", str(here), "ls-files", "--error-unmatch", Path(__file__).name],
+                       capture_output=True, check=True)
+        return subprocess.run(["git", "-C", str(here), "rev-parse", "--short", "HEAD"],
+                              capture_output=True, text=True, check=True).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
 

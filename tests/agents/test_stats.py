@@ -4,6 +4,7 @@ the notes written by hand around the generated part."""
 
 import json
 import os
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -103,6 +104,20 @@ def test_cli_baselines_writes_iqm_table_and_curves_on_fixed_episodes(tmp_path, c
                  "--algos", "ppo", "--no-transfer"]) == 0
     assert (user / "runs" / "baselines-quick" / "baselines.md").is_file()
     assert not (user / "docs").exists()
+    # the commit recorded is the code's, not that of a repository the command runs in
+    from spinstrike.agents import baselines
+
+    code = subprocess.run(["git", "-C", str(Path(baselines.__file__).parent), "rev-parse",
+                           "--short", "HEAD"], capture_output=True, text=True)
+    if code.returncode == 0:  # a checkout (an installed wheel records "unknown")
+        git = ["git", "-c", "user.email=u@x", "-c", "user.name=u"]
+        subprocess.run([*git, "init", "-q"], cwd=user, check=True)
+        subprocess.run([*git, "commit", "-q", "--allow-empty", "-m", "theirs"], cwd=user,
+                       check=True)
+        assert main(["baselines", "--quick", "--reuse-only", "--envs", "SpinStrike/PuckSpeed-v1",
+                     "--algos", "ppo", "--no-transfer"]) == 0
+        text = (user / "runs" / "baselines-quick" / "baselines.md").read_text()
+        assert f"Code at commit {code.stdout.strip()}." in text
 
 
 def test_baselines_doc_markers(tmp_path):
