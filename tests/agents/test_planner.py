@@ -187,3 +187,44 @@ def test_cli_evaluate_planner_reports_its_hits(capsys, tmp_path):
     assert "gained by hits" not in text and "| oracle | 1.0000 |" in text
     assert main(["evaluate", "--planner", "--env", "SpinStrike/RodSpin-v0"]) == 2
     assert "--planner: drives the control envs only" in capsys.readouterr().err
+
+
+def test_planner_module_writes_its_part_and_keeps_the_notes(tmp_path, capsys):
+    """``python -m spinstrike.agents.planner --out FILE`` replaces the generated part and
+    keeps the notes written by hand (it rewrote docs/planner.md whole: 95 lines to 20, the
+    warm-start study gone); without ``--out`` it prints only; bad options are one line."""
+    from spinstrike.agents.planner import BEGIN, END
+    from spinstrike.agents.planner import main as planner_main
+
+    doc = tmp_path / "planner.md"
+    tiny = ["--episodes", "1", "--steps", "5", "--horizons", "2", "--samples", "4",
+            "--envs", CONTROL[1]]
+    assert planner_main(tiny) == 0 and not doc.exists()
+    assert planner_main([*tiny, "--out", str(doc)]) == 0
+    doc.write_text("Intro by hand.\n\n" + doc.read_text() + "\n## Notes (by hand)\n\nKept.\n")
+    assert planner_main([*tiny, "--out", str(doc)]) == 0
+    text = doc.read_text()
+    assert text.startswith("Intro by hand.\n\n" + BEGIN)
+    assert text.endswith(END + "\n\n## Notes (by hand)\n\nKept.\n")
+    assert text.count("| horizon \\ samples |") == 1
+    assert f"wrote {doc}" in capsys.readouterr().err
+    # the shipped document has the markers, so a rerun keeps its warm-start study
+    from pathlib import Path
+
+    shipped = (Path(__file__).parents[2] / "docs" / "planner.md").read_text()
+    assert shipped.count(BEGIN) == shipped.count(END) == 1
+    assert shipped.index(END) < shipped.index("## Warm start")
+    for bad, words in ((["--samples", "1"], "--samples: must be >= 2"),
+                       (["--steps", "0"], "--steps: must be >= 1"),
+                       (["--envs", "SpinStrike/RodSpin-v0"], "drives the control envs only")):
+        with pytest.raises(SystemExit):
+            planner_main(bad)
+        assert words in capsys.readouterr().err
+
+
+def test_planner_refuses_a_vector_env():
+    """It planned element 0 alone and handed back one action for the whole batch."""
+    vec = gym.make_vec(CONTROL[0], num_envs=2)
+    obs, _ = vec.reset(seed=0)
+    with pytest.raises(TypeError, match="not a vector env"):
+        CEMPlanner(samples=4, elites=2)(vec, obs)
