@@ -650,7 +650,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--no-effects", action="store_true", help="skip the cost-per-effect table")
     parser.add_argument("-v", "--verbose", action="store_true", help="progress on stderr")
     args = parser.parse_args(argv)
+    if args.batch is not None and args.batch < 1:
+        parser.error(f"--batch: must be >= 1 (got {args.batch})")
+    if args.min_time is not None and not args.min_time > 0:
+        parser.error(f"--min-time: must be > 0 s (got {args.min_time})")
     out = args.out if args.out is not None else (None if args.quick else Path("docs"))
+    if out is not None:  # before the run, not after its minutes
+        if out.exists() and not out.is_dir():
+            parser.error(f"--out: {out} is a file; give a directory (accuracy.md and "
+                         f"accuracy.png go there)")
+        out.mkdir(parents=True, exist_ok=True)
     log = (lambda msg: print(msg, file=sys.stderr, flush=True)) if args.verbose else None
 
     load0 = os.getloadavg()[0]
@@ -662,7 +671,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     plot_name = "accuracy.png" if out is not None else None
     text = report(ms, effects, argv, seconds, plot_name, raw, (load0, os.getloadavg()[0]))
     if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
         (out / "accuracy.md").write_text(text)
         plot(ms, out / "accuracy.png")
         print(f"wrote {out / 'accuracy.md'} and {out / 'accuracy.png'}")

@@ -452,9 +452,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--bodies", type=int, nargs="+", default=list(BODIES),
                    help="pucks per scene in the bodies sweep (default: %(default)s)")
     args = p.parse_args(argv)
+    if min(args.bodies) < 1:
+        p.error(f"--bodies: each must be >= 1 puck (got {min(args.bodies)})")
     quick = args.quick
     out = args.out if args.out is not None else (None if quick else Path("docs"))
     if out is not None:
+        if out.exists() and not out.is_dir():
+            p.error(f"--out: {out} is a file; give a directory (speed.md and the plots go "
+                    f"there)")
         out.mkdir(parents=True, exist_ok=True)
     body_steps = 10 if quick else BODY_STEPS
     if args.section == "bodies":

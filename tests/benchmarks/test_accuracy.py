@@ -4,6 +4,7 @@ Physics only (errors against known answers), never timings.
 """
 
 import math
+import time
 from itertools import pairwise
 
 import numpy as np
@@ -267,3 +268,20 @@ def test_main_quick_writes_markdown_and_plot(tmp_path):
 
 def test_cases_are_listed_in_report_order():
     assert CASES == ("seed", "offline_disk_rod", "disk_disk", "rod_wall", "spinning_rod", "tunnel")
+
+
+@pytest.mark.parametrize("args,words", [
+    (["--batch", "0"], "--batch: must be >= 1"),  # was the default, silently
+    (["--min-time", "-1"], "--min-time: must be > 0 s"),
+    (["--out", "FILE"], "is a file; give a directory"),  # was a traceback after the whole run
+])
+def test_bench_accuracy_refuses_bad_options_before_it_runs(tmp_path, capsys, args, words):
+    from spinstrike.agents.cli import main
+
+    (tmp_path / "FILE").write_text("")
+    args = [str(tmp_path / "FILE") if a == "FILE" else a for a in args]
+    t = time.perf_counter()
+    with pytest.raises(SystemExit) as exit_:
+        main(["bench", "accuracy", "--quick", *args])
+    assert exit_.value.code == 2 and time.perf_counter() - t < 5
+    assert words in capsys.readouterr().err

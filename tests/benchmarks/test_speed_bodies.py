@@ -37,3 +37,19 @@ def test_a_quick_run_only_prints(tmp_path, monkeypatch, capsys):
     assert list(tmp_path.iterdir()) == []
     out = capsys.readouterr().out
     assert "| 8 |" in out and "printed only" in out
+
+
+def test_bad_options_are_one_line_before_anything_runs(tmp_path, capsys):
+    """``--bodies -4`` was a ``math domain error`` traceback and ``--bodies 0`` a scene
+    validation message; an ``--out`` naming a file, a ``FileExistsError`` traceback."""
+    import pytest
+
+    from spinstrike.agents.cli import main
+
+    (tmp_path / "f").write_text("")
+    for args, words in ((["--bodies", "-4"], "--bodies: each must be >= 1"),
+                        (["--bodies", "0"], "--bodies: each must be >= 1"),
+                        (["--out", str(tmp_path / "f")], "is a file; give a directory")):
+        with pytest.raises(SystemExit) as exit_:
+            main(["bench", "speed", "--quick", "--section", "bodies", *args])
+        assert exit_.value.code == 2 and words in capsys.readouterr().err
