@@ -461,9 +461,14 @@ def main(argv: list[str] | None = None) -> int:
             p.error(f"--out: {out} is a file; give a directory (speed.md and the plots go "
                     f"there)")
         out.mkdir(parents=True, exist_ok=True)
+    load, cores = os.getloadavg()[0], os.cpu_count() or 1
+    if load > 0.5 * cores:  # the rates are the fastest of a few runs, not immune to sharing
+        print(f"warning: load average {load:.2f} on {cores} cores: other work shares them, "
+              f"and the native vector env's parallel kernel loses most (up to ~5x against "
+              f"pymunk's single thread); measure on quiet cores for the ratios docs/speed.md "
+              f"reports", file=sys.stderr)
     body_steps = 10 if quick else BODY_STEPS
     if args.section == "bodies":
-        load = os.getloadavg()[0]
         rows = bodies_sweep(args.bodies, body_steps)
         if out is None:
             print("\n".join(_bodies_lines(rows, body_steps, load)))
