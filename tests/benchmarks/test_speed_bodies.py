@@ -53,3 +53,12 @@ def test_bad_options_are_one_line_before_anything_runs(tmp_path, capsys):
         with pytest.raises(SystemExit) as exit_:
             main(["bench", "speed", "--quick", "--section", "bodies", *args])
         assert exit_.value.code == 2 and words in capsys.readouterr().err
+
+
+def test_a_loaded_machine_is_named_before_the_rates(monkeypatch, capsys):
+    import os
+
+    for load, warned in ((0.1, False), (64.0, True)):
+        monkeypatch.setattr(os, "getloadavg", lambda x=load: (x, x, x))
+        assert speed.main(["--section", "bodies", "--bodies", "2", "--quick"]) == 0
+        assert ("other work shares them" in capsys.readouterr().err) is warned
