@@ -14,10 +14,13 @@ behaviour, ``NUMBA_CACHE_DIR`` included):
   writable, a per-user directory under the system's temporary directory is used; if that fails
   too, kernels compile in every process (a warning says so).
 * **Freshness**: a cached kernel carries a stamp: the hash of its module's source *and of every
-  ``spinstrike`` module that module imports, transitively* (what numba may inline or freeze into
+  ``spinstrike`` module (or module beside it) that module imports, transitively, in any import
+  form (read with ``ast``: relative imports too)* (what numba may inline or freeze into
   it: kernels, layout tables, constants). An edit to any of them recompiles the kernels that
   depend on it, wherever the cache lives, read-only installs included.
-* ``spinstrike cache`` shows the location and size; ``spinstrike cache --clear`` empties it;
+* ``spinstrike cache`` shows the location and size; ``spinstrike cache --clear`` removes the
+  kernel folders (those with a ``SOURCE`` marker or numba's files; anything else in a folder
+  ``SPINSTRIKE_CACHE_DIR`` names stays);
   ``--prune`` removes only the folders of source directories that are gone (each clone,
   virtual environment or CI checkout compiles into a folder of its own, and a deleted one's
   kernels would otherwise stay).
@@ -28,9 +31,10 @@ run only), so a first run that takes half a minute does not look hung.
 
 from __future__ import annotations
 
+import ast
 import hashlib
+import importlib.util
 import os
-import re
 import shutil
 import sys
 import tempfile
@@ -47,18 +51,11 @@ __all__ = ["KernelCache", "cache_dir", "cache_info", "clear_cache", "module_stam
 ENV_VAR = "SPINSTRIKE_CACHE_DIR"
 #: the file in each cache folder naming the source directory its kernels were compiled from
 SOURCE_MARKER = "SOURCE"
-#: a ``from spinstrike... import`` of one line or of a parenthesised list (which must not run on
-#: into the next statement: it once swallowed the ``from`` of the import after a list, so that
-#: module fell out of the stamp), or an ``import spinstrike...``
-_IMPORT = re.compile(r"^\s*(?:from\s+(spinstrike(?:\.\w+)+)\s+import\s+(\([^)]*\)|[\w \t,]+)"
-                     r"|import\s+(spinstrike(?:\.\w+)+))", re.M)
-
-
 def cache_dir() -> Path:
     """The directory holding SpinStrike's compiled kernels (see the module docstring)."""
     override = os.environ.get(ENV_VAR)
-    if override:
-        return Path(override).expanduser()
+    if override:  # absolute: a relative one followed the working directory of each save
+        return Path(override).expanduser().absolute()
     from platformdirs import user_cache_dir
 
     return Path(user_cache_dir("spinstrike", appauthor=False)) / "kernels"
@@ -66,27 +63,65 @@ def cache_dir() -> Path:
 
 def _fallback_dir() -> Path:
     uid = os.getuid() if hasattr(os, "getuid") else os.getpid()
-    return Path(tempfile.gettempdir()) / f"spinstrike-kernels-{uid}"
+    try:
+        tmp = tempfile.gettempdir()
+    except FileNotFoundError:  # no writable temporary directory: `import spinstrike` failed
+        tmp = os.path.join(os.sep, "nonexistent")  # no cache there: compiled in each process
+    return Path(tmp) / f"spinstrike-kernels-{uid}"
 
 
 def _module_file(name: str) -> Path | None:
+    """The source file of module ``name`` (a package: its ``__init__.py``), imported or not
+    (a module imported after the kernel's stamp was taken counts too); None if none."""
     module = sys.modules.get(name)
     path = getattr(module, "__file__", None)
-    return Path(path) if path else None
+    if path is None:
+        try:
+            spec = importlib.util.find_spec(name)
+        except (ImportError, ValueError):
+            return None
+        path = spec.origin if spec is not None and spec.has_location else None
+    return Path(path).resolve() if path else None
 
 
-def _imports(path: Path) -> set[str]:
-    """The ``spinstrike`` modules a source file imports (``from pkg import mod`` names too)."""
-    found = set()
-    for m in _IMPORT.finditer(path.read_text()):
-        if m.group(3):
-            found.add(m.group(3))
-            continue
-        found.add(m.group(1))
-        for name in re.split(r"[\s,()]+", m.group(2)):
-            if name and f"{m.group(1)}.{name}" in sys.modules:
-                found.add(f"{m.group(1)}.{name}")  # ``from spinstrike.physics import motion``
-    return found
+def _sibling(path: Path, level: int, dotted: str) -> Path | None:
+    """The file a relative import ``from <level dots><dotted>`` in ``path`` names."""
+    base = path.parent
+    for _ in range(level - 1):
+        base = base.parent
+    target = base.joinpath(*dotted.split(".")) if dotted else base
+    for candidate in (target.with_suffix(".py"), target / "__init__.py"):
+        if candidate.is_file():
+            return candidate.resolve()
+    return None
+
+
+def _imports(path: Path) -> set[Path]:
+    """The source files of the ``spinstrike`` modules (and of modules beside ``path``) that a
+    source file imports, in any form: ``import a, spinstrike.x``, ``from spinstrike.x import
+    y`` (``y`` a module too), ``from spinstrike import x``, relative (``from .x import y``,
+    ``from . import x``), star imports, inside functions (read with ``ast``: a pattern missed
+    relative imports, so an edit of a module imported that way kept stale kernels)."""
+    found: set[Path | None] = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.startswith("spinstrike."):
+                    found.add(_module_file(alias.name))
+        elif isinstance(node, ast.ImportFrom):
+            names = [a.name for a in node.names if a.name != "*"]
+            if node.level:
+                found.add(_sibling(path, node.level, node.module or ""))
+                for name in names:
+                    found.add(_sibling(path, node.level, f"{node.module}.{name}" if node.module
+                                       else name))
+            elif node.module and (node.module == "spinstrike"
+                                  or node.module.startswith("spinstrike.")):
+                found.add(_module_file(node.module))
+                for name in names:  # ``from spinstrike.physics import motion``: a module
+                    found.add(_module_file(f"{node.module}.{name}"))
+    found.discard(None)
+    return found  # type: ignore[return-value]
 
 
 @cache
@@ -95,9 +130,8 @@ def _closure(path: Path) -> tuple[Path, ...]:
     seen = {path}
     todo = [path]
     while todo:
-        for name in _imports(todo.pop()):
-            dep = _module_file(name)
-            if dep is not None and dep not in seen:
+        for dep in _imports(todo.pop()):
+            if dep not in seen:
                 seen.add(dep)
                 todo.append(dep)
     return tuple(sorted(seen))
@@ -193,12 +227,20 @@ def _kernel_dirs() -> list[Path]:
     return [r for r in roots if r.is_dir()]
 
 
+def _kernel_folders(root: Path) -> list[Path]:
+    """The folders of ``root`` that hold compiled kernels (a ``SOURCE`` marker, or numba's
+    index and data files, in folders from before the marker): what the cache commands count
+    and remove. Anything else in ``SPINSTRIKE_CACHE_DIR`` (a shared folder) is not theirs."""
+    return [f for f in sorted(root.iterdir()) if f.is_dir() and (
+        (f / SOURCE_MARKER).is_file() or any(f.glob("*.nbi")) or any(f.glob("*.nbc")))]
+
+
 def _stale_folders() -> list[Path]:
     """Cache folders whose source directory (recorded in their ``SOURCE`` file) is gone: a
     deleted clone, virtual environment or CI checkout; each source directory has its own."""
     stale = []
     for root in _kernel_dirs():
-        for folder in root.iterdir():
+        for folder in _kernel_folders(root):
             marker = folder / SOURCE_MARKER
             if marker.is_file() and not Path(marker.read_text().strip()).is_dir():
                 stale.append(folder)
@@ -209,12 +251,13 @@ def cache_info() -> dict:
     """``{"path", "files", "bytes", "fallback", "folders", "stale", "stale_bytes"}`` of the
     kernel cache (``folders``: one per source directory that compiled kernels; ``stale``: those
     whose source directory is gone, what :func:`prune_cache` removes)."""
-    files = [f for root in _kernel_dirs() for f in root.rglob("*") if f.is_file()]
+    folders = [f for root in _kernel_dirs() for f in _kernel_folders(root)]
+    files = [f for d in folders for f in d.rglob("*") if f.is_file()]
     stale = _stale_folders()
     return {"path": str(cache_dir()), "files": len(files),
             "bytes": sum(f.stat().st_size for f in files),
             "fallback": str(_fallback_dir()) if _fallback_dir().is_dir() else None,
-            "folders": sum(1 for root in _kernel_dirs() for f in root.iterdir() if f.is_dir()),
+            "folders": len(folders),
             "stale": len(stale),
             "stale_bytes": sum(f.stat().st_size for d in stale for f in d.rglob("*")
                                if f.is_file())}
@@ -230,14 +273,18 @@ def prune_cache() -> int:
 
 
 def clear_cache() -> int:
-    """Remove every cached kernel (both the cache directory and the fallback); returns the
-    number of files removed. The next run recompiles."""
+    """Remove every cached kernel (the kernel folders of the cache directory and of the
+    fallback; nothing else there: ``SPINSTRIKE_CACHE_DIR`` may name a shared folder, which
+    was removed whole); returns the number of files removed. The next run recompiles."""
     removed = 0
     for root in _kernel_dirs():
-        removed += sum(1 for f in root.rglob("*") if f.is_file())
-        for _ in range(3):  # another process may be writing a file meanwhile
-            shutil.rmtree(root, ignore_errors=True)
-            if not root.exists():
-                break
-            time.sleep(0.1)
+        for folder in _kernel_folders(root):
+            removed += sum(1 for f in folder.rglob("*") if f.is_file())
+            for _ in range(3):  # another process may be writing a file meanwhile
+                shutil.rmtree(folder, ignore_errors=True)
+                if not folder.exists():
+                    break
+                time.sleep(0.1)
+        if not os.environ.get(ENV_VAR) and root.is_dir() and not any(root.iterdir()):
+            root.rmdir()  # the default folder, emptied (a folder the user named stays)
     return removed

@@ -93,7 +93,39 @@ def test_cache_command_reports_and_clears(tmp_path):
     out = subprocess.run([str(script), "cache", "--clear"], env=env, capture_output=True,
                          text=True, cwd=tmp_path, timeout=300)
     assert out.returncode == 0 and "removed 1" in out.stdout
-    assert not cache.exists()
+    assert not (cache / "physics_x").exists()
+
+
+def test_clearing_a_shared_cache_folder_removes_the_kernels_only(tmp_path):
+    """``SPINSTRIKE_CACHE_DIR`` may name a folder that holds other things (``~/.cache``,
+    ``/scratch/$USER``): ``--clear`` removed the whole folder, and ``spinstrike cache``
+    counted its files as kernels."""
+    cache = tmp_path / "shared"
+    (cache / "other_tool").mkdir(parents=True)
+    (cache / "other_tool" / "blob").write_text("x")
+    (cache / "notes.txt").write_text("my data")
+    for name, marker in (("physics_new", "SOURCE"), ("physics_old", "k.nbi")):  # old: no SOURCE
+        (cache / name).mkdir()
+        (cache / name / marker).write_text(str(tmp_path))
+        (cache / name / "k.nbc").write_bytes(b"x" * 10)
+    env = dict(os.environ, SPINSTRIKE_CACHE_DIR=str(cache))
+    script = Path(sys.executable).with_name("spinstrike")
+    out = subprocess.run([str(script), "cache"], env=env, capture_output=True, text=True,
+                         cwd=tmp_path, timeout=300)
+    assert out.returncode == 0 and "4 files" in out.stdout and "in 2 folders" in out.stdout
+    out = subprocess.run([str(script), "cache", "--clear"], env=env, capture_output=True,
+                         text=True, cwd=tmp_path, timeout=300)
+    assert out.returncode == 0 and "removed 4" in out.stdout
+    assert sorted(p.name for p in cache.iterdir()) == ["notes.txt", "other_tool"]
+    assert (cache / "other_tool" / "blob").read_text() == "x"
+
+
+def test_a_relative_cache_dir_is_made_absolute(tmp_path, monkeypatch):
+    from spinstrike.physics.cache import cache_dir
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("SPINSTRIKE_CACHE_DIR", "kc")
+    assert cache_dir() == tmp_path / "kc"
 
 
 def test_cache_prune_removes_the_folders_of_deleted_installs_only(tmp_path):
@@ -179,3 +211,34 @@ def test_the_stamp_covers_every_import_of_a_kernel_module(module):
         if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("spinstrike."):
             dep = Path(importlib.import_module(node.module).__file__).resolve()
             assert dep in stamped, f"{module}: {node.module} is not in its kernels' stamp"
+
+
+def test_the_stamp_follows_every_form_of_import(tmp_path):
+    """Relative imports, ``from spinstrike import pkg``, several modules on one line, a
+    backslash continuation and imports inside functions are in a kernel's stamp (a pattern
+    saw absolute ``from spinstrike.x`` lines only: a kernel module importing a sibling as
+    ``from .tuning import SCALE`` kept its stale kernel after an edit of ``tuning.py``)."""
+    from spinstrike.physics import cache as kernel_cache
+
+    pkg = tmp_path / "pkg"
+    (pkg / "sub").mkdir(parents=True)
+    for name in ("a.py", "b.py", "c.py", "sub/__init__.py", "sub/d.py"):
+        (pkg / name).write_text("X = 1\n")
+    kern = pkg / "kern.py"
+    kern.write_text("from .a import X\n"
+                    "from . import b\n"
+                    "from .sub import d\n"
+                    "import numpy as np, spinstrike.physics.layout\n"
+                    "from spinstrike import physics\n"
+                    "from spinstrike.physics.motion import \\\n    slide\n"
+                    "def f():\n    from .c import *\n")
+    names = {p.relative_to(p.parents[1]).as_posix()
+             for p in kernel_cache._closure(kern.resolve())}
+    for want in ("pkg/a.py", "pkg/b.py", "pkg/c.py", "sub/d.py", "sub/__init__.py",
+                 "physics/layout.py", "physics/motion.py", "physics/__init__.py"):
+        assert want in names, (want, sorted(names))
+    before = kernel_cache.module_stamp(kern)
+    kernel_cache._stamp.cache_clear()
+    kernel_cache._closure.cache_clear()
+    (pkg / "c.py").write_text("X = 2\n")  # the import inside a function
+    assert kernel_cache.module_stamp(kern) != before
