@@ -9,7 +9,7 @@
                         [--out rollout.mp4|.gif] [--grid]
     spinstrike record   --scene break [--seconds 3] [--dt 0.02]   (a physics scene, no policy)
     spinstrike envs
-    spinstrike cache    [--clear]
+    spinstrike cache    [--clear | --prune]
     spinstrike bench    accuracy|speed [--quick]
     spinstrike baselines [--quick]
 
@@ -493,6 +493,25 @@ def main(argv: list[str] | None = None) -> int:
     except (AgentConfigError, ConfigError, SceneError) as exc:
         print("error: " + " ".join(str(exc).split()), file=sys.stderr)  # on one line
         return 2
+    except ModuleNotFoundError as exc:  # an optional dependency: name the extra, not a traceback
+        top = (exc.name or "").split(".")[0]
+        if top not in EXTRA_OF:
+            raise
+        extra = "bench" if args.command == "bench" and top == "matplotlib" else EXTRA_OF[top]
+        print(f"error: spinstrike {args.command} needs {top}, which comes with the {extra!r} "
+              f"extra: pip install \"spinstrike[{extra}]\" (with CPU-only PyTorch first: "
+              f"pip install torch --index-url https://download.pytorch.org/whl/cpu)"
+              if extra in ("train", "rllib") else
+              f"error: spinstrike {args.command} needs {top}, which comes with the {extra!r} "
+              f"extra: pip install \"spinstrike[{extra}]\"", file=sys.stderr)
+        return 2
+
+
+#: the extra that brings each optional module the commands import
+EXTRA_OF = {"stable_baselines3": "train", "torch": "train", "tensorboard": "train",
+            "tqdm": "train", "rich": "train", "matplotlib": "train", "pygame": "render",
+            "moviepy": "render", "imageio_ffmpeg": "render", "PIL": "render", "mpmath": "bench",
+            "rliable": "stats", "pandas": "stats", "rl_zoo3": "zoo", "ray": "rllib"}
 
 
 if __name__ == "__main__":

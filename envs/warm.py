@@ -16,6 +16,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 __all__ = ["WarmUp", "warm_up"]
 
@@ -42,8 +43,15 @@ def warm_up(env_id: str, num_envs: int = 1, env_kwargs: dict | None = None) -> W
     background process; returns at once."""
     args = [sys.executable, "-m", "spinstrike.envs.warm", env_id, str(int(num_envs)),
             json.dumps(env_kwargs or {})]
+    import spinstrike
+
+    # run beside the package this process imported: `python -m` puts the working directory
+    # first on sys.path, and from the root of a checkout it compiled the checkout's kernels
+    # (the repository's spinstrike/__init__.py), not the installed package's this run uses
+    here = Path(spinstrike.__file__).resolve().parent.parent
     try:
-        process = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        process = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                   cwd=here)
     except OSError:
         process = None
     return WarmUp(process)

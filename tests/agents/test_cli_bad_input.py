@@ -296,3 +296,27 @@ def test_baselines_without_rliable_says_so_before_training(sandbox, capsys, monk
     assert err.startswith("error: confidence intervals need rliable: pip install "
                           "'spinstrike[stats]'") and len(err.splitlines()) == 1
     assert list(sandbox.iterdir()) == []
+
+
+@pytest.mark.parametrize("module,argv,extra", [
+    ("stable_baselines3", ["train", "--timesteps", "64", "--no-video"], "train"),
+    ("mpmath", ["bench", "accuracy", "--quick", "--cases", "seed"], "bench"),
+])
+def test_a_missing_optional_dependency_names_its_extra(monkeypatch, tmp_path, capsys, module,
+                                                       argv, extra):
+    """On a base install ``spinstrike train`` died in a ModuleNotFoundError traceback (and the
+    accuracy benchmark needed mpmath, which no extra declared)."""
+    import sys
+
+    from spinstrike.agents.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    for name in [m for m in sys.modules if m == module or m.startswith(module + ".")]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, module, None)  # import module: ModuleNotFoundError
+    if module == "mpmath":
+        monkeypatch.delitem(sys.modules, "spinstrike.benchmarks.cases", raising=False)
+        monkeypatch.delitem(sys.modules, "spinstrike.benchmarks.accuracy", raising=False)
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert f'pip install "spinstrike[{extra}]"' in err and "Traceback" not in err

@@ -195,6 +195,27 @@ def test_warm_up_compiles_an_envs_kernels_for_the_next_process(tmp_path):
     assert hits >= 1 and misses == 0
 
 
+def test_warm_up_imports_the_package_this_process_runs(tmp_path, monkeypatch):
+    """The warm-up runs ``python -m spinstrike.envs.warm``, which puts its working directory
+    first on ``sys.path``: started from the root of a checkout while the installed package ran,
+    it compiled the checkout's kernels. It now runs beside the package this process imported."""
+    from spinstrike.envs import warm
+
+    seen = {}
+
+    class Recorder:
+        def __init__(self, args, **kwargs):
+            seen.update(kwargs, args=args)
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(warm.subprocess, "Popen", Recorder)
+    warm.warm_up("SpinStrike/RodSpin-v0")
+    monkeypatch.undo()  # subprocess.Popen is the module's: put it back before using it
+    out = subprocess.run([sys.executable, "-c", "import spinstrike; print(spinstrike.__file__)"],
+                         cwd=seen["cwd"], capture_output=True, text=True, timeout=300)
+    assert Path(out.stdout.strip()).resolve() == Path(spinstrike.__file__).resolve()
+
+
 @pytest.mark.parametrize("module", ["spinstrike.physics.kernels", "spinstrike.physics.solvers",
                                     "spinstrike.envs.fast"])
 def test_the_stamp_covers_every_import_of_a_kernel_module(module):
