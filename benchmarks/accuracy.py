@@ -652,8 +652,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.batch is not None and args.batch < 1:
         parser.error(f"--batch: must be >= 1 (got {args.batch})")
-    if args.min_time is not None and not args.min_time > 0:
-        parser.error(f"--min-time: must be > 0 s (got {args.min_time})")
+    if args.min_time is not None and not args.min_time >= 0:  # 0: each timed once
+        parser.error(f"--min-time: must be >= 0 s (got {args.min_time})")
     out = args.out if args.out is not None else (None if args.quick else Path("docs"))
     if out is not None:  # before the run, not after its minutes
         if out.exists() and not out.is_dir():
