@@ -325,7 +325,8 @@ class _StrikeTask(Task):
     # -- snapshots ----------------------------------------------------------------------------
     def snapshot(self) -> dict:
         return {"goal": self.goal.copy(), "result_v": self.result_v.copy(),
-                "result_w": self.result_w.copy(), "result_vs": self.result_vs.copy()}
+                "result_w": self.result_w.copy(), "result_vs": self.result_vs.copy(),
+                "struck": self._struck.copy(), "last_reward": self._last_reward.copy()}
 
     def trace(self) -> dict:
         return {"clip": self.clip, "clip_reward": self._clip_reward}
@@ -341,6 +342,10 @@ class _StrikeTask(Task):
         self.result_v[:] = snap["result_v"]
         self.result_w[:] = snap["result_w"]
         self.result_vs[:] = snap["result_vs"]
+        # what the frame says (before or after the strike): a snapshot's own (one taken before
+        # this was kept: not struck)
+        self._struck[:] = snap.get("struck", False)
+        self._last_reward[:] = snap.get("last_reward", 0.0)
 
     # -- rendering ----------------------------------------------------------------------------
     def _record_clip(self) -> StrikeClip:

@@ -634,3 +634,18 @@ def test_a_native_vector_envs_frame_says_the_strike_is_done():
     vec.step(np.zeros((2, 3), np.float32))  # NEXT_STEP: the reset step
     assert "before the strike" in vec.unwrapped.task.frame(1).panel[0]
     vec.close()
+
+
+def test_a_state_put_back_is_framed_as_it_was():
+    """A state from before the strike, put back after one, is framed "before the strike"
+    (and one from after it, after), not as the env's last step left the caption."""
+    env = gym.make("SpinStrike/RodSpin-v0", render_mode="rgb_array").unwrapped
+    env.reset(seed=0)
+    before = env.get_physics_state()
+    _, reward, *_ = env.step(env.action_space.sample())
+    after = env.get_physics_state()
+    env.set_physics_state(before)
+    assert "before the strike" in env.task.frame(0).panel[0]
+    env.set_physics_state(after)
+    panel = env.task.frame(0).panel
+    assert "after the strike" in panel[0] and panel[2] == f"reward {reward:.3f}"
