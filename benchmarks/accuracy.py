@@ -53,6 +53,7 @@ from typing import Any
 import numpy as np
 
 from spinstrike import physics
+from spinstrike.benchmarks import out_dir
 from spinstrike.benchmarks.cases import CASES, Variant, get_case
 
 __all__ = ["Setting", "errors", "main", "measure", "run", "settings"]
@@ -654,12 +655,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"--batch: must be >= 1 (got {args.batch})")
     if args.min_time is not None and not args.min_time >= 0:  # 0: each timed once
         parser.error(f"--min-time: must be >= 0 s (got {args.min_time})")
-    out = args.out if args.out is not None else (None if args.quick else Path("docs"))
-    if out is not None:  # before the run, not after its minutes
-        if out.exists() and not out.is_dir():
-            parser.error(f"--out: {out} is a file; give a directory (accuracy.md and "
-                         f"accuracy.png go there)")
-        out.mkdir(parents=True, exist_ok=True)
+    out = out_dir(parser, args.out if args.out is not None else
+                  (None if args.quick else Path("docs")), "accuracy.md and accuracy.png")
     log = (lambda msg: print(msg, file=sys.stderr, flush=True)) if args.verbose else None
 
     load0 = os.getloadavg()[0]

@@ -36,7 +36,7 @@ from spinstrike import (
     envs,  # noqa: F401
     physics,
 )
-from spinstrike.benchmarks import cpu_model
+from spinstrike.benchmarks import cpu_model, out_dir
 from spinstrike.benchmarks import startup as startup_study
 
 __all__ = ["main"]
@@ -455,12 +455,8 @@ def main(argv: list[str] | None = None) -> int:
     if min(args.bodies) < 1:
         p.error(f"--bodies: each must be >= 1 puck (got {min(args.bodies)})")
     quick = args.quick
-    out = args.out if args.out is not None else (None if quick else Path("docs"))
-    if out is not None:
-        if out.exists() and not out.is_dir():
-            p.error(f"--out: {out} is a file; give a directory (speed.md and the plots go "
-                    f"there)")
-        out.mkdir(parents=True, exist_ok=True)
+    out = out_dir(p, args.out if args.out is not None else (None if quick else Path("docs")),
+                  "speed.md and the plots")
     load, cores = os.getloadavg()[0], os.cpu_count() or 1
     if load > 0.5 * cores:  # the rates are the fastest of a few runs, not immune to sharing
         print(f"warning: load average {load:.2f} on {cores} cores: other work shares them, "

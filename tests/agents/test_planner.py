@@ -193,7 +193,8 @@ def test_planner_module_writes_its_part_and_keeps_the_notes(tmp_path, capsys):
     """``python -m spinstrike.agents.planner --out FILE`` replaces the generated part and
     keeps the notes written by hand (it rewrote docs/planner.md whole: 95 lines to 20, the
     warm-start study gone); without ``--out`` it prints only; bad options are one line."""
-    from spinstrike.agents.planner import BEGIN, END
+    from spinstrike.agents.baselines import END
+    from spinstrike.agents.planner import BEGIN
     from spinstrike.agents.planner import main as planner_main
 
     doc = tmp_path / "planner.md"
