@@ -92,7 +92,9 @@ class EnvConfig(BaseModel):
     @classmethod
     def _path(cls, v):
         try:
-            return resolve_scene(v)
+            # a deep copy: pydantic copies a dict one level deep, so nested lists and dicts
+            # stayed the caller's, and a sweep editing its dict changed the env's copies
+            return copy.deepcopy(resolve_scene(v))
         except SceneError as exc:
             raise ValueError(str(exc).removeprefix("scene: ")) from None
 

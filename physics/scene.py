@@ -522,7 +522,8 @@ def read_scene(source: str | Path) -> Any:
 
     Raises:
         SceneError: a missing file (with where relative paths start and the packaged scenes),
-            an unknown name (with the packaged scenes), or text that is not YAML.
+            a file that holds no mapping (an empty one included), an unknown name (with the
+            packaged scenes), or text that is not YAML.
     """
     text = str(source)
     path = Path(text)
@@ -542,6 +543,12 @@ def read_scene(source: str | Path) -> Any:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         raise SceneError(f"scene: not valid YAML: {exc}") from None
+    if from_file and not isinstance(data, dict):
+        # an empty file (a sweep's script cut short) read as None meant "no scene given", and
+        # an env then simulated its packaged scene instead
+        what = "is empty" if data is None else f"holds a {type(data).__name__}"
+        raise SceneError(f"scene: the file {str(path)!r} {what}: a scene file must be a mapping of "
+                         f"scene fields (table, effects, solver, materials, bodies)")
     if not from_file and "\n" not in text.strip() and not isinstance(data, dict):
         # one line given as the scene, no mapping: a mistyped path or name
         raise SceneError(f"scene: {text!r} is neither a file, a packaged scene's name nor YAML "

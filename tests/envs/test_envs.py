@@ -14,6 +14,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 import spinstrike.envs.strike  # noqa: F401  (envs.strike below)
 from spinstrike import envs
 from spinstrike.envs import ConfigError
+from spinstrike.physics import SceneError, World
 
 ENV_IDS = list(envs.ENV_IDS)
 STRIKE_IDS = ["SpinStrike/RodSpin-v0", "SpinStrike/PuckSpeed-v0", "SpinStrike/PuckSpeed-v1"]
@@ -734,3 +735,37 @@ def test_restitution_and_friction_arguments_win_over_the_scenes_task_pair():
     default = gym.make("SpinStrike/RodSpinControl-v0").unwrapped.world
     assert control.restitution("rod", "mallet")[0] == 1.0
     assert control.restitution("rod", "walls")[0] == default.restitution("rod", "walls")[0]
+
+
+@pytest.mark.parametrize("text", ["", "# bodies to come from the sweep script\n", "- 1\n"])
+def test_an_empty_scene_file_is_refused_not_replaced_by_the_packaged_scene(tmp_path, text):
+    """An empty (or comments-only) scene file read as ``None``, which meant "no scene given":
+    ``gym.make(id, scene=path)`` then simulated the packaged scene without a word."""
+    path = tmp_path / "my_scene.yaml"
+    path.write_text(text)
+    for env_id in ("SpinStrike/RodSpinControl-v0", "SpinStrike/RodSpin-v0"):
+        with pytest.raises(envs.ConfigError, match="my_scene.yaml.*must be a mapping"):
+            gym.make(env_id, scene=str(path))
+    with pytest.raises(SceneError, match="must be a mapping"):
+        World(path)
+
+
+def test_a_copy_keeps_the_scene_made_with_not_the_dict_edited_since():
+    """The env kept the caller's nested lists and dicts of a ``scene`` dict (pydantic copies one
+    level): a sweep that edited its dict between builds changed every later pickle and copy of
+    an env made before (another solver and effects than the env that was copied)."""
+    import copy
+
+    scene = copy.deepcopy(envs.config.load_packaged_scene("rod_spin"))
+    scene["solver"] = {"mode": "exact"}
+    env = gym.make("SpinStrike/RodSpin-v0", scene=scene)
+    first, _ = env.reset(seed=3)
+    scene["solver"]["mode"] = "pymunk"  # the sweep's next point
+    scene["effects"].append("contact_friction")
+    scene["bodies"][0]["mass"] = 7.0
+    for twin in (copy.deepcopy(env.unwrapped), pickle.loads(pickle.dumps(env.unwrapped))):
+        assert twin.world.scene.solver.mode == "exact"
+        assert "contact_friction" not in twin.world.effects
+        obs, _ = twin.reset(seed=3)
+        np.testing.assert_array_equal(obs, first)
+    assert env.unwrapped.cfg.scene["solver"]["mode"] == "exact"
