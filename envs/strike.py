@@ -44,7 +44,8 @@ __all__ = ["PuckSpeedEnv", "PuckSpeedV1Env", "PuckSpeedV1VectorEnv", "PuckSpeedV
            "PuckSpeedVelocityTask", "RodSpinEnv", "RodSpinVectorEnv", "StrikeClip",
            "rod_spin_after_strike", "rod_spin_max"]
 
-#: simulated time per chunk of a strike, s (the solver's step inside the strike kernel)
+#: longest chunk of a strike, s (the solver's step inside the strike kernel; time_cap is cut into
+#: equal chunks of at most this)
 CHUNK = 1.0 / 30.0
 #: margin between the striker's start and the target's reach, m
 START_MARGIN = 0.02
@@ -92,11 +93,13 @@ class _StrikeTask(Task):
         self.goal = np.zeros((B, self.GOAL_WIDTH))
         # the compiled strike's buffers (envs.fast): outcome per element, constants, and (when
         # recording) element 0's trace, from which its video frames are sampled
+        # chunks of at most CHUNK that end at time_cap exactly (chunks of CHUNK itself ran to
+        # the next multiple of 1/30 s past the cap, and contacts after the cap were paid)
         n_chunks = max(1, math.ceil(cfg.time_cap / CHUNK - 1e-9))
         self._sbuf = np.zeros((B, fast.S_COLUMNS))
         sc = np.zeros(fast.SC_SIZE)
         sc[[fast.SC_CHUNK, fast.SC_CHUNKS, fast.SC_TARGET, fast.SC_STRIKER]] = (
-            CHUNK, n_chunks, self.it, self.js)
+            cfg.time_cap / n_chunks, n_chunks, self.it, self.js)
         sc[fast.SC_FREE] = self._free
         self._scfg = sc
         self._strace = fast.strike_trace(n_chunks, w.n_bodies)

@@ -769,3 +769,28 @@ def test_a_copy_keeps_the_scene_made_with_not_the_dict_edited_since():
         obs, _ = twin.reset(seed=3)
         np.testing.assert_array_equal(obs, first)
     assert env.unwrapped.cfg.scene["solver"]["mode"] == "exact"
+
+
+def test_a_strike_ends_at_time_cap_not_at_the_next_thirtieth_of_a_second():
+    """The strike ran whole chunks of 1/30 s, so ``time_cap`` was rounded up: a contact after
+    the cap (0.44 s, cap 0.435 s) was simulated and paid, and ``sim_time`` passed the cap."""
+    slow = np.array([0.5, 0.0, -1.0], np.float32)  # its first contact comes at t = 0.44 s
+    env = gym.make("SpinStrike/RodSpin-v0")
+    env.reset(seed=0)
+    info = env.step(slow)[-1]
+    t_hit = info["first_contact_time"]
+    assert 0.4 < t_hit < 0.45 and info["spin"] != 0
+    for cap in (t_hit - 0.005, 0.01):
+        vec = gym.make_vec("SpinStrike/RodSpin-v0", num_envs=2, time_cap=cap,
+                           vectorization_mode="vector_entry_point")
+        vec.reset(seed=0)
+        single = gym.make("SpinStrike/RodSpin-v0", time_cap=cap)
+        single.reset(seed=0)
+        _, reward, _, _, got = single.step(slow)
+        assert got["n_contacts"] == 0 and got["spin"] == 0.0 and reward < 1e-6
+        assert got["sim_time"] == pytest.approx(cap, abs=1e-12)
+        vinfo = vec.step(np.stack([slow, slow]))[-1]
+        np.testing.assert_allclose(vinfo["sim_time"], cap, atol=1e-12)
+    capped = gym.make("SpinStrike/RodSpin-v0", time_cap=t_hit + 0.005)
+    capped.reset(seed=0)
+    assert capped.step(slow)[-1]["first_contact_time"] == pytest.approx(t_hit)
