@@ -228,6 +228,11 @@ class Renderer:
             self._small = pygame.font.Font(None, self.text_size)
         return self._pygame
 
+    def text_fits(self, text: str) -> int:
+        """Pixels of width a plain frame's ``text`` lacks (0: it fits; it starts 8 px in)."""
+        self._init()
+        return max(0, 8 + self._font.size(text)[0] - self.width)
+
     def _px(self, x: float, y: float) -> tuple[int, int]:
         return (int(round(self.width / 2 + x * self.scale)),
                 int(round(self.band + (self.height - self.band) / 2 - y * self.scale)))

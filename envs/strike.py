@@ -31,6 +31,7 @@ from spinstrike.envs.rendering import (
     Frame,
     Gauge,
     Marker,
+    Renderer,
     Vector,
     body_draws,
     body_points,
@@ -89,6 +90,16 @@ class _StrikeTask(Task):
         self._free = True
         self.it = w.index(self.TARGET)
         self.js = w.index("striker")
+        # the largest reach the config allows (the scene's target, or the longest rod a
+        # randomize range draws), which frames every picture: a view taken from element 0's
+        # rod at the first drawing fixed the scale for good, so the same state gave other
+        # pixels after another history, and a longer rod drawn later left the frame
+        reach = float(w.half_length[0, self.it] + w.radius[0, self.it])
+        if "rod_length" in cfg.randomize:
+            reach = max(reach, 0.5 * cfg.randomize["rod_length"][1] + float(w.radius[0, self.it]))
+        self._view_reach = reach
+        if cfg.obs_mode == "pixels":
+            self._check_caption_fits(cfg)
         B = batch_size
         self.goal = np.zeros((B, self.GOAL_WIDTH))
         # the compiled strike's buffers (envs.fast): outcome per element, constants, and (when
@@ -180,6 +191,19 @@ class _StrikeTask(Task):
         return (f"{', '.join(args) or 'scene'}: would make the observed {field.name} "
                 f"({field.doc}) {value:.8g}, {side}, where the clipped value looks the same for "
                 f"every task" + (f" (at the randomize draw {drawn})" if drawn else ""))
+
+    def _check_caption_fits(self, cfg) -> None:
+        """A pixel observation shows the goal only in its caption: refuse an ``obs_size`` too
+        narrow for it (at 84 x 84 the caption stopped before 'target', and a CNN trained on a
+        task it could not see)."""
+        caption = self._caption_text(0.0, -np.asarray(self._widest_goal(cfg), float))
+        lack = Renderer(cfg.obs_size, (1.0, 1.0)).text_fits(caption)
+        if lack:
+            w, h = cfg.obs_size
+            raise ConfigError(
+                f"obs_size: ({w}, {h}) is too narrow for the pixel observation's caption, the "
+                f"only place it shows the goal ({caption!r}): it needs a width of at least "
+                f"{w + lack} pixels at height {h}")
 
     def _park_striker(self, scene):
         """The scene's striker position is only a parking place (every reset and strike places
@@ -433,7 +457,7 @@ class _StrikeTask(Task):
         hw = self.world.table_half_size[0]
         if np.all(np.isfinite(hw)):
             return float(hw[0]) + 0.05, float(hw[1]) + 0.05
-        r = float(self._reach()[0] + self.world.radius[0, self.js]) + START_MARGIN
+        r = self._view_reach + float(self.world.radius[0, self.js]) + START_MARGIN
         return 2.2 * r * 1.5, 2.2 * r
 
 
@@ -583,8 +607,15 @@ class RodSpinTask(_StrikeTask):
         return np.exp(-0.5 * (z * z))
 
     def _caption(self, b: int) -> str:
-        return (f"spin {self.world.state.omegas[b, self.it]:+.2f} rad/s   "
-                f"target {self.goal[b, 0]:+.2f}")
+        return self._caption_text(self.world.state.omegas[b, self.it], self.goal[b])
+
+    @staticmethod
+    def _caption_text(spin, goal) -> str:
+        return f"spin {spin:+.2f} rad/s   target {goal[0]:+.2f}"
+
+    @staticmethod
+    def _widest_goal(cfg) -> tuple:
+        return (cfg.target_spin[1],)
 
     def _achieved(self, b: int, rod: BodyDraw) -> str:
         if self.cfg.goal == "target":
@@ -684,9 +715,16 @@ class PuckSpeedTask(_StrikeTask):
         return np.exp(-0.5 * (z * z))
 
     def _caption(self, b: int) -> str:
-        v = self.world.state.velocities[b, self.it]
-        return (f"puck ({v[0]:+.2f}, {v[1]:+.2f}) m/s   "
-                f"target ({self.goal[b, 0]:+.2f}, {self.goal[b, 1]:+.2f})")
+        return self._caption_text(self.world.state.velocities[b, self.it], self.goal[b])
+
+    @staticmethod
+    def _caption_text(v, goal) -> str:
+        v = np.broadcast_to(v, (2,))
+        return f"puck ({v[0]:+.2f}, {v[1]:+.2f}) m/s   target ({goal[0]:+.2f}, {goal[1]:+.2f})"
+
+    @staticmethod
+    def _widest_goal(cfg) -> tuple:
+        return (cfg.target_speed[1], cfg.target_speed[1])
 
     def _achieved(self, b: int, puck: BodyDraw) -> str:
         g = self.goal[b]
@@ -932,7 +970,10 @@ _RENDERING = """    ## Rendering
     frames in a window, at the slowed pace. Record them with
     ``spinstrike.envs.recording.RecordEveryFrame`` (Gymnasium's ``RecordVideo`` keeps one frame
     per step). Frames are ``render_size`` (720 x 480); pixel observations ``obs_size``
-    (480 x 320), without overlays.
+    (480 x 320), without overlays: the bodies at one scale for every state (set by the largest
+    target the config and its ``randomize`` ranges allow) and a caption, the only place they
+    show the goal (``obs_size`` too narrow for it is refused: RodSpin needs ~153 pixels of
+    width, PuckSpeed ~216).
 
 """
 RodSpinEnv.__doc__ = RodSpinEnv.__doc__.format(

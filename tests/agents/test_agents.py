@@ -46,7 +46,7 @@ def test_each_algorithm_trains_saves_loads_and_evaluates(algo, env_id, tmp_path)
 
 @pytest.mark.parametrize(("kwargs", "policy"), [
     ("{obs_mode: dict}", "MultiInputPolicy"),
-    ("{obs_mode: pixels, obs_size: [48, 48]}", "CnnPolicy"),
+    ("{obs_mode: pixels, obs_size: [160, 48]}", "CnnPolicy"),
 ])
 def test_the_cli_trains_on_dict_and_pixel_observations(kwargs, policy, tmp_path, capsys):
     """The shipped entries name MlpPolicy; on dict observations SB3 refused it with a

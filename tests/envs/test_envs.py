@@ -22,7 +22,7 @@ STRIKE_IDS = ["SpinStrike/RodSpin-v0", "SpinStrike/PuckSpeed-v0", "SpinStrike/Pu
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
 @pytest.mark.parametrize("kwargs", [{}, {"render_mode": "rgb_array"},
-                                    {"obs_mode": "pixels", "obs_size": (64, 48)}])
+                                    {"obs_mode": "pixels", "obs_size": (224, 64)}])
 def test_checkers_pass_without_warnings(env_id, kwargs):
     with warnings.catch_warnings():
         warnings.simplefilter("error")

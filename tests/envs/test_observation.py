@@ -109,7 +109,7 @@ def test_seeded_reset_returns_the_same_observation_whatever_ran_before(env_id):
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_pixel_observation_after_reset_shows_the_new_state(env_id):
-    kw = {"obs_mode": "pixels", "obs_size": (64, 48)}
+    kw = {"obs_mode": "pixels", "obs_size": (224, 64)}
     fresh = gym.make(env_id, **kw)
     want, _ = fresh.reset(seed=5)
     used = gym.make(env_id, **kw)
@@ -118,6 +118,56 @@ def test_pixel_observation_after_reset_shows_the_new_state(env_id):
     got, _ = used.reset(seed=5)
     np.testing.assert_array_equal(got, want)
     assert not np.array_equal(got, last)
+
+
+def test_pixels_of_a_state_do_not_depend_on_the_history_of_the_env():
+    """A strike env's pixel view (an unbounded plane) took its scale from element 0's rod at
+    the first drawing and kept it: with ``randomize={"rod_length": ...}`` a vector element
+    differed from the single env seeded as it (1891 pixels), the same state put into a fresh env
+    gave other pixels, and a longer rod drawn later left the frame."""
+    env_id = "SpinStrike/RodSpin-v0"
+    kw = {"obs_mode": "pixels", "obs_size": (224, 64), "randomize": {"rod_length": [0.1, 2.0]}}
+    vec = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point", **kw)
+    vobs, _ = vec.reset(seed=10)
+    for i in range(3):
+        single = gym.make(env_id, **kw)
+        np.testing.assert_array_equal(single.reset(seed=10 + i)[0], vobs[i])
+    used = gym.make(env_id, **kw)
+    used.reset(seed=11)  # a history: the first episode's rod drawn first
+    longest = 0.0
+    for _ in range(12):
+        obs, _ = used.reset()
+        fresh = gym.make(env_id, **kw)
+        fresh.reset(seed=0)
+        fresh.unwrapped.set_physics_state(used.unwrapped.get_physics_state())
+        np.testing.assert_array_equal(fresh.unwrapped.task.observations()[0], obs)
+        world = used.unwrapped.world
+        longest = max(longest, float(world.half_length[0, world.index("rod")]))
+        # the whole scene is in view: the frame's border is the plain background
+        border = np.concatenate([obs[0], obs[-1], obs[:, 0], obs[:, -1]])
+        assert (border == border[0]).all()
+    assert longest > 0.6  # a rod longer than the first ones was drawn
+
+
+@pytest.mark.parametrize("env_id", ["SpinStrike/RodSpin-v0", "SpinStrike/PuckSpeed-v1"])
+def test_pixels_too_narrow_for_the_goal_are_refused_and_wide_enough_show_it(env_id):
+    """A strike env's pixels show the goal only in their caption, which SB3's usual 84 x 84 cut
+    off before 'target': two tasks gave the same pixels, and a CNN trained on a task it could
+    not see. Such an ``obs_size`` is refused, naming the width needed; at that width two
+    targets give different captions."""
+    import re
+
+    with pytest.raises(spinstrike.envs.ConfigError, match=r"obs_size: \(84, 84\) is too narrow"
+                       r".*the goal.*at least \d+ pixels") as info:
+        gym.make(env_id, obs_mode="pixels", obs_size=(84, 84))
+    width = int(re.search(r"at least (\d+) pixels", str(info.value)).group(1))
+    env = gym.make(env_id, obs_mode="pixels", obs_size=(width, 84))
+    goals, captions = [], []
+    for seed in (0, 1):
+        obs, info = env.reset(seed=seed)
+        goals.append(env.unwrapped.task.goal[0].copy())
+        captions.append(obs[:20, width // 2:])  # the caption's right half: the target
+    assert not np.array_equal(*goals) and not np.array_equal(*captions)
 
 
 @pytest.mark.parametrize("env_id", STRIKE_IDS)

@@ -371,8 +371,8 @@ def test_pixel_observations_are_unchanged(env_id):
     # independent of the video's size and of the render mode
     video = _pixel_run(env_id, render_mode="rgb_array_list", render_size=(1280, 720))
     assert all(np.array_equal(a, b) for a, b in zip(plain, video, strict=True))
-    small = _pixel_run(env_id, obs_size=(96, 64))
-    assert small[0].shape == (64, 96, 3)
+    small = _pixel_run(env_id, obs_size=(224, 64))
+    assert small[0].shape == (64, 224, 3)
     if pygame.version.ver != "2.5.8":
         pytest.skip("the recorded hashes are of pygame-ce 2.5.8's drawing")
     assert [hashlib.sha256(o.tobytes()).hexdigest()[:16] for o in plain] == \

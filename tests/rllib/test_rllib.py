@@ -444,8 +444,8 @@ def test_configure_takes_the_spinstrike_prefixed_id():
 
 @pytest.mark.parametrize("env_config,words", [
     ({"obs_mode": "dict"}, "obs_mode: 'dict' has no encoder in RLlib's default model"),
-    ({"obs_mode": "pixels", "obs_size": [84, 84]},
-     r"obs_mode: 'pixels' \(obs_size \[84, 84\], uint8\) does not work"),
+    ({"obs_mode": "pixels", "obs_size": [224, 96]},
+     r"obs_mode: 'pixels' \(obs_size \[224, 96\], uint8\) does not work"),
 ])
 def test_configure_refuses_observations_rllibs_default_model_cannot_encode(env_config, words):
     """Were RLlib's errors in every runner (no Dict encoder; no CNN layers for most sizes, and
@@ -469,8 +469,8 @@ def test_configure_refuses_observations_rllibs_default_model_cannot_encode(env_c
     # observations RLlib's default model cannot encode: were a failure in every runner, then
     # an IndexError in the driver
     (["--env-kwargs", "{obs_mode: dict}"], ["obs_mode: 'dict' has no encoder", "'vector'"]),
-    (["--env-kwargs", "{obs_mode: pixels, obs_size: [64, 48]}"],
-     ["obs_mode: 'pixels' (obs_size [64, 48], uint8)", "42x42, 64x64, 84x84 or 96x96"]),
+    (["--env-kwargs", "{obs_mode: pixels, obs_size: [224, 96]}"],
+     ["obs_mode: 'pixels' (obs_size [224, 96], uint8)", "42x42, 64x64, 84x84 or 96x96"]),
     # the CLI's evaluation and video set their own render_mode
     (["--env-kwargs", "{render_mode: rgb_array}"], ["env_kwargs: render_mode is not an env"]),
 ], ids=["minibatch", "minibatch-over-runners", "obs-dict", "obs-pixels", "render-mode"])
