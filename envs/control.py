@@ -53,7 +53,7 @@ class _ControlTask(Task):
         super().__init__(cfg, batch_size, single)
         self.render_fps = int(round(1.0 / cfg.dt))
         overrides = {"mallet": {"mass": cfg.mallet_mass}, self.TARGET: {"mass": cfg.target_mass}}
-        scene = build_scene(self.SCENE, cfg, overrides, (self.TARGET, "mallet"))
+        scene = build_scene(self.SCENE, cfg, overrides, (self.TARGET, "mallet"), self.NEEDS)
         self.world = build_world(scene, batch_size)
         w = self.world
         if not w.walls or not w.driven[w.index("mallet")]:
@@ -217,6 +217,8 @@ class _ControlTask(Task):
 class RodSpinControlTask(_ControlTask):
     TARGET = "rod"
     SCENE = "rod_control"
+    NEEDS = {"rotation": "its reward is the rod's spin, which a scene without rotation never "
+                         "changes (reward 0 for every action)"}
     SCALE = SPIN_SCALE
     MEASURE = fast.MEASURE_SPIN
     LAYOUT = control_layout("rod")

@@ -85,6 +85,9 @@ class Task(ABC):
     render_fps: ClassVar[int] = 50
     #: ``observe`` returns values already clipped to the layout's bounds
     OBS_CLIPPED: ClassVar[bool] = False
+    #: effects the task cannot do without, each with why (``config.build_scene`` refuses a
+    #: scene that leaves one out)
+    NEEDS: ClassVar[dict[str, str]] = {}
 
     def __init__(self, cfg: EnvConfig, batch_size: int, single: bool = False) -> None:
         self.cfg = cfg

@@ -83,7 +83,7 @@ class _StrikeTask(Task):
     def __init__(self, cfg, batch_size: int, single: bool = False) -> None:
         super().__init__(cfg, batch_size, single)
         scene = build_scene(self.SCENE, cfg, self._body_overrides(cfg),
-                            (self.TARGET, "striker"))
+                            (self.TARGET, "striker"), self.NEEDS)
         self.world = build_world(self._park_striker(scene), batch_size)
         w = self.world
         self._check_free_table(cfg)
@@ -505,6 +505,8 @@ class StrikeClip:
 class RodSpinTask(_StrikeTask):
     TARGET = "rod"
     SCENE = "rod_spin"
+    NEEDS = {"rotation": "its reward is the rod's spin, which a scene without rotation never "
+                         "changes (reward 0 for every action)"}
     CONFIG = RodSpinConfig
     LAYOUT = (
         ObsField("target_spin", -1.0, 1.0,

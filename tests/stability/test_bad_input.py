@@ -234,6 +234,18 @@ BAD_KWARGS = [
     ("SpinStrike/PuckSpeedControl-v0", {"effects": ["rotation"]}, "needs the 'walls' effect"),
     ("SpinStrike/PuckSpeedControl-v0", {"config": {"mallet_mass": math.nan}}, "mallet_mass"),
     ("SpinStrike/RodSpin-v0", {"config": [1]}, "config: must be a mapping"),  # was a TypeError
+    # a rod env without rotation paid 0 for every action (best_reward said 1); thin_rod's
+    # inertia was then blamed on a scene field the user never wrote
+    ("SpinStrike/RodSpin-v0", {"effects": []}, "effects: this env needs 'rotation'"),
+    ("SpinStrike/RodSpin-v0", {"rod_inertia": "thin_rod", "effects": []},
+     "effects: this env needs 'rotation'"),
+    ("SpinStrike/RodSpinControl-v0", {"effects": ["walls"]}, "effects: this env needs 'rotation'"),
+    ("SpinStrike/RodSpinControl-v0",
+     {"scene": "table: {size: [1.2, 0.8]}\neffects: [walls]\nbodies:\n"
+               "  - {name: rod, shape: rod, length: 0.3, thickness: 0.02, mass: 0.1}\n"
+               "  - {name: mallet, shape: disk, radius: 0.04, mass: 0.3, driven: true,"
+               " position: [-0.4, 0]}\n"},
+     "scene.effects: this env needs 'rotation'"),
 ]
 
 
