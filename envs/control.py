@@ -61,6 +61,7 @@ class _ControlTask(Task):
                               "'mallet' body")
         self.im = w.index("mallet")
         self.it = w.index(self.TARGET)
+        self._check_room()
         # the fused step's buffers (envs.fast): actions in; observation, reward, info out
         self.tbuf = np.zeros((batch_size, fast.T_COLUMNS))
         k = np.zeros(fast.K_SIZE)
@@ -76,6 +77,22 @@ class _ControlTask(Task):
         # element 0's recent poses and return, for the video frames (``record_trace``)
         self._trail: deque[list[list[tuple[float, float]]]] = deque(maxlen=TRAIL_STEPS)
         self._return = 0.0
+
+    def _check_room(self) -> None:
+        """A reset puts the target at any angle in the right half and the mallet in the left,
+        ``CLEARANCE`` from the cushions: refuse a table too small for that (it passed
+        ``gym.make``, then the resets of most seeds failed, naming no argument)."""
+        w = self.world
+        reach_t = float(w.half_length[0, self.it] + w.radius[0, self.it]) + CLEARANCE
+        reach_m = float(w.radius[0, self.im]) + CLEARANCE
+        need = (4 * max(reach_t, reach_m), 2 * max(reach_t, reach_m))
+        size = tuple(2 * float(h) for h in w.table_half_size[0])
+        if size[0] < need[0] or size[1] < need[1]:
+            raise ConfigError(
+                f"scene.table.size: {list(size)} m is too small for this env's resets, which put "
+                f"the {self.TARGET} (reach {reach_t - CLEARANCE:.4g} m) at any angle in the right "
+                f"half and the mallet in the left, {CLEARANCE} m clear of the cushions: it needs "
+                f"at least [{need[0]:.4g}, {need[1]:.4g}] m")
 
     @property
     def _actions(self) -> np.ndarray:
