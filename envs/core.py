@@ -22,6 +22,7 @@ one-strike step) and ``human`` (the same frames in a window, at ``render_fps``).
 from __future__ import annotations
 
 import copy
+import dataclasses
 from abc import ABC, abstractmethod
 from typing import Any, ClassVar
 
@@ -293,7 +294,34 @@ def _scalar_info(info: dict[str, np.ndarray], i: int) -> dict[str, Any]:
     return out
 
 
-class SpinStrikeEnv(gym.Env):
+def _scene_as_read(spec, cfg: EnvConfig):
+    """``spec`` with a scene file given to the env (in its kwargs or its ``config`` dict) as
+    read when the env was made, as the env's pickles and a run's ``config.yml`` hold it:
+    ``gym.make(env.spec)`` re-read the file, so an edit since (or another working directory)
+    made another env, or none."""
+    if spec is None or cfg.scene is None or not isinstance(spec.kwargs, dict):
+        return spec
+    kwargs = dict(spec.kwargs)
+    if "scene" in kwargs:
+        kwargs["scene"] = copy.deepcopy(cfg.scene)
+    elif isinstance(kwargs.get("config"), dict) and "scene" in kwargs["config"]:
+        kwargs["config"] = dict(kwargs["config"], scene=copy.deepcopy(cfg.scene))
+    return dataclasses.replace(spec, kwargs=kwargs)
+
+
+class _SpecOfScene:
+    """``spec`` (which ``gym.make`` / ``gym.make_vec`` set) holds the scene as read."""
+
+    @property
+    def spec(self):
+        return self.__dict__.get("_spec")
+
+    @spec.setter
+    def spec(self, value) -> None:
+        self._spec = _scene_as_read(value, self.cfg)
+
+
+class SpinStrikeEnv(_SpecOfScene, gym.Env):
     """Gymnasium env over a :class:`Task` with one element. Subclasses set ``TASK``."""
 
     TASK: ClassVar[type[Task]]
@@ -333,7 +361,7 @@ class SpinStrikeEnv(gym.Env):
                 "np_random": self._np_random, "np_random_seed": self._np_random_seed,
                 "started": self._started, "ended": self._ended,
                 # the video's memory: frames not yet rendered, a strike's clip, trails
-                "frames": self._frames, "trace": self.task.trace()}
+                "frames": self._frames, "trace": self.task.trace(), "spec": self.spec}
 
     def __setstate__(self, state: dict) -> None:
         self.__init__(render_mode=state["render_mode"], config=state["config"])
@@ -344,6 +372,7 @@ class SpinStrikeEnv(gym.Env):
         self._ended = state.get("ended", False)
         self._frames = list(state.get("frames", []))
         self.task.put_trace(state.get("trace", {}))
+        self.spec = state.get("spec")
 
     @property
     def world(self):
@@ -459,7 +488,7 @@ def _reset_mask(options: dict | None, n: int) -> np.ndarray | None:
     return mask
 
 
-class SpinStrikeVectorEnv(VectorEnv):
+class SpinStrikeVectorEnv(_SpecOfScene, VectorEnv):
     """Native vector env: N elements in one batched world, in one of Gymnasium's autoreset modes.
 
     ``autoreset_mode`` (``gym.make_vec(id, n, autoreset_mode=...)``: a

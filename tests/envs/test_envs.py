@@ -818,3 +818,27 @@ def test_a_control_table_too_small_for_the_resets_is_refused_at_make():
     for seed in range(8):
         obs, _ = vec.reset(seed=seed)
         assert np.isfinite(obs).all()
+
+
+def test_env_spec_holds_the_scene_file_as_read(tmp_path, monkeypatch):
+    """``env.spec.kwargs`` kept a scene file's path, so ``gym.make(env.spec)`` read the file
+    again: after an edit it built another env, and from another folder it failed. The spec now
+    holds the scene as read when the env was made (as its pickles and a run's config.yml do)."""
+    import yaml
+
+    scene = copy.deepcopy(envs.config.load_packaged_scene("rod_spin"))
+    scene["bodies"][0]["mass"] = 0.2
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(scene))
+    made = [gym.make("SpinStrike/RodSpin-v0", scene="s.yaml"),
+            gym.make("SpinStrike/RodSpin-v0", config={"scene": "s.yaml"}),
+            gym.make_vec("SpinStrike/RodSpin-v0", num_envs=2, scene="s.yaml",
+                         vectorization_mode="vector_entry_point")]
+    scene["bodies"][0]["mass"] = 0.7
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(scene))
+    monkeypatch.chdir("/")
+    for env in made:
+        remade = (gym.make_vec if isinstance(env, gym.vector.VectorEnv) else gym.make)(env.spec)
+        assert remade.unwrapped.world.mass[0, 0] == 0.2
+    twin = pickle.loads(pickle.dumps(made[0].unwrapped))
+    assert gym.make(twin.spec).unwrapped.world.mass[0, 0] == 0.2
