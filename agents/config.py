@@ -3,10 +3,12 @@
 ``configs/agents/<algo>.yml``: top-level keys are env ids (plus ``default``, used for an id that
 has no entry of its own, as rl-zoo3 does); each value holds the algorithm's constructor arguments
 plus rl-zoo3's reserved keys ``n_timesteps``, ``policy``, ``n_envs``, ``normalize`` and
-``env_kwargs``. ``policy_kwargs`` is a YAML mapping (never a string to ``eval``); learning rates
-may be ``lin_<value>`` (a linear schedule, rl-zoo3's notation). rl-zoo3 itself reads the same
-files: ``python -m rl_zoo3.train --algo ppo --env SpinStrike/RodSpin-v0 --gym-packages spinstrike
--conf configs/agents/ppo.yml``.
+``env_kwargs`` (SAC and TD3: also ``noise_type`` and ``noise_std``, together). ``policy_kwargs``
+is a YAML mapping (never a string to ``eval``); learning rates may be ``lin_<value>`` (a linear
+schedule, rl-zoo3's notation). What the command line or the run folder sets (``seed``,
+``device``, ``verbose``, ``tensorboard_log``) is refused, saying what to use instead.
+rl-zoo3 itself reads the same files: ``python -m rl_zoo3.train --algo ppo --env
+SpinStrike/RodSpin-v0 --gym-packages spinstrike -conf configs/agents/ppo.yml``.
 
 Unknown keys, unknown ids and bad values raise :class:`AgentConfigError` naming the key and what
 is allowed, before anything is created on disk.
@@ -28,8 +30,25 @@ __all__ = ["ALGOS", "AgentConfigError", "RunConfig", "algo_class", "check_env_id
 
 #: algorithms the CLI trains
 ALGOS = ("ppo", "sac", "td3")
-RESERVED = ("n_timesteps", "policy", "n_envs", "normalize", "env_kwargs", "noise_type",
-            "noise_std")
+RESERVED = ("n_timesteps", "policy", "n_envs", "normalize", "env_kwargs")
+#: rl-zoo3's keys of the exploration noise, which it builds into SAC's and TD3's
+#: ``action_noise``: both or neither (alone, rl-zoo3 passes ``noise_std`` on to the algorithm,
+#: which refuses it, and fails on a ``noise_type`` without ``noise_std``)
+NOISE = ("noise_type", "noise_std")
+NOISE_TYPES = ("normal",)
+#: constructor arguments a file may not set, and what to do instead: the command line sets them
+#: (given twice, SB3 raised a TypeError), the run folder fixes them, or SB3 needs an object
+NOT_IN_FILE = {
+    "seed": "the seed is the command line's: use --seed (train(seed=...)); rl-zoo3 takes it "
+            "from its --seed too",
+    "device": "use --device (train(device=...))",
+    "verbose": "spinstrike train logs to RUN/progress.csv and RUN/tb (TensorBoard): drop it",
+    "tensorboard_log": "spinstrike train writes the TensorBoard logs into the run folder, "
+                       "RUN/tb (RUN: --out): drop it, or point TensorBoard at RUN/tb",
+    "_init_setup_model": "SB3's internal switch; spinstrike train builds the model: drop it",
+    "action_noise": "write rl-zoo3's noise_type: normal and noise_std: <std> (SAC and TD3)",
+    "rollout_buffer_class": "SB3 needs a class, which a YAML file cannot give: drop it",
+}
 POLICY_KWARGS = ("net_arch", "activation_fn", "log_std_init", "ortho_init", "squash_output",
                  "use_sde", "full_std", "n_critics", "share_features_extractor",
                  "features_extractor_kwargs", "normalize_images", "optimizer_kwargs")
@@ -239,6 +258,7 @@ _VALUES: dict[str, tuple[Any, str]] = {
     "max_grad_norm": (_number(0.0, low_open=True), "a number > 0"),
     "target_policy_noise": (_number(0.0), "a number >= 0"),
     "target_noise_clip": (_number(0.0), "a number >= 0"),
+    "noise_std": (_number(0.0), "a number >= 0"),
     "target_kl": (lambda v: v is None or _number(0.0, low_open=True)(v), "a number > 0 or null"),
     "use_sde": (_flag, "true or false"),
     "normalize_advantage": (_flag, "true or false"),
@@ -299,14 +319,36 @@ def check_env_id(env_id: str, field: str = "env") -> None:
         raise AgentConfigError(f"{field}: unknown id {env_id!r}; allowed: {list(envs.ENV_IDS)}")
 
 
-def _resolve(algo: str, env_id: str, entry: dict, where: str, source: str) -> RunConfig:
+def _check_keys(algo: str, entry: dict, where: str) -> None:
+    """Refuse a key the algorithm does not take, one the file may not set (``NOT_IN_FILE``) and
+    half of the exploration noise, naming it and what is allowed or what to do instead."""
     cls = algo_class(algo)
-    raw = dict(entry)
-    allowed = set(inspect.signature(cls.__init__).parameters) - {"self", "env", "policy"}
+    reserved = set(RESERVED) | (set(NOISE) if algo != "ppo" else set())
+    allowed = (set(inspect.signature(cls.__init__).parameters) - {"self", "env", "policy"}
+               - set(NOT_IN_FILE)) | reserved
     for key in entry:
-        if key not in RESERVED and key not in allowed:
-            raise AgentConfigError(f"{where}.{key}: unknown key; allowed: "
-                                   f"{sorted(set(RESERVED) | allowed)}")
+        if key in NOT_IN_FILE and key in inspect.signature(cls.__init__).parameters:
+            raise AgentConfigError(f"{where}.{key}: not set by a hyperparameter file (got "
+                                   f"{entry[key]!r}); {NOT_IN_FILE[key]}")
+        if key in NOISE and algo == "ppo":
+            raise AgentConfigError(f"{where}.{key}: PPO takes no action noise (noise_type and "
+                                   f"noise_std are SAC's and TD3's); PPO explores by its "
+                                   f"policy's std: policy_kwargs.log_std_init, or use_sde")
+        if key not in allowed:
+            raise AgentConfigError(f"{where}.{key}: unknown key; allowed: {sorted(allowed)}")
+    given = [key for key in NOISE if key in entry]
+    if len(given) == 1:
+        missing = "noise_std: <std>" if given == ["noise_type"] else "noise_type: normal"
+        raise AgentConfigError(f"{where}.{given[0]}: needs {missing} beside it (rl-zoo3 builds "
+                               f"the exploration noise from both; alone it is no noise)")
+    if "noise_type" in entry and entry["noise_type"] not in NOISE_TYPES:
+        raise AgentConfigError(f"{where}.noise_type: unknown {entry['noise_type']!r}; allowed: "
+                               f"{list(NOISE_TYPES)}")
+
+
+def _resolve(algo: str, env_id: str, entry: dict, where: str, source: str) -> RunConfig:
+    raw = dict(entry)
+    _check_keys(algo, entry, where)
     n_timesteps, n_envs = _budget(entry, where)
     policy = entry.pop("policy", "MlpPolicy")
     normalize = _normalize(entry.pop("normalize", False), where)

@@ -80,14 +80,14 @@ def _make_env(cfg: RunConfig, seed: int, n_envs: int):
 
 
 def _model_kwargs(cfg: RunConfig, env) -> dict[str, Any]:
+    """The algorithm's arguments: the entry's, with rl-zoo3's ``noise_type``/``noise_std``
+    (both given, checked by the config) built into ``action_noise``."""
     kwargs = dict(cfg.model_kwargs)
-    noise = kwargs.pop("noise_type", None)
-    std = float(kwargs.pop("noise_std", 0.1))
-    if noise is not None:
+    if "noise_type" in kwargs:
         from stable_baselines3.common.noise import NormalActionNoise
 
-        if noise != "normal":
-            raise AgentConfigError(f"noise_type: only 'normal' is supported (got {noise!r})")
+        kwargs.pop("noise_type")
+        std = float(kwargs.pop("noise_std"))
         n = env.action_space.shape[0]
         kwargs["action_noise"] = NormalActionNoise(np.zeros(n), std * np.ones(n))
     return kwargs

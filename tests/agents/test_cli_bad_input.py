@@ -215,6 +215,48 @@ CASES = [
     ("evaluate-an-interrupted-run",
      lambda t: ["evaluate", _interrupted(t)],
      ["is an interrupted run", "spinstrike train --resume --out", "/stopped`"]),
+    # hyperparameter-file keys that crashed SB3 with a traceback, or were dropped or changed
+    # silently (tests/agents/test_hyperparameter_files.py: the values now accepted)
+    ("td3-noise-std-without-noise-type",  # was dropped: TD3 trained with no exploration noise
+     lambda t: ["train", "--algo", "td3", "--config", _config(t, "ns.yml", {
+         "n_timesteps": 100, "noise_std": 0.5})],
+     ["ns.yml", ".noise_std: needs noise_type: normal beside it"]),
+    ("sac-noise-type-without-noise-std",  # was a std of 0.1, said nowhere
+     lambda t: ["train", "--algo", "sac", "--config", _config(t, "nt.yml", {
+         "n_timesteps": 100, "noise_type": "normal"})],
+     ["nt.yml", ".noise_type: needs noise_std: <std> beside it"]),
+    ("td3-noise-std-negative",  # numpy's ValueError 'scale < 0', a traceback
+     lambda t: ["train", "--algo", "td3", "--config", _config(t, "neg.yml", {
+         "n_timesteps": 100, "noise_type": "normal", "noise_std": -0.3})],
+     ["neg.yml", ".noise_std: must be a number >= 0", "(got -0.3)"]),
+    ("ppo-noise",  # PPO() got an unexpected keyword argument 'action_noise', a traceback
+     lambda t: ["train", "--config", _config(t, "pn.yml", {
+         "n_timesteps": 100, "noise_type": "normal", "noise_std": 0.2})],
+     ["pn.yml", ": PPO takes no action noise", "SAC's and TD3's", "log_std_init"]),
+    ("seed-in-the-file",  # PPO() got multiple values for keyword argument 'seed'
+     lambda t: ["train", "--config", _config(t, "seed.yml", {"n_timesteps": 100, "seed": 3})],
+     ["seed.yml", ".seed: not set by a hyperparameter file", "(got 3)", "use --seed"]),
+    ("device-in-the-file",  # likewise
+     lambda t: ["train", "--config", _config(t, "dev.yml", {"n_timesteps": 100,
+                                                           "device": "cpu"})],
+     ["dev.yml", ".device: not set by a hyperparameter file", "use --device"]),
+    ("verbose-in-the-file",  # likewise
+     lambda t: ["train", "--config", _config(t, "verb.yml", {"n_timesteps": 100,
+                                                            "verbose": 1})],
+     ["verb.yml", ".verbose: not set by a hyperparameter file", "RUN/progress.csv"]),
+    ("init-setup-model-in-the-file",  # an AttributeError later, a traceback
+     lambda t: ["train", "--config", _config(t, "init.yml", {"n_timesteps": 100,
+                                                            "_init_setup_model": False})],
+     ["init.yml", "._init_setup_model: not set by a hyperparameter file"]),
+    ("tensorboard-log-in-the-file",  # accepted, and the logs went to RUN/tb all the same
+     lambda t: ["train", "--config", _config(t, "tb.yml", {"n_timesteps": 100,
+                                                          "tensorboard_log": "/tmp/tbx"})],
+     ["tb.yml", ".tensorboard_log: not set by a hyperparameter file", "'/tmp/tbx'",
+      "RUN/tb"]),
+    ("action-noise-in-the-file",  # SB3 needs an object: a traceback in the first step
+     lambda t: ["train", "--algo", "td3", "--config", _config(t, "an.yml", {
+         "n_timesteps": 100, "action_noise": 0.1})],
+     ["an.yml", ".action_noise: not set by a hyperparameter file", "noise_std"]),
     ("record-size-too-small",
      lambda t: ["record", "--oracle", "--env", ENV, "--size", "8x8", "--out",
                 str(t / "sub" / "v.gif")],
