@@ -105,6 +105,10 @@ def packaged_config_path(algo: str) -> Path:
 
 def _schedule(value: Any, key: str):
     if isinstance(value, str):
+        try:  # a number PyYAML read as a string (3e-4: YAML 1.1 floats need a dot), as others
+            return float(value)
+        except ValueError:
+            pass
         if value.startswith("lin_"):
             try:
                 start = float(value[4:])
@@ -190,13 +194,19 @@ def _budget(entry: dict, where: str) -> tuple[int, int]:
         raise AgentConfigError(f"{where}.n_timesteps: required (training budget)")
     value = entry.pop("n_timesteps")
     try:
-        n_timesteps = int(float(value))
-    except (TypeError, ValueError, OverflowError):
+        if isinstance(value, bool):
+            raise TypeError
+        number = float(value)
+    except (TypeError, ValueError):
         raise AgentConfigError(f"{where}.n_timesteps: must be a number (got {value!r})") from None
+    if not (math.isfinite(number) and number.is_integer()):  # as --timesteps: not truncated
+        raise AgentConfigError(f"{where}.n_timesteps: must be a whole number of steps (got "
+                               f"{value!r})")
+    n_timesteps = int(number)
     if n_timesteps < 1:
         raise AgentConfigError(f"{where}.n_timesteps: must be >= 1 (got {n_timesteps})")
     n_envs = entry.pop("n_envs", 1)
-    if not isinstance(n_envs, int) or n_envs < 1:
+    if isinstance(n_envs, bool) or not isinstance(n_envs, int) or n_envs < 1:
         raise AgentConfigError(f"{where}.n_envs: must be an integer >= 1 (got {n_envs!r})")
     return n_timesteps, n_envs
 

@@ -257,6 +257,9 @@ CASES = [
      lambda t: ["train", "--algo", "td3", "--config", _config(t, "an.yml", {
          "n_timesteps": 100, "action_noise": 0.1})],
      ["an.yml", ".action_noise: not set by a hyperparameter file", "noise_std"]),
+    ("n-timesteps-fractional",  # was truncated to 512 (--timesteps 512.7 is refused)
+     lambda t: ["train", "--config", _config(t, "frac.yml", {"n_timesteps": 512.7})],
+     ["frac.yml", ".n_timesteps: must be a whole number of steps", "(got 512.7)"]),
     ("record-size-too-small",
      lambda t: ["record", "--oracle", "--env", ENV, "--size", "8x8", "--out",
                 str(t / "sub" / "v.gif")],

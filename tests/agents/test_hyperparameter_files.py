@@ -1,0 +1,29 @@
+"""What a hyperparameter file (rl-zoo3's format, ``configs/agents/*.yml``) says reaches the run,
+through ``spinstrike train --config FILE``. The values it refuses are cases of
+``test_cli_bad_input.py`` (one ``error:`` line naming the key)."""
+
+from spinstrike.agents.cli import main
+
+ENV = "SpinStrike/RodSpin-v0"
+#: a PPO entry that trains in seconds: one rollout of 64 steps
+TINY = "  n_timesteps: 64\n  n_envs: 1\n  n_steps: 64\n  batch_size: 64\n"
+
+
+def _train(tmp_path, entry: str, *extra: str) -> int:
+    path = tmp_path / "c.yml"
+    path.write_text(f"{ENV}:\n{entry}")
+    return main(["train", "--config", str(path), "--out", str(tmp_path / "run"), "--no-eval",
+                 "--no-video", "--no-progress", *extra])
+
+
+def test_a_learning_rate_written_3e_4_trains_at_3e_4(tmp_path, monkeypatch):
+    """PyYAML reads ``3e-4`` (no dot) as the string '3e-4'; it was refused ("a number or
+    'lin_<number>' expected") while ``gamma: 9e-1`` or ``n_timesteps: 1e6`` were read as
+    numbers."""
+    monkeypatch.chdir(tmp_path)
+    assert _train(tmp_path, TINY + "  learning_rate: 3e-4\n  gamma: 9e-1\n") == 0
+    from stable_baselines3 import PPO
+
+    model = PPO.load(tmp_path / "run" / "model.zip", device="cpu")
+    assert model.learning_rate == 3e-4 and model.lr_schedule(1.0) == 3e-4
+    assert model.gamma == 0.9
