@@ -71,12 +71,22 @@ def _make_env(cfg: RunConfig, seed: int, n_envs: int):
     from spinstrike.envs.sb3 import make_sb3_vec_env
 
     env = make_sb3_vec_env(cfg.env_id, n_envs=n_envs, seed=seed, env_kwargs=cfg.env_kwargs)
-    if cfg.normalize:
-        from stable_baselines3.common.vec_env import VecNormalize
+    return _normalized(env, cfg)
 
-        kwargs = cfg.normalize if isinstance(cfg.normalize, dict) else {}
-        env = VecNormalize(env, gamma=cfg.model_kwargs.get("gamma", 0.99), **kwargs)
-    return env
+
+def _normalized(env, cfg: RunConfig, evaluation: bool = False):
+    """``env`` in the ``VecNormalize`` of the config's ``normalize`` (its arguments, e.g.
+    ``clip_obs``, with the entry's gamma), if any; for ``evaluation`` (the learning curve's
+    env, as rl-zoo3's) the same observation pipeline with its statistics frozen and rewards
+    left as they are."""
+    if not cfg.normalize:
+        return env
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    kwargs = dict(cfg.normalize) if isinstance(cfg.normalize, dict) else {}
+    if evaluation:
+        kwargs.update(training=False, norm_reward=False)
+    return VecNormalize(env, gamma=cfg.model_kwargs.get("gamma", 0.99), **kwargs)
 
 
 def _model_kwargs(cfg: RunConfig, env) -> dict[str, Any]:
@@ -376,10 +386,9 @@ def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, epis
 
     # the same episodes at every evaluation and for every seed and algorithm (reseeded above)
     eval_env = make_sb3_vec_env(cfg.env_id, n_envs=1, seed=EVAL_SEED, env_kwargs=cfg.env_kwargs)
-    if cfg.normalize:
-        from stable_baselines3.common.vec_env import VecNormalize
-
-        eval_env = VecNormalize(eval_env, training=False, norm_reward=False)
+    # the training env's normalisation (norm_obs, clip_obs, ...: SB3's EvalCallback syncs only
+    # the running statistics), frozen
+    eval_env = _normalized(eval_env, cfg, evaluation=True)
     if is_image_space(eval_env.observation_space):  # outermost, as SB3 wraps the training env
         eval_env = VecTransposeImage(eval_env)
     evals = _FixedEpisodesEval(eval_env, n_eval_episodes=episodes, eval_freq=1,

@@ -2,6 +2,8 @@
 through ``spinstrike train --config FILE``. The values it refuses are cases of
 ``test_cli_bad_input.py`` (one ``error:`` line naming the key)."""
 
+import functools
+
 from spinstrike.agents.cli import main
 
 ENV = "SpinStrike/RodSpin-v0"
@@ -27,3 +29,27 @@ def test_a_learning_rate_written_3e_4_trains_at_3e_4(tmp_path, monkeypatch):
     model = PPO.load(tmp_path / "run" / "model.zip", device="cpu")
     assert model.learning_rate == 3e-4 and model.lr_schedule(1.0) == 3e-4
     assert model.gamma == 0.9
+
+def test_normalize_settings_reach_the_learning_curve_evaluation(tmp_path, monkeypatch):
+    """``normalize: {norm_obs: false, clip_obs: 0.5}`` reached the training env only: the
+    learning curve's evaluation env (evaluations.npz, learning_curve.png) was a default
+    VecNormalize (observations normalised, clipped at 10), another observation pipeline."""
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    built = []
+    init = VecNormalize.__init__
+
+    @functools.wraps(init)  # its signature: the config reads VecNormalize's arguments from it
+    def spy(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        built.append(self)
+
+    monkeypatch.setattr(VecNormalize, "__init__", spy)
+    monkeypatch.chdir(tmp_path)
+    assert _train(tmp_path, TINY + "  normalize: {norm_obs: false, clip_obs: 0.5}\n") == 0
+    evaluation = [env for env in built if not env.training]
+    assert evaluation and any(env.training for env in built), built
+    for env in built:
+        assert (env.norm_obs, env.clip_obs) == (False, 0.5)
+    for env in evaluation:  # rewards as they are, as SB3 and rl-zoo3 evaluate
+        assert not env.norm_reward
