@@ -249,11 +249,30 @@ def _check_video_out(out: str) -> None:
         raise AgentConfigError(f"--out: must end in .mp4 or .gif (got {out!r})")
 
 
+#: ``spinstrike record``'s options that only a policy's video uses, with their defaults, and
+#: those that only ``--scene`` uses (None: left out; each is refused where it is not used)
+RECORD_POLICY = {"--episodes": 3, "--seed": 2000}
+RECORD_SCENE = {"--seconds": 3.0, "--dt": 0.02}
+
+
+def _fill_defaults(args, defaults: dict) -> None:
+    for flag, value in defaults.items():
+        name = flag.removeprefix("--").replace("-", "_")
+        if getattr(args, name) is None:
+            setattr(args, name, value)
+
+
 def cmd_record(args) -> int:
+    from spinstrike.agents.config import AgentConfigError
     from spinstrike.agents.record import record
 
     if args.scene is not None:
         return _record_scene(args)
+    given = [flag for flag in RECORD_SCENE if getattr(args, flag[2:]) is not None]
+    if given:
+        raise AgentConfigError(f"{', '.join(given)}: only with --scene (a physics scene's "
+                               f"video); a policy's video lasts --episodes episodes")
+    _fill_defaults(args, RECORD_POLICY)
     _check_episodes("--episodes", args.episodes)
     policy, env_id, env_kwargs, name = _policy(args)
     out = args.out or (str(Path(args.run_dir) / "rollout.mp4") if args.run_dir
@@ -274,12 +293,19 @@ def _record_scene(args) -> int:
     from spinstrike.agents.config import AgentConfigError
     from spinstrike.agents.record import record_world
 
+    # every option of a policy's video, given: each would be ignored
     others = [flag for flag, on in (("RUN_DIR", args.run_dir), ("--env", args.env),
-                                    ("--oracle", args.oracle), ("--planner", args.planner),
+                                    ("--oracle", args.oracle), ("--random", args.random),
+                                    ("--planner", args.planner),
+                                    ("--env-kwargs", args.env_kwargs is not None),
+                                    ("--episodes", args.episodes is not None),
+                                    ("--seed", args.seed is not None),
                                     ("--grid", args.grid)) if on]
     if others:
         raise AgentConfigError(f"--scene: films a physics scene with no policy; it does not "
-                               f"take {', '.join(others)}")
+                               f"take {', '.join(others)} (it takes --out, --seconds, --dt "
+                               f"and --size)")
+    _fill_defaults(args, RECORD_SCENE)
     for flag, value in (("--seconds", args.seconds), ("--dt", args.dt)):
         if not (math.isfinite(value) and value > 0):
             raise AgentConfigError(f"{flag}: must be a number > 0 (got {value})")
@@ -431,8 +457,10 @@ def build_parser() -> argparse.ArgumentParser:
         else:
             e.add_argument("--out", help="video file, .mp4 or .gif (default: rollout.mp4 in "
                            "the run directory)")
-            e.add_argument("--episodes", type=int, default=3)
-            e.add_argument("--seed", type=int, default=2000)
+            e.add_argument("--episodes", type=int,
+                           help=f"default {RECORD_POLICY['--episodes']} (not with --scene)")
+            e.add_argument("--seed", type=int,
+                           help=f"default {RECORD_POLICY['--seed']} (not with --scene)")
             e.add_argument("--grid", action="store_true",
                            help="tile the episodes in one video, played side by side")
             e.add_argument("--size", help="WIDTHxHEIGHT of an episode's frames (default: the "
@@ -440,11 +468,12 @@ def build_parser() -> argparse.ArgumentParser:
             e.add_argument("--scene", help="film a physics scene instead (a packaged scene's "
                            "name, e.g. break, or a YAML path): a frame per --dt step for "
                            "--seconds, no policy")
-            e.add_argument("--seconds", type=float, default=3.0,
-                           help="--scene: simulated seconds (default: %(default)s)")
-            e.add_argument("--dt", type=float, default=0.02,
-                           help="--scene: step, s; the video plays in real time "
-                           "(default: %(default)s)")
+            e.add_argument("--seconds", type=float,
+                           help=f"--scene: simulated seconds (default: "
+                           f"{RECORD_SCENE['--seconds']})")
+            e.add_argument("--dt", type=float,
+                           help=f"--scene: step, s; the video plays in real time "
+                           f"(default: {RECORD_SCENE['--dt']})")
         e.set_defaults(func=func)
 
     s = sub.add_parser("envs", help="list the environments")

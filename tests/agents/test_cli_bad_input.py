@@ -260,6 +260,16 @@ CASES = [
     ("n-timesteps-fractional",  # was truncated to 512 (--timesteps 512.7 is refused)
      lambda t: ["train", "--config", _config(t, "frac.yml", {"n_timesteps": 512.7})],
      ["frac.yml", ".n_timesteps: must be a whole number of steps", "(got 512.7)"]),
+    ("record-scene-with-options-it-ignores",  # they were ignored: the same video, exit 0
+     lambda t: ["record", "--scene", "break", "--seconds", "0.5", "--out", str(t / "v.mp4"),
+                "--env-kwargs", "{restitution: 0.1}", "--random", "--episodes", "9",
+                "--seed", "5"],
+     ["--scene: films a physics scene with no policy", "--random, --env-kwargs, --episodes, "
+      "--seed", "it takes --out, --seconds, --dt and --size"]),
+    ("record-seconds-without-scene",  # likewise ignored
+     lambda t: ["record", "--oracle", "--env", ENV, "--seconds", "5", "--dt", "0.1", "--out",
+                str(t / "v.mp4")],
+     ["--seconds, --dt: only with --scene"]),
     ("record-size-too-small",
      lambda t: ["record", "--oracle", "--env", ENV, "--size", "8x8", "--out",
                 str(t / "sub" / "v.gif")],
