@@ -105,7 +105,8 @@ def _policy(args):
     if env_kwargs:
         from spinstrike.agents.train import check_env_kwargs
 
-        check_env_kwargs(args.env, env_kwargs)  # a bad one: a ConfigError naming it
+        # a bad one: a ConfigError naming it
+        check_env_kwargs(args.env, env_kwargs, "--env-kwargs", args.command)
     if args.random:
         return RandomPolicy(args.seed), args.env, env_kwargs, "random"
     if args.oracle:

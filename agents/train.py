@@ -487,26 +487,39 @@ def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, 
     return model, wall
 
 
-def _refuse_render_mode(env_kwargs: dict) -> None:
-    """A training run's env kwargs hold no ``render_mode``: its evaluation renders nothing and
-    its video sets ``rgb_array_list`` (given twice, ``gym.make`` raised a TypeError after
-    training)."""
+#: what renders in each command that takes env kwargs (``render_mode`` is not theirs to set)
+_RENDERING = {"train": "not an env argument of a training run ({got}; the evaluation renders "
+                       "nothing, the video uses rgb_array_list)",
+              "evaluate": "not taken by spinstrike evaluate ({got}; its episodes render "
+                          "nothing: spinstrike record films them)",
+              "record": "not taken by spinstrike record ({got}; it films with "
+                        "rgb_array_list)"}
+
+
+def _refuse_render_mode(env_kwargs: dict, field: str = "env_kwargs",
+                        command: str = "train") -> None:
+    """Env kwargs hold no ``render_mode``: a training run's evaluation and ``spinstrike
+    evaluate`` render nothing, and the videos set ``rgb_array_list`` (given twice, ``gym.make``
+    raised a TypeError after training). ``field`` names where they came from (``--env-kwargs``
+    of ``command``)."""
     if "render_mode" in env_kwargs:
-        raise AgentConfigError(f"env_kwargs: render_mode is not an env argument of a training "
-                               f"run (got {env_kwargs['render_mode']!r}; the evaluation renders "
-                               f"nothing, the video uses rgb_array_list): drop it")
+        why = _RENDERING[command].format(got=f"got {env_kwargs['render_mode']!r}")
+        raise AgentConfigError(f"{field}: render_mode is {why}: drop it")
 
 
-def check_env_kwargs(env_id: str, env_kwargs: dict):
+def check_env_kwargs(env_id: str, env_kwargs: dict, field: str = "env_kwargs",
+                     command: str = "train"):
     """Build the env once with ``env_kwargs``: its own validation (a ConfigError naming the
-    argument) speaks before anything about the run folder. Returns its observation space."""
+    argument) speaks before anything about the run folder. Returns its observation space.
+    ``field`` and ``command`` name where the kwargs came from in this function's own errors
+    (default: a training run's ``env_kwargs``)."""
     import gymnasium as gym
 
-    _refuse_render_mode(env_kwargs)
+    _refuse_render_mode(env_kwargs, field, command)
     steps = env_kwargs.get("max_episode_steps")
     if steps is not None and (isinstance(steps, bool) or not isinstance(steps, int)
                               or steps < 1):  # gymnasium's own check is a bare assert
-        raise AgentConfigError(f"env_kwargs: max_episode_steps: must be an int >= 1 "
+        raise AgentConfigError(f"{field}: max_episode_steps: must be an int >= 1 "
                                f"(got {steps!r})")
     env = gym.make(env_id, **env_kwargs)
     space = env.observation_space

@@ -270,6 +270,13 @@ CASES = [
      lambda t: ["record", "--oracle", "--env", ENV, "--seconds", "5", "--dt", "0.1", "--out",
                 str(t / "v.mp4")],
      ["--seconds, --dt: only with --scene"]),
+    ("evaluate-render-mode-in-env-kwargs",  # said "not an env argument of a training run"
+     lambda t: ["evaluate", "--random", "--env", ENV, "--env-kwargs", "{render_mode: human}"],
+     ["--env-kwargs: render_mode is not taken by spinstrike evaluate", "'human'"]),
+    ("record-render-mode-in-env-kwargs",
+     lambda t: ["record", "--random", "--env", ENV, "--env-kwargs", "{render_mode: human}",
+                "--out", str(t / "v.mp4")],
+     ["--env-kwargs: render_mode is not taken by spinstrike record", "'human'"]),
     ("record-size-too-small",
      lambda t: ["record", "--oracle", "--env", ENV, "--size", "8x8", "--out",
                 str(t / "sub" / "v.gif")],
