@@ -804,8 +804,8 @@ class World:
             bodies = [self.names[i] for i in np.flatnonzero(~rows.all(axis=0))]
             raise SimulationError(
                 f"step: the state of element(s) {_few(bad)} is no longer finite (bodies "
-                f"{bodies}): a speed or force too large for float64 (speeds from about 1e150 "
-                f"m/s overflow, and forces that produce them). The world keeps that state: "
+                f"{bodies}): a speed, spin or force too large for float64 (it or its product "
+                f"with the step overflowed). The world keeps that state: "
                 f"restore a snapshot or reset it", bad)
         capped = np.flatnonzero(code == FALLBACK_CAPPED)
         # the fastest point of a body's core, as the bound sees it: a light pivoted rod spun
