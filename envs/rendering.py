@@ -219,8 +219,10 @@ class Renderer:
             try:
                 import pygame
             except ImportError as exc:  # pragma: no cover - depends on the install
-                raise ImportError(
-                    'rendering needs pygame-ce: pip install "spinstrike[render]"') from exc
+                # a ModuleNotFoundError naming pygame: the CLI names the extra in one line
+                raise ModuleNotFoundError(
+                    'rendering needs pygame-ce: pip install "spinstrike[render]"',
+                    name="pygame") from exc
             pygame.font.init()
             self._pygame = pygame
             self._surface = pygame.Surface((self.width, self.height))

@@ -366,6 +366,10 @@ def test_baselines_without_rliable_says_so_before_training(sandbox, capsys, monk
 @pytest.mark.parametrize("module,argv,extra", [
     ("stable_baselines3", ["train", "--timesteps", "64", "--no-video"], "train"),
     ("mpmath", ["bench", "accuracy", "--quick", "--cases", "seed"], "bench"),
+    # rendering's own ImportError was not a ModuleNotFoundError naming pygame: a traceback
+    ("pygame", ["record", "--scene", "break", "--out", "b.gif", "--seconds", "0.1"], "render"),
+    ("pygame", ["record", "--oracle", "--env", "SpinStrike/RodSpin-v0", "--episodes", "1",
+                "--out", "o.mp4"], "render"),
 ])
 def test_a_missing_optional_dependency_names_its_extra(monkeypatch, tmp_path, capsys, module,
                                                        argv, extra):
