@@ -29,7 +29,8 @@ class SB3VecEnv(VecEnv):
     per index (a single env's methods, such
     as ``get_physics_state``, are not there: use ``make_vec_env`` with ``DummyVecEnv`` for
     them), and ``set_attr`` sets the vector env's attribute, so it refuses ``indices`` that
-    select only some envs."""
+    select only some envs. ``metadata`` is the vector env's (its ``render_fps``, which SB3's
+    ``VecVideoRecorder`` films at) with SB3's render modes."""
 
     def __init__(self, venv: gym.vector.VectorEnv) -> None:
         mode = venv.metadata.get("autoreset_mode")
@@ -39,6 +40,10 @@ class SB3VecEnv(VecEnv):
         self.venv = venv
         super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
         self.render_mode = venv.render_mode
+        # the vector env's metadata (render_fps, which SB3's VecVideoRecorder films at: a
+        # control dt's, e.g. 20 at dt=0.05), as DummyVecEnv forwards its envs'; the render
+        # modes stay SB3's (its render() tiles rgb_array frames, also for "human")
+        self.metadata = {**venv.metadata, "render_modes": self.metadata["render_modes"]}
         self._actions: np.ndarray | None = None
         self._returns = np.zeros(self.num_envs)
         self._lengths = np.zeros(self.num_envs, dtype=np.int64)

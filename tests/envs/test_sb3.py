@@ -93,3 +93,31 @@ def test_her_trains_on_goal_conditioned_env():
                 learning_starts=10, batch_size=8, seed=0, device="cpu")
     model.learn(20)
     assert model.num_timesteps == 20
+
+
+# --- the adapter behaves as SB3's DummyVecEnv of single envs (gym.make), the user's side -----
+
+CONTROL = "SpinStrike/RodSpinControl-v0"
+
+
+def _pair(env_id, n_envs=2, seed=0, **env_kwargs):
+    """(DummyVecEnv of ``gym.make`` envs, the native adapter), made and seeded alike."""
+    dummy = make_vec_env(env_id, n_envs, seed=seed, env_kwargs=env_kwargs)
+    native = make_sb3_vec_env(env_id, n_envs, seed=seed, env_kwargs=env_kwargs)
+    return dummy, native
+
+
+@pytest.mark.parametrize("dt", [0.02, 0.05])
+def test_adapter_forwards_render_fps_to_vecvideorecorder(dt, tmp_path):
+    """SB3's VecVideoRecorder read no ``render_fps`` from the adapter's metadata and filmed at
+    its 30 fps fallback; DummyVecEnv forwards the env's (50 at dt=0.02, 20 at dt=0.05)."""
+    from stable_baselines3.common.vec_env import VecVideoRecorder
+
+    dummy, native = _pair(CONTROL, render_mode="rgb_array", dt=dt)
+    fps = gym.make(CONTROL, dt=dt).metadata["render_fps"]
+    assert native.metadata["render_fps"] == dummy.metadata["render_fps"] == fps
+    recorders = [VecVideoRecorder(v, str(tmp_path / name), lambda step: False)
+                 for name, v in (("dummy", dummy), ("native", native))]
+    assert [r.frames_per_sec for r in recorders] == [fps, fps]
+    for r in recorders:
+        r.close()
