@@ -3,8 +3,9 @@
 SB3 does not accept Gymnasium vector envs. :class:`SB3VecEnv` wraps one, so SB3 trains on the
 batched world, and fills in per environment what SB3's ``Monitor`` and ``TimeLimit`` handling
 would: ``terminal_observation``, ``TimeLimit.truncated`` and ``episode`` = ``{"r", "l", "t"}``
-on the step an episode ends. Other per-step info stays on the vector env (``info`` arrays), so a
-step does not build N dicts. Importing this module needs ``stable-baselines3``.
+(``r`` and ``t`` rounded to 6 digits, as Monitor does) on the step an episode ends. Other
+per-step info stays on the vector env (``info`` arrays), so a step does not build N dicts.
+Importing this module needs ``stable-baselines3``.
 """
 
 from __future__ import annotations
@@ -80,7 +81,7 @@ class SB3VecEnv(VecEnv):
                 infos[i] = {
                     "terminal_observation": final[i],
                     "TimeLimit.truncated": bool(truncated[i] and not terminated[i]),
-                    "episode": {"r": float(self._returns[i]), "l": int(self._lengths[i]),
+                    "episode": {"r": round(float(self._returns[i]), 6), "l": int(self._lengths[i]),
                                 "t": elapsed},
                 }
             self._returns[done] = 0.0

@@ -121,3 +121,30 @@ def test_adapter_forwards_render_fps_to_vecvideorecorder(dt, tmp_path):
     assert [r.frames_per_sec for r in recorders] == [fps, fps]
     for r in recorders:
         r.close()
+
+
+def _run_both(dummy, native, steps, seed=0):
+    """Step both with the same random actions; each step's (obs, reward, done, infos) pairs."""
+    rng = np.random.default_rng(seed)
+    shape = (dummy.num_envs, *dummy.action_space.shape)
+    out = []
+    for _ in range(steps):
+        a = rng.uniform(-1, 1, shape).astype(np.float32)
+        out.append((dummy.step(a), native.step(a)))
+    return out
+
+
+@pytest.mark.parametrize("env_id", ["SpinStrike/RodSpin-v0", "SpinStrike/PuckSpeedControl-v0"])
+def test_adapter_episode_return_is_rounded_as_monitor(env_id):
+    """SB3's Monitor rounds ``episode["r"]`` to 6 digits; the adapter reported the raw sum
+    (8e-23 where Monitor says 0.0, 0.06375796820394647 for 0.063758)."""
+    dummy, native = _pair(env_id, 3, seed=2, max_episode_steps=20)
+    dummy.reset(), native.reset()
+    ended = 0
+    for (_, _, dd, di), (_, _, nd, ni) in _run_both(dummy, native, 40):
+        assert np.array_equal(dd, nd)
+        for i in np.flatnonzero(dd):
+            assert ni[i]["episode"]["r"] == di[i]["episode"]["r"]
+            assert ni[i]["episode"]["l"] == di[i]["episode"]["l"]
+            ended += 1
+    assert ended >= 6
