@@ -3,9 +3,10 @@
 SB3 does not accept Gymnasium vector envs. :class:`SB3VecEnv` wraps one, so SB3 trains on the
 batched world, and fills in per environment what SB3's ``Monitor`` and ``TimeLimit`` handling
 would: ``terminal_observation``, ``TimeLimit.truncated`` and ``episode`` = ``{"r", "l", "t"}``
-(``r`` and ``t`` rounded to 6 digits, as Monitor does) on the step an episode ends. Other
-per-step info stays on the vector env (``info`` arrays), so a step does not build N dicts.
-Importing this module needs ``stable-baselines3``.
+(``r`` and ``t`` rounded to 6 digits, as Monitor does) on the step an episode ends, and
+``reset_infos`` (each element's reset info, at ``reset()`` and at each autoreset) as
+DummyVecEnv does. Other per-step info stays on the vector env (``info`` arrays), so a step does
+not build N dicts. Importing this module needs ``stable-baselines3``.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
-__all__ = ["SB3VecEnv", "make_sb3_vec_env"]
+__all__ = ["SB3VecEnv", "element_infos", "make_sb3_vec_env"]
 
 
 class SB3VecEnv(VecEnv):
@@ -62,6 +63,7 @@ class SB3VecEnv(VecEnv):
         self._returns[:] = 0.0
         self._lengths[:] = 0
         self.last_info = info
+        self.reset_infos = element_infos(info, self.num_envs)
         return obs
 
     def step_async(self, actions: np.ndarray) -> None:
@@ -77,6 +79,7 @@ class SB3VecEnv(VecEnv):
         if done.any():
             final = info["final_obs"]
             elapsed = round(time.time() - self._t0, 6)
+            resets = element_infos(info, self.num_envs, done)  # the new episodes' reset infos
             for i in np.flatnonzero(done):
                 infos[i] = {
                     "terminal_observation": final[i],
@@ -84,6 +87,7 @@ class SB3VecEnv(VecEnv):
                     "episode": {"r": round(float(self._returns[i]), 6), "l": int(self._lengths[i]),
                                 "t": elapsed},
                 }
+                self.reset_infos[i] = resets[i]
             self._returns[done] = 0.0
             self._lengths[done] = 0
         return obs, reward.astype(np.float32), done, infos
@@ -124,6 +128,40 @@ class SB3VecEnv(VecEnv):
 
         wrapped = wrapper_class is Monitor
         return [wrapped for _ in self._get_indices(indices)]
+
+
+#: keys of a SAME_STEP vector info that are not an element's own info
+_VECTOR_KEYS = frozenset({"final_obs", "final_info"})
+
+
+def element_infos(info: dict[str, Any], n: int, which: np.ndarray | None = None
+                  ) -> list[dict[str, Any]]:
+    """Each element's info dict from a vector info (``key`` arrays with ``_key`` masks), as a
+    single env returns it: a key only where its mask is set, numbers as Python scalars, array
+    values as arrays of their own; ``which`` (a bool mask): only those elements, ``{}`` for the
+    others. ``final_obs`` / ``final_info`` are left out."""
+    rows: list[dict[str, Any]] = [{} for _ in range(n)]
+    for k, v in info.items():
+        if k[0] == "_" or k in _VECTOR_KEYS:
+            continue
+        mask = info.get(f"_{k}")
+        if which is not None:
+            mask = which if mask is None else mask & which
+        if mask is not None and not mask.all():
+            for i in np.flatnonzero(mask):
+                rows[i][k] = _plain(v[i])
+            continue
+        values = v.tolist() if v.ndim == 1 and v.dtype != object else [_plain(x) for x in v]
+        for row, x in zip(rows, values, strict=True):
+            row[k] = x
+    return rows
+
+
+def _plain(x: Any) -> Any:
+    """A numpy scalar as a Python one, an array row as an array of its own."""
+    if isinstance(x, np.generic):
+        return x.item()
+    return x.copy() if isinstance(x, np.ndarray) else x
 
 
 def make_sb3_vec_env(env_id: str, n_envs: int, seed: int | None = None,

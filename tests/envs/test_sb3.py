@@ -124,14 +124,13 @@ def test_adapter_forwards_render_fps_to_vecvideorecorder(dt, tmp_path):
 
 
 def _run_both(dummy, native, steps, seed=0):
-    """Step both with the same random actions; each step's (obs, reward, done, infos) pairs."""
+    """Step both with the same random actions, yielding each step's pair of
+    (obs, reward, done, infos)."""
     rng = np.random.default_rng(seed)
     shape = (dummy.num_envs, *dummy.action_space.shape)
-    out = []
     for _ in range(steps):
         a = rng.uniform(-1, 1, shape).astype(np.float32)
-        out.append((dummy.step(a), native.step(a)))
-    return out
+        yield dummy.step(a), native.step(a)
 
 
 @pytest.mark.parametrize("env_id", ["SpinStrike/RodSpin-v0", "SpinStrike/PuckSpeedControl-v0"])
@@ -148,3 +147,33 @@ def test_adapter_episode_return_is_rounded_as_monitor(env_id):
             assert ni[i]["episode"]["l"] == di[i]["episode"]["l"]
             ended += 1
     assert ended >= 6
+
+
+def _assert_same_info(native: dict, dummy: dict, skip=("episode", "terminal_observation")):
+    """Same keys, and per key the same value of the same type (arrays: equal, same dtype)."""
+    assert sorted(native) == sorted(dummy)
+    for k, v in dummy.items():
+        if k in skip:
+            continue
+        assert type(native[k]) is type(v), k
+        if isinstance(v, np.ndarray):
+            assert native[k].dtype == v.dtype and np.array_equal(native[k], v), k
+        else:
+            assert native[k] == v, k
+
+
+@pytest.mark.parametrize("env_id", ["SpinStrike/RodSpin-v0", "SpinStrike/PuckSpeed-v1",
+                                    "SpinStrike/PuckSpeedControl-v0"])
+def test_adapter_fills_reset_infos_as_dummyvecenv(env_id):
+    """``reset_infos`` stayed ``[{}, {}]``; DummyVecEnv fills it at reset() and at each
+    autoreset (RodSpin's ``target_spin``, PuckSpeed's ``target_velocity``)."""
+    dummy, native = _pair(env_id, 3, seed=4, max_episode_steps=5)
+    dummy.reset(), native.reset()
+    assert len(native.reset_infos) == 3
+    for n, d in zip(native.reset_infos, dummy.reset_infos, strict=True):
+        _assert_same_info(n, d)
+    if env_id == "SpinStrike/RodSpin-v0":
+        assert all("target_spin" in i for i in native.reset_infos)
+    for _ in _run_both(dummy, native, 12):
+        for n, d in zip(native.reset_infos, dummy.reset_infos, strict=True):
+            _assert_same_info(n, d)
