@@ -177,3 +177,43 @@ def test_adapter_fills_reset_infos_as_dummyvecenv(env_id):
     for _ in _run_both(dummy, native, 12):
         for n, d in zip(native.reset_infos, dummy.reset_infos, strict=True):
             _assert_same_info(n, d)
+
+
+@pytest.mark.parametrize("env_id", ["SpinStrike/RodSpin-v0", "SpinStrike/PuckSpeed-v1",
+                                    "SpinStrike/RodSpinControl-v0",
+                                    "SpinStrike/PuckSpeedControl-v0"])
+def test_adapter_step_infos_as_dummyvecenv(env_id):
+    """The adapter's step infos held only terminal_observation / TimeLimit.truncated / episode:
+    the env's own step info (RodSpin's spin, best_reward, n_contacts; the control envs' hits,
+    reward_hit, ...) that DummyVecEnv passes was missing. ``step_infos=True``: every element's,
+    as DummyVecEnv; the default: the info of the elements whose episode ended (what SB3 reads)."""
+    dummy, native = _pair(env_id, 3, seed=3, max_episode_steps=6)
+    full = make_sb3_vec_env(env_id, 3, seed=3, env_kwargs={"max_episode_steps": 6},
+                            step_infos=True)
+    dummy.reset(), native.reset(), full.reset()
+    rng = np.random.default_rng(1)
+    ended = 0
+    for _ in range(14):
+        a = rng.uniform(-1, 1, (3, *dummy.action_space.shape)).astype(np.float32)
+        _, _, dd, di = dummy.step(a)
+        _, _, nd, ni = native.step(a)
+        fo, _, fd, fi = full.step(a)
+        assert np.array_equal(dd, nd) and np.array_equal(dd, fd)
+        for i in range(3):
+            _assert_same_info(fi[i], di[i])
+            if dd[i]:
+                _assert_same_info(ni[i], di[i])
+                for got in (ni[i], fi[i]):
+                    assert [got["episode"][k] for k in "rl"] == [di[i]["episode"][k]
+                                                                  for k in "rl"]
+                    np.testing.assert_array_equal(got["terminal_observation"],
+                                                  di[i]["terminal_observation"])
+                ended += 1
+            else:
+                assert ni[i] == {"TimeLimit.truncated": False}
+    assert ended >= 6
+    # each info's arrays are its own (DummyVecEnv deep-copies): editing one edits no other
+    key = "force" if "force" in fi[0] else "first_contact_point"
+    fi[0][key][:] = 123.0
+    assert not np.any(fi[1][key] == 123.0)
+
