@@ -37,8 +37,11 @@ class SB3VecEnv(VecEnv):
     per index (a single env's methods, such
     as ``get_physics_state``, are not there: use ``make_vec_env`` with ``DummyVecEnv`` for
     them), and ``set_attr`` sets the vector env's attribute, so it refuses ``indices`` that
-    select only some envs. ``metadata`` is the vector env's (its ``render_fps``, which SB3's
-    ``VecVideoRecorder`` films at) with SB3's render modes.
+    select only some envs. ``env_method("reset", seed=..., options=..., indices=...)`` is as
+    DummyVecEnv's: only the elements of ``indices`` restart (the vector env's ``reset_mask``),
+    each seeded ``seed`` as a single env would be, with their episode return and length, and
+    each one's ``(obs, info)`` is returned. ``metadata`` is the vector env's (its
+    ``render_fps``, which SB3's ``VecVideoRecorder`` films at) with SB3's render modes.
 
     ``step_infos``: every element's step info each step, as DummyVecEnv (else only the ended
     elements'; see the module's docstring for the cost). ``last_info``: the vector env's
@@ -137,10 +140,34 @@ class SB3VecEnv(VecEnv):
                                                 np.asarray(desired, dtype=np.float64),
                                                 self.venv.cfg)
             return [result for _ in self._get_indices(indices)]
+        if method_name == "reset":  # as DummyVecEnv: only the elements asked
+            return self._reset_some(self._get_indices(indices), *args, **kwargs)
         # once: the envs are one world, and a method called once per index would act N
         # times on all of them (env_method("step", a) stepped every env N times)
         result = getattr(self.venv, method_name)(*args, **kwargs)
         return [result for _ in self._get_indices(indices)]
+
+    def _reset_some(self, indices, *args, seed: int | None = None,
+                    options: dict | None = None) -> list[tuple[Any, dict[str, Any]]]:
+        """``env_method("reset", ...)``: each element of ``indices`` reset as its single env's
+        ``reset(seed=seed, options=options)`` would be (the vector env's ``reset_mask``), its
+        episode return and length restarted, the others left as they are; returns each one's
+        ``(obs, info)``."""
+        if args:
+            raise TypeError("env_method('reset'): reset takes keyword arguments only "
+                            "(seed=..., options=...)")
+        idx = list(indices)
+        mask = np.zeros(self.num_envs, dtype=bool)
+        mask[idx] = True
+        opts = dict(options or {})
+        if not mask.all():
+            opts["reset_mask"] = mask
+        seeds = None if seed is None else [seed if m else None for m in mask.tolist()]
+        obs, info = self.venv.reset(seed=seeds, options=opts or None)
+        self._returns[mask] = 0.0
+        self._lengths[mask] = 0
+        rows = element_infos(info, self.num_envs, mask)
+        return [(_row(obs, i), rows[i]) for i in idx]
 
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
         # the adapter reports episodes as SB3's Monitor does, and nothing else wraps the envs
@@ -191,6 +218,13 @@ def element_infos(info: dict[str, Any], n: int, which: np.ndarray | None = None
     for i, row in zip(idx.tolist(), picked, strict=True):
         rows[i] = row
     return rows
+
+
+def _row(obs: Any, i: int) -> Any:
+    """Element ``i``'s observation (a dict observation: each key's)."""
+    if isinstance(obs, dict):
+        return {k: v[i] for k, v in obs.items()}
+    return obs[i]
 
 
 def _plain(x: Any) -> Any:

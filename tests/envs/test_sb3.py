@@ -217,3 +217,26 @@ def test_adapter_step_infos_as_dummyvecenv(env_id):
     fi[0][key][:] = 123.0
     assert not np.any(fi[1][key] == 123.0)
 
+
+def test_adapter_env_method_reset_resets_only_the_indices_asked():
+    """``env_method("reset", indices=[0])`` reset every element and left the adapter's episode
+    counters running (the next ``episode`` infos said l=350 for episodes truncated at 250). As
+    DummyVecEnv: only the elements asked restart (seeded as asked), with their counters, and
+    each one's (obs, info) is returned."""
+    dummy, native = _pair(CONTROL, 3, seed=0, max_episode_steps=25)
+    dummy.reset(), native.reset()
+    for call in ({"indices": [0]}, {"indices": [2], "seed": 7}):
+        for _ in _run_both(dummy, native, 5):
+            pass
+        got, want = native.env_method("reset", **call), dummy.env_method("reset", **call)
+        assert len(got) == len(want) == 1
+        np.testing.assert_array_equal(got[0][0], want[0][0])
+        _assert_same_info(got[0][1], want[0][1])
+    ends = []
+    for (dobs, _, dd, di), (nobs, _, nd, ni) in _run_both(dummy, native, 30, seed=1):
+        np.testing.assert_array_equal(nobs, dobs)
+        assert np.array_equal(nd, dd)
+        for i in np.flatnonzero(dd):
+            assert ni[i]["episode"]["l"] == di[i]["episode"]["l"] == 25
+            ends.append(i)
+    assert sorted(ends) == [0, 1, 2]
