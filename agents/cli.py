@@ -482,8 +482,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     c = sub.add_parser("cache", help="where the compiled physics kernels are cached; --clear "
                        "empties the cache")
-    c.add_argument("--clear", action="store_true", help="remove every cached kernel")
-    c.add_argument("--prune", action="store_true",
+    # one or the other: --clear --prune cleared and ignored --prune
+    what = c.add_mutually_exclusive_group()
+    what.add_argument("--clear", action="store_true", help="remove every cached kernel")
+    what.add_argument("--prune", action="store_true",
                    help="remove the kernels of source directories that are gone (deleted "
                         "clones, virtual environments)")
     c.set_defaults(func=cmd_cache)

@@ -175,7 +175,8 @@ CONTROL_IDS = ("SpinStrike/RodSpinControl-v0", "SpinStrike/PuckSpeedControl-v0")
 
 def sweep(env_ids=CONTROL_IDS,
           horizons=(5, 10, 20, 40), samples=(16, 64, 256), episodes: int = 3,
-          steps: int = 100, seed: int = 1000, out: str | None = None) -> str:
+          steps: int = 100, seed: int = 1000, out: str | None = None,
+          command: str = "python -m spinstrike.agents.planner --out docs/planner.md") -> str:
     """Return against horizon x samples, with the CPU time per decision, on the same short
     episodes (``steps`` steps, seeds ``seed``...) beside chase-and-hit; a markdown report,
     also written into ``out`` between the markers :data:`BEGIN` and :data:`END` (what the
@@ -187,8 +188,7 @@ def sweep(env_ids=CONTROL_IDS,
 
     kwargs = {"max_episode_steps": steps}
     lines = ["# The CEM planner", "",
-             f"Produced by `python -m spinstrike.agents.planner --out docs/planner.md` "
-             f"(`agents/planner.py`): "
+             f"Produced by `{command}` (`agents/planner.py`): "
              f"{episodes} episodes of {steps} steps ({steps * 0.02:g} s) per cell, seeds "
              f"{seed}..{seed + episodes - 1}, the same for every cell; {os.cpu_count()} shared "
              f"cores (load average at start {os.getloadavg()[0]:.2f}). Return: mean over the "
@@ -255,6 +255,7 @@ def main(argv: list[str] | None = None) -> int:
     """``python -m spinstrike.agents.planner``: the sweep (printed; ``--out`` writes it into a
     document, keeping its notes written by hand), or ``--warm-start-table ENV_ID``."""
     import argparse
+    import shlex
     import sys
 
     p = argparse.ArgumentParser(prog="python -m spinstrike.agents.planner",
@@ -285,8 +286,11 @@ def main(argv: list[str] | None = None) -> int:
     if table:
         print(warm_start_table(table, a.episodes))
         return 0
+    # the command that ran, as the report's first line says (it named the defaults' always)
+    command = shlex.join(["python", "-m", "spinstrike.agents.planner",
+                          *(sys.argv[1:] if argv is None else argv)])
     print(sweep(env_ids=env_ids, horizons=a.horizons, samples=a.samples, episodes=a.episodes,
-                steps=a.steps, out=a.out))
+                steps=a.steps, out=a.out, command=command))
     if a.out:
         print(f"wrote {a.out} (the part between its generated-part markers)", file=sys.stderr)
     return 0

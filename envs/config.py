@@ -394,18 +394,26 @@ def _check_bodies(data: dict, body_overrides: dict[str, dict]) -> None:
                 f"fit larger scenes built with spinstrike.physics.World)")
 
 
-def _check_needs(effects: list[str], needs: Mapping[str, str], field: str) -> None:
+def _check_needs(effects: list[str], needs: Mapping[str, str], refuses: Mapping[str, str],
+                 field: str) -> None:
     for effect, why in needs.items():
         if effect not in effects:
             raise ConfigError(f"{field}: this env needs {effect!r}: {why} (got {effects})")
+    for effect, why in refuses.items():
+        if effect in effects:
+            raise ConfigError(f"{field}: {effect!r} is not allowed for this env: {why} (got "
+                              f"{effects})")
 
 
 def build_scene(default: str, cfg: EnvConfig, body_overrides: dict[str, dict],
-                pair: tuple[str, str], needs: Mapping[str, str] = MappingProxyType({})) -> Scene:
+                pair: tuple[str, str], needs: Mapping[str, str] = MappingProxyType({}),
+                refuses: Mapping[str, str] = MappingProxyType({})) -> Scene:
     """Packaged (or user) scene with the env's overrides applied, validated once. ``pair``:
     the task's pair (target and striker or mallet), whose material ``restitution`` and
     ``friction`` set even where the scene names that pair (as ``randomize`` does). ``needs``:
-    effects the task cannot do without, with why (a ConfigError where one is left out)."""
+    effects the task cannot do without, with why (a ConfigError where one is left out);
+    ``refuses``: effects it cannot take, with why (checked before the scene is validated, whose
+    errors would otherwise ask for what the effect needs)."""
     data = load_packaged_scene(default) if cfg.scene is None else _scene_data(cfg.scene)
     effects = list(cfg.effects) if cfg.effects is not None else list(data.get("effects", []))
     if cfg.friction and "contact_friction" not in effects:
@@ -439,7 +447,8 @@ def build_scene(default: str, cfg: EnvConfig, body_overrides: dict[str, dict],
     if cfg.table_friction is not None:
         data["table"] = dict(data.get("table", {}), friction=cfg.table_friction)
     _check_bodies(data, body_overrides)
-    _check_needs(effects, needs, "effects" if cfg.effects is not None else "scene.effects")
+    _check_needs(effects, needs, refuses,
+                 "effects" if cfg.effects is not None else "scene.effects")
     bodies = {b["name"]: b for b in data.get("bodies", [])}
     for name, changes in body_overrides.items():
         bodies[name].update({k: v for k, v in changes.items() if v is not None})

@@ -89,6 +89,8 @@ class Task(ABC):
     #: effects the task cannot do without, each with why (``config.build_scene`` refuses a
     #: scene that leaves one out)
     NEEDS: ClassVar[dict[str, str]] = {}
+    #: effects the task cannot take, each with why
+    REFUSES: ClassVar[dict[str, str]] = {}
 
     def __init__(self, cfg: EnvConfig, batch_size: int, single: bool = False) -> None:
         self.cfg = cfg

@@ -83,7 +83,7 @@ class _StrikeTask(Task):
     def __init__(self, cfg, batch_size: int, single: bool = False) -> None:
         super().__init__(cfg, batch_size, single)
         scene = build_scene(self.SCENE, cfg, self._body_overrides(cfg),
-                            (self.TARGET, "striker"), self.NEEDS)
+                            (self.TARGET, "striker"), self.NEEDS, self.REFUSES)
         self.world = build_world(self._park_striker(scene), batch_size)
         w = self.world
         self._check_free_table(cfg)
@@ -154,6 +154,11 @@ class _StrikeTask(Task):
             self.restore(saved[1])
 
     GOAL_WIDTH: ClassVar[int] = 1
+    #: checked before the scene (which, given walls, asked for a table size first)
+    REFUSES = {"walls": "a strike env measures the strike once no further contact can happen, "
+                        "on an unbounded table, and cushions would turn the target first (it was "
+                        "measured at time_cap); walls are for the control envs and "
+                        "spinstrike.physics.World scenes"}
 
     def _check_free_table(self, cfg) -> None:
         """A strike is measured on an unbounded frictionless table: once no further contact
@@ -170,12 +175,6 @@ class _StrikeTask(Task):
                 f"happen, on an unbounded frictionless table, and cloth friction would stop the "
                 f"{self.TARGET} first (reward 0). Table friction is for the control envs and "
                 f"spinstrike.physics.World scenes")
-        if "walls" in effects:
-            raise ConfigError(
-                f"effects: 'walls' is not allowed for a strike env: the strike is measured once "
-                f"no further contact can happen, on an unbounded table, and cushions would turn "
-                f"the {self.TARGET} first (it was measured at time_cap). Walls are for the "
-                f"control envs and spinstrike.physics.World scenes")
 
     #: the arguments that set each observed parameter (else the scene sets it)
     _SET_BY: ClassVar[dict[str, tuple[str, ...]]] = {

@@ -437,7 +437,7 @@ def _check_snapshot_parameters(w: World, a: dict[str, np.ndarray]) -> None:
         ("half_length", _any_element(a["_half_length"] != 0) & disk,
          "a disk has no length (is this another scene's snapshot?)"),
         ("half_length", _any_element(~(a["_half_length"] > 0)) & ~disk,
-         "a rod's half length must be > 0 m"),
+         "a rod's half length must be > 0 m (is this another scene's snapshot?)"),
     ]
     for field, bad, what in checks:
         if bad.any():

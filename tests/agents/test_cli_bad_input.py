@@ -317,7 +317,10 @@ def test_bad_input_is_one_error_line_and_writes_nothing(build, words, sandbox, c
     (["bench", "nope"], "which", "'nope'"),
     (["evaluate", "--episodes", "many"], "--episodes", "'many'"),
     (["train", "--timesteps", "100.5"], "--timesteps", "'100.5'"),
-], ids=["algo-not-in-list", "bench-unknown", "episodes-not-an-int", "timesteps-not-whole"])
+    # --clear --prune cleared the cache and ignored --prune
+    (["cache", "--clear", "--prune"], "--prune", "not allowed with argument --clear"),
+], ids=["algo-not-in-list", "bench-unknown", "episodes-not-an-int", "timesteps-not-whole",
+        "cache-clear-and-prune"])
 def test_argparse_rejects_choices_with_status_2(argv, argument, value, sandbox, capsys):
     with pytest.raises(SystemExit) as exc:
         main(argv)

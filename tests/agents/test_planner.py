@@ -208,6 +208,8 @@ def test_planner_module_writes_its_part_and_keeps_the_notes(tmp_path, capsys):
     assert text.startswith("Intro by hand.\n\n" + BEGIN)
     assert text.endswith(END + "\n\n## Notes (by hand)\n\nKept.\n")
     assert text.count("| horizon \\ samples |") == 1
+    # the report names the command that ran (it named the defaults' always)
+    assert f"`python -m spinstrike.agents.planner {' '.join(tiny)} --out {doc}`" in text
     assert f"wrote {doc}" in capsys.readouterr().err
     # the shipped document has the markers, so a rerun keeps its warm-start study
     from pathlib import Path

@@ -580,8 +580,13 @@ def test_scenes_the_env_cannot_run_are_refused_when_it_is_made():
     # a strike is measured on an unbounded frictionless table: cushions turned the target and
     # cloth friction stopped it before it was measured (PuckSpeed paid 0 with table_friction
     # 0.3 where best_reward said 1; a walled puck was measured at time_cap)
-    with pytest.raises(ConfigError, match="effects: 'walls' is not allowed for a strike env"):
+    with pytest.raises(ConfigError, match="scene.effects: 'walls' is not allowed for this env: "
+                       "a strike env measures"):
         gym.make("SpinStrike/RodSpin-v0", scene=walled)
+    # asked for by the argument with no table: refused as walls, not sent to add a table size
+    # that would then be refused too
+    with pytest.raises(ConfigError, match="^effects: 'walls' is not allowed for this env"):
+        gym.make("SpinStrike/RodSpin-v0", effects=["rotation", "walls"])
     for env_id in ("SpinStrike/RodSpin-v0", "SpinStrike/PuckSpeed-v1"):
         with pytest.raises(ConfigError, match="table_friction: must be 0 for a strike env"):
             gym.make(env_id, table_friction=0.3)

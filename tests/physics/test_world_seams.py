@@ -297,8 +297,11 @@ def test_another_scenes_snapshot_is_refused():
     rod, puck = gym.make("SpinStrike/RodSpinControl-v0"), gym.make("SpinStrike/PuckSpeedControl-v0")
     rod.reset(seed=0)
     puck.reset(seed=0)
-    with pytest.raises(SceneError, match="a disk has no length"):
+    with pytest.raises(SceneError, match="a disk has no length.*another scene's snapshot"):
         puck.unwrapped.set_physics_state(rod.unwrapped.get_physics_state())
+    # the other way round it read as a bad value only ("a rod's half length must be > 0 m")
+    with pytest.raises(SceneError, match="half length must be > 0 m.*another scene's snapshot"):
+        rod.unwrapped.set_physics_state(puck.unwrapped.get_physics_state())
 
 
 def test_a_pymunk_snapshot_keeps_its_overlap_and_an_exact_world_refuses_it():
