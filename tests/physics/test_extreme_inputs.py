@@ -192,3 +192,27 @@ def test_a_light_disk_squeezed_by_a_heavy_one_never_passes_through_it(loop):
             assert world.kinetic_energy()[0] <= energy * (1 + 1e-12 * max(contacts, 1))
             turned |= world.state.velocities[0, 0, 0] < 0.0
     assert settled >= 1 and turned
+
+
+def test_a_fast_puck_left_to_the_settle_keeps_bouncing_and_is_not_pinned_in_a_corner():
+    """A puck at 1e5 m/s in a 1 m box runs out of ``max_events`` (1000 cushion bounces) within
+    a 0.01 s step, and the rest of the step is settled. The settle's substeps ignored cushions
+    (a half-plane is seen at any depth): 4 substeps of 60 m each, and the positional correction
+    left the puck pinned in the corner (0.45, 0.45) step after step, at full speed. Now a body
+    moves at most half its reach a substep against a cushion: it bounces on (fixed-step accuracy,
+    flagged as settled) and keeps its speed (e = 1)."""
+    v = np.array([1e5, 3e4])
+    scene = {"table": {"size": [1.0, 1.0]}, "effects": ["rotation", "walls"],
+             "bodies": [{"name": "a", "shape": "disk", "radius": 0.05, "mass": 1.0,
+                         "velocity": v.tolist()}]}
+    world = physics.World(scene)
+    corner = 0.5 - 0.05
+    seen = []
+    for _ in range(3):
+        world.step(0.01)
+        assert world.last_step.fallback[0] and not world.last_step.capped[0]
+        p = world.state.positions[0, 0].copy()
+        assert not np.all(np.abs(p) > corner - 1e-6), p  # not pinned against two cushions
+        assert np.hypot(*world.state.velocities[0, 0]) == pytest.approx(np.hypot(*v), rel=1e-12)
+        assert all(np.hypot(*(p - q)) > 0.05 for q in seen)  # it moved on
+        seen.append(p)
