@@ -289,3 +289,12 @@ class RecordEveryFrame(gym.Wrapper, gym.utils.RecordConstructorArgs):
         super().close()
         if self.recording:
             self.stop_recording()
+
+    def __del__(self) -> None:
+        """Dropped without :meth:`close` while recording: warn as Gymnasium's ``RecordVideo``
+        does, and remove the unfinished video (it was left as ``*.partial.mp4``, silently)."""
+        if getattr(self, "recording", False) and getattr(self, "_writer", None) is not None:
+            gym.logger.warn("Unable to save last video! Did you call close()? (the unfinished "
+                            f"video {self._writer.path} is not kept)")
+            with contextlib.suppress(Exception):  # at interpreter shutdown: nothing left to do
+                self._writer.abort()

@@ -19,6 +19,8 @@ what a user reads is what the kernels simulate.
 from __future__ import annotations
 
 import math
+import os
+import threading
 import warnings
 from dataclasses import dataclass
 from typing import Any
@@ -117,6 +119,26 @@ __all__ = ["Buffers", "Contacts", "SimulationError", "State", "StepStats", "Worl
 
 #: batch size from which the parallel kernels are used
 PARALLEL_BATCH = 256
+
+#: one parallel kernel at a time in a process: numba's workqueue threading layer (its choice
+#: where neither TBB nor OpenMP is installed) aborts the process when two threads run parallel
+#: regions at once (a threaded evaluation of two vector envs)
+_PARALLEL_LOCK = threading.Lock()
+#: whether this process has run a parallel kernel, and whether it is a fork of one that had:
+#: GNU OpenMP (numba's layer here) kills a forked child at its first parallel region
+#: ("fork() called from a process already using GNU OpenMP"), and a multiprocessing Pool then
+#: waits for it forever, so such a child runs the serial kernels
+_parallel_ran = False
+_forked_after_parallel = False
+
+
+def _after_fork_in_child() -> None:
+    global _forked_after_parallel
+    _forked_after_parallel = _forked_after_parallel or _parallel_ran
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_after_fork_in_child)
 
 #: the per-element parameters an edit can change: (snapshot key, World attribute)
 _PARAMETER_ARRAYS = [("mass", "_mass"), ("radius", "_radius"), ("half_length", "_half_length"),
@@ -761,16 +783,29 @@ class World:
                 raise SceneError(f"{kernel.name}: not available on the pymunk backend")
             result = kernel.stepwise(self, *args)
         else:
+            if self._parallel and _forked_after_parallel:
+                self._go_serial()
             entry = self._entries.get(kernel)
             if entry is None:
                 entry = self._entries[kernel] = kernel.entry(self._parallel, self._fbuf,
                                                              self._ibuf, args, self._tail)
-            result = entry(self._fbuf, self._ibuf, *args, *self._tail)
+            if self._parallel:
+                global _parallel_ran
+                _parallel_ran = True
+                with _PARALLEL_LOCK:
+                    result = entry(self._fbuf, self._ibuf, *args, *self._tail)
+            else:
+                result = entry(self._fbuf, self._ibuf, *args, *self._tail)
         # the statistics and contact records stay in the buffers until the next step: last_step
         # and last_contacts copy them out on first use
         d = self.__dict__  # the per-step bookkeeping bypasses __setattr__'s check (hot path)
         d["_last_step"] = d["_last_contacts"] = None
         return result
+
+    def _go_serial(self) -> None:
+        """Run the serial kernels from now on (a fork of a process that ran parallel ones)."""
+        self.__dict__.update(_parallel=False, _tail=(0, self.batch_size, *self.flags),
+                             _entries={})
 
     def _set_dt(self, dt: Any) -> None:
         if isinstance(dt, bool) or not isinstance(dt, (int, float, np.integer, np.floating)):

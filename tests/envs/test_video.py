@@ -454,6 +454,23 @@ def test_record_every_frame_cuts_videos_to_length(tmp_path):
     assert env.videos == [str(f) for f in files]
 
 
+def test_record_every_frame_dropped_without_close_warns_and_leaves_no_partial_video(tmp_path):
+    """Wrappers made in a loop and dropped without ``close()`` left ``*.partial.mp4`` files
+    behind, silently; Gymnasium's ``RecordVideo`` warns there, and so does this one now."""
+    import gc
+
+    env = gym.make("SpinStrike/RodSpinControl-v0", render_mode="rgb_array_list",
+                   render_size=(160, 108))
+    env = RecordEveryFrame(env, str(tmp_path / "v"), episode_trigger=lambda e: True)
+    env.reset(seed=0)
+    for a in _actions(env.action_space, 5, 3):
+        env.step(a)
+    with pytest.warns(UserWarning, match="Did you call close"):
+        del env
+        gc.collect()
+    assert list((tmp_path / "v").iterdir()) == []
+
+
 def test_record_every_frame_refuses_modes_without_frames(tmp_path):
     with pytest.raises(ValueError, match="render_mode: RecordEveryFrame needs"):
         RecordEveryFrame(gym.make("SpinStrike/RodSpin-v0"), str(tmp_path))
