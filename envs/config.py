@@ -206,8 +206,8 @@ class ControlConfig(EnvConfig):
     Attributes:
         dt: control time step (one ``world.step``), s.
         max_force: largest force on the mallet, N (the action's unit disk maps onto it).
-        max_speed: the mallet's speed limit, m/s (the force is reduced so that free flight does
-            not end a step faster).
+        max_speed: the mallet's speed limit, m/s (a force that would end a step of free flight
+            faster is replaced by the one that ends it at the limit, cut to ``max_force``).
         mallet_mass, target_mass: kg.
     """
 

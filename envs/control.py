@@ -48,6 +48,8 @@ class _ControlTask(Task):
     ACTIONS = ("force_x", "force_y")
     OBS_CLIPPED = True
     UNIFORMS = len(ControlConfig.RANDOMIZABLE) + 5
+    NEEDS = {"walls": "its mallet and target play on a walled table (the observation and the "
+                      "resets are scaled to the cushions)"}
 
     def __init__(self, cfg, batch_size: int, single: bool = False) -> None:
         super().__init__(cfg, batch_size, single)
@@ -234,7 +236,8 @@ class _ControlTask(Task):
 class RodSpinControlTask(_ControlTask):
     TARGET = "rod"
     SCENE = "rod_control"
-    NEEDS = {"rotation": "its reward is the rod's spin, which a scene without rotation never "
+    NEEDS = {**_ControlTask.NEEDS,
+             "rotation": "its reward is the rod's spin, which a scene without rotation never "
                          "changes (reward 0 for every action)"}
     SCALE = SPIN_SCALE
     MEASURE = fast.MEASURE_SPIN
@@ -267,8 +270,10 @@ _CONTROL_DOC = """{summary}
     A mallet (a driven disk, 0.3 kg) and a {target} share a 1.2 m x 0.8 m walled table with cloth
     friction. Each step the agent's action pushes the mallet with a constant force for ``dt``
     (0.02 s) seconds, simulated by the exact solver (contacts, cushions, cloth friction in closed
-    form). The mallet has a speed limit (``max_speed``, 3 m/s): the force is reduced so that free
-    flight never ends a step faster.
+    form). The mallet has a speed limit (``max_speed``, 3 m/s): a force that would end the step
+    faster in free flight is replaced by the one that ends it at the limit, nearest in velocity
+    (so it may turn as well as shrink), cut to ``max_force``; a mallet a hit has pushed beyond
+    the limit slows to it, and a step may end a little above it (3.0006 m/s seen).
 
     ## Action Space
     ``Box(-1, 1, (2,), float32)``: the force (x, y) as a fraction of ``max_force`` (8 N); the box
@@ -282,8 +287,10 @@ _CONTROL_DOC = """{summary}
 
     ## Rewards
     {reward}, computed after the physics step, and only in steps in which the mallet touches
-    the {target} (``info['hits']``): what its hits add (or take away). Cushions and cloth
-    friction never earn reward.
+    the {target} (``info['hits']``): what the step added (or took away), so a cushion bounce or
+    cloth friction in the same step counts with the hit (a chase policy's rod hits share their
+    step with a cushion impact about three times in four); in steps without a hit cushions and
+    cloth friction earn nothing.
 
     ## Starting State
     {target_cap} at rest at a random pose in the right half, mallet at rest in the left half.

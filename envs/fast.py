@@ -135,11 +135,15 @@ def limit_force(ax, ay, vx, vy, mass, dt, max_force, max_speed):
     ex = vx + fx * dt / mass
     ey = vy + fy * dt / mass
     speed = math.sqrt(ex * ex + ey * ey)
+    if speed == math.inf:  # the square overflowed (max_force 1e156 N): the force was 0
+        speed = math.hypot(ex, ey)
     if speed > max_speed:
         k = max_speed / speed
         gx = (ex * k - vx) * mass / dt
         gy = (ey * k - vy) * mass / dt
         gn = math.sqrt(gx * gx + gy * gy)
+        if gn == math.inf:
+            gn = math.hypot(gx, gy)
         c = min(1.0, max_force / max(gn, 1e-300))
         fx = gx * c
         fy = gy * c

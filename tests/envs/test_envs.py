@@ -847,3 +847,17 @@ def test_env_spec_holds_the_scene_file_as_read(tmp_path, monkeypatch):
         assert remade.unwrapped.world.mass[0, 0] == 0.2
     twin = pickle.loads(pickle.dumps(made[0].unwrapped))
     assert gym.make(twin.spec).unwrapped.world.mass[0, 0] == 0.2
+
+
+@pytest.mark.parametrize("kwargs", [{"max_force": 1e156}, {"mallet_mass": 1e-157}])
+def test_a_huge_force_on_the_mallet_is_limited_not_zeroed(kwargs):
+    """The speed limit squared the unlimited end velocity: beyond ~1e154 m/s that overflowed,
+    and the force became 0 (an accepted config whose mallet never moved). It is the force that
+    ends the step at max_speed."""
+    env = gym.make("SpinStrike/PuckSpeedControl-v0", **kwargs)
+    env.reset(seed=0)
+    world = env.unwrapped.world
+    m = world.mass[0, world.index("mallet")]
+    info = env.step(np.array([1.0, 0.0], np.float32))[-1]
+    np.testing.assert_allclose(info["force"], [3.0 * m / 0.02, 0.0], rtol=1e-12)
+    assert info["mallet_speed"] == pytest.approx(3.0, rel=1e-12)

@@ -231,7 +231,9 @@ BAD_KWARGS = [
     ("SpinStrike/PuckSpeed-v0", {"target_speed": [0, 1]}, "target_speed"),
     ("SpinStrike/RodSpinControl-v0", {"dt": 0.0}, "dt"),
     ("SpinStrike/RodSpinControl-v0", {"max_force": -1.0}, "max_force"),
-    ("SpinStrike/PuckSpeedControl-v0", {"effects": ["rotation"]}, "needs the 'walls' effect"),
+    # named effects (was "scene: a control env needs the 'walls' effect", no scene given)
+    ("SpinStrike/PuckSpeedControl-v0", {"effects": ["rotation"]},
+     "effects: this env needs 'walls'"),
     ("SpinStrike/PuckSpeedControl-v0", {"config": {"mallet_mass": math.nan}}, "mallet_mass"),
     ("SpinStrike/RodSpin-v0", {"config": [1]}, "config: must be a mapping"),  # was a TypeError
     # a rod env without rotation paid 0 for every action (best_reward said 1); thin_rod's
