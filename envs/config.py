@@ -287,11 +287,11 @@ def parse_config(model: type[EnvConfig], config: dict | None, kwargs: dict) -> E
         raise ConfigError(f"{_format(exc)} [allowed arguments: {', '.join(allowed)}]") from None
 
 
-def build_world(scene: Scene, batch_size: int) -> World:
+def build_world(scene: Scene, batch_size: int, max_contacts: int = 64) -> World:
     """The env's world; a scene the world refuses (bodies that overlap, or lie outside the
     table) is a :class:`ConfigError` of the env's ``scene`` argument, as every other."""
     try:
-        return World(scene, batch_size)
+        return World(scene, batch_size, max_contacts=max_contacts)
     except SceneError as exc:
         raise ConfigError(f"scene: {exc}") from None
 

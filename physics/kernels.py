@@ -78,6 +78,7 @@ from spinstrike.physics.layout import (
     REC_COLUMNS,
     STAT_COLUMNS,
     STAT_FALLBACK,
+    STAT_WATCH,
     STATE_COLUMNS,
 )
 from spinstrike.physics.solvers import exact_element, exact_many_element, fixed_element
@@ -169,7 +170,9 @@ def step_element(v, b, dt, fixed, rotation, contact_friction, table_friction, ja
     passed through (None: nothing recorded, the hook compiled away). Returns the element's
     ``fallback`` statistic (``layout.FALLBACK``), checked last for a state that is no longer
     finite (``FALLBACK_NONFINITE``: inputs beyond what float64 carries, e.g. 1e160 m/s)."""
-    v.stats[b, :] = 0
+    for k in range(STAT_COLUMNS):  # the watched pair stays
+        if k != STAT_WATCH:
+            v.stats[b, k] = 0
     v.clock[b] += dt
     _fixed_if(fixed, v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,
               v.icfg[CI_SUBSTEPS], v.icfg[CI_ITERATIONS], 0.0, 0.0, rotation, contact_friction,

@@ -113,10 +113,13 @@ RECORD = Table("contact record", "time", "px", "py", "nx", "ny", "j", "jt", pref
 REC_TIME, REC_PX, REC_PY, REC_NX, REC_NY, REC_J, REC_JT = RECORD
 REC_COLUMNS = len(RECORD)
 
-#: per-element statistics of the last step (``world.last_step``)
+#: per-element statistics of the last step (``world.last_step``); ``watch`` is no statistic but
+#: the pair (index, -1: none) whose contacts ``watched`` counts, every one of them, stored in
+#: the contact records or not (``World.watch``), kept from step to step
 STATS = Table("statistics", "events", "iterations", "fallback", "contacts", "substeps",
-              prefix="STAT_")
-STAT_EVENTS, STAT_ITERATIONS, STAT_FALLBACK, STAT_CONTACTS, STAT_SUBSTEPS = STATS
+              "watch", "watched", prefix="STAT_")
+(STAT_EVENTS, STAT_ITERATIONS, STAT_FALLBACK, STAT_CONTACTS, STAT_SUBSTEPS, STAT_WATCH,
+ STAT_WATCHED) = STATS
 STAT_COLUMNS = len(STATS)
 
 #: what the ``fallback`` statistic holds (values, not columns): the step ran as designed; the

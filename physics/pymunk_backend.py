@@ -102,6 +102,8 @@ from spinstrike.physics.layout import (
     STAT_CONTACTS,
     STAT_ITERATIONS,
     STAT_SUBSTEPS,
+    STAT_WATCH,
+    STAT_WATCHED,
     VX,
     VY,
     X,
@@ -322,7 +324,7 @@ class PymunkBackend:
     def _record_callback(self, p: int):
         w = self.world
         ctx = self._ctx
-        cpair, crec = w._cpair, w._crec
+        cpair, crec, stats = w._cpair, w._crec, w._stats
         M = w.max_contacts
 
         def post_solve(arbiter: pymunk.Arbiter, space: pymunk.Space, data: Any) -> None:
@@ -332,9 +334,11 @@ class PymunkBackend:
             n = arbiter.normal  # from shape a to shape b
             k = ctx[2]
             ctx[2] = k + 1
+            b = ctx[0]
+            if p == stats[b, STAT_WATCH]:  # counted also where the records are full
+                stats[b, STAT_WATCHED] += 1
             if k >= M:
                 return
-            b = ctx[0]
             nx, ny = n.x, n.y
             px = py = 0.0
             points = arbiter.contact_point_set.points

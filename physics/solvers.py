@@ -103,6 +103,8 @@ from spinstrike.physics.layout import (
     STAT_FALLBACK,
     STAT_ITERATIONS,
     STAT_SUBSTEPS,
+    STAT_WATCH,
+    STAT_WATCHED,
     VX,
     VY,
     Table,
@@ -172,6 +174,8 @@ def _record(p, t, px, py, nx, ny, j, jt, cpair, crec, stats):
         crec[k, REC_J] = j
         crec[k, REC_JT] = jt
     stats[STAT_CONTACTS] = k + 1
+    if p == stats[STAT_WATCH]:  # counted also where the records are full
+        stats[STAT_WATCHED] += 1
 
 
 @jit_inline

@@ -95,6 +95,8 @@ from spinstrike.physics.layout import (
     STAT_FALLBACK,
     STAT_ITERATIONS,
     STAT_SUBSTEPS,
+    STAT_WATCH,
+    STAT_WATCHED,
     STATE_COLUMNS,
     VX,
     VY,
@@ -217,6 +219,8 @@ class StepStats:
             10^6), so the bound that keeps bodies from passing through each other did not hold
             (``World.step`` warns): forces or speeds about 10^6 times what the bodies' sizes
             allow within a step (a force of 10^14 N on a 0.3 kg disk in a 20 ms step).
+        watched: impulses applied to the pair :meth:`World.watch` names, every one (also where
+            there were more contacts than ``max_contacts`` records); 0 when none is watched.
     """
 
     events: np.ndarray
@@ -225,6 +229,7 @@ class StepStats:
     contacts: np.ndarray
     fallback: np.ndarray
     capped: np.ndarray
+    watched: np.ndarray
 
 
 class SimulationError(SceneError):
@@ -456,6 +461,7 @@ class World:
         self._ibuf[H_FLOAT:H_FLOAT + len(FLOAT_FIELDS)] = [offsets[f] for f in FLOAT_FIELDS.names]
         self._ibuf[H_INT:H_INT + len(INT_FIELDS)] = [offsets[f] for f in INT_FIELDS.names]
         self._make_buffer_views()
+        self._stats[:, STAT_WATCH] = -1  # no pair watched (World.watch); kept in pickles
 
     def _make_buffer_views(self) -> None:
         """The private named views of the buffers: ``_state``, ``_params``, ... (one per
@@ -604,6 +610,16 @@ class World:
         """Contact friction coefficient of the pair between ``a`` and ``b`` per element, [B]
         (``"walls"`` as for :meth:`restitution`)."""
         return self._material(a, b, FRICTION, "friction")
+
+    def watch(self, a: str, b: str) -> None:
+        """Count every impulse between bodies ``a`` and ``b`` in ``last_step.watched``: the
+        contact records keep the first ``max_contacts`` of a step, so counting a pair's
+        contacts in them misses those beyond (an env's hits in a step that settles a rod
+        pressed into a cushion). One pair at a time; it stays watched from step to step."""
+        rows = self.pair_rows(a, b)
+        if len(rows) != 1:
+            raise SceneError(f"watch: one pair of bodies, not {a!r} with {b!r}")
+        self._stats[:, STAT_WATCH] = int(rows[0])
 
     def _material(self, a: str, b: str, column: int, field: str) -> np.ndarray:
         values = self._materials[:, self.pair_rows(a, b), column]
@@ -867,7 +883,8 @@ class World:
     def _step_backend(self) -> int:
         """``STEP`` on the pymunk backend (the compiled element steps zero their own rows);
         returns the worst ``fallback`` statistic, as the compiled step does."""
-        self._stats[:] = 0
+        self._stats[:, :STAT_WATCH] = 0  # the watched pair stays
+        self._stats[:, STAT_WATCHED] = 0
         self._backend.step(self.dt)
         self._time += self.dt
         finite = np.isfinite(self._state).all(axis=(1, 2))
@@ -888,7 +905,7 @@ class World:
                 a.flags.writeable = False
             self.__dict__["_last_step"] = StepStats(
                 st[:, STAT_EVENTS], st[:, STAT_ITERATIONS], st[:, STAT_SUBSTEPS],
-                st[:, STAT_CONTACTS], fallback, capped)
+                st[:, STAT_CONTACTS], fallback, capped, st[:, STAT_WATCHED])
         return self._last_step
 
     @property
