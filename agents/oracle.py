@@ -39,24 +39,41 @@ class RandomPolicy:
         return self.rng.uniform(space.low, space.high).astype(np.float32)
 
 
+#: a strike's reward the rod oracle looks no further from (1 up to the closed form's round-off)
+PAID_IN_FULL = 1.0 - 1e-6
+
+
 class RodSpinOracle:
-    """Closed-form strikes for a target spin, the best of them picked by simulation.
+    """Closed-form strikes for a target spin, the best of them picked by simulation, then
+    refined by a local search where it falls short of reward 1.
 
     Args:
         approaches: approach angles tried, as fractions of ``approach_max``.
-        levers: levers tried for side hits, as fractions of the half-length.
+        levers: levers tried for side hits, as fractions of the half-length (the best lever,
+            ``min(h, sqrt(I K))``, is always tried too).
         thetas: the seed's end-cap angles tried, degrees.
+        refine: spreads (in action units) of the local search's rounds around the best strike
+            so far, each of ``samples`` strikes from a generator seeded the same at every call;
+            it runs where the best strike pays less than 1 (``goal='max'``, where the most spin
+            one impact gives is struck square on and the rod comes round and hits the striker
+            again; a target beyond what one impact gives) and keeps the best strike met.
+        samples: strikes simulated at once (one batched what-if world).
     """
 
-    def __init__(self, approaches=None, levers=None, thetas=(0, 15, 30, 45, 60)) -> None:
+    def __init__(self, approaches=None, levers=None, thetas=(0, 15, 30, 45, 60),
+                 refine=(0.1, 0.03, 0.01, 0.003), samples: int = 256) -> None:
         self.approaches = (np.linspace(-0.9, 0.9, 13) if approaches is None
                            else np.asarray(approaches, float))
         self.levers = np.linspace(0.3, 0.98, 8) if levers is None else np.asarray(levers, float)
         self.thetas = np.radians(np.asarray(thetas, float))
+        self.refine = tuple(float(x) for x in refine)
+        self.samples = int(samples)
         self._scratch = None
 
     def candidates(self, task: RodSpinTask, b: int = 0, target: float | None = None):
-        """Actions that give ``target`` spin in one impact, by the closed form (``[K, 3]``)."""
+        """Actions that give ``target`` spin in one impact by the closed form (``[K, 3]``),
+        and how many of them, first, need no clipping; the rest are clipped into the action
+        box (they need more than its top speed)."""
         w = task.world
         cfg = task.cfg
         h, rho = w.half_length[b, task.it], w.radius[b, task.it]
@@ -66,16 +83,21 @@ class RodSpinOracle:
         k = 1.0 / w.mass[b, task.it] + 1.0 / w.mass[b, task.js]
         e = w.restitution("rod", "striker")[b]
         target = task.goal[b, 0] if target is None else target
-        if cfg.goal == "max":
-            target = task.analytic()["spin_max"][b] * (1.0 if target >= 0 else -1.0)
+        best = task.analytic()
+        spin_max = best["spin_max"][b]
+        if cfg.goal == "max" or abs(target) > spin_max:
+            # the most spin one impact gives (a target beyond it: the nearest spin reachable)
+            target = spin_max * (1.0 if target >= 0 else -1.0)
         sign = -1.0 if target >= 0 else 1.0  # a hit from +n at a positive lever spins CW
         a_max = math.radians(cfg.approach_max)
         lo, hi = cfg.speed_range
         out = []
-        # side hits: contact lever xi, approach alpha; normal speed v cos(alpha)
+        # side hits: contact lever xi, approach alpha; normal speed v cos(alpha); the levers
+        # tried and the best one, min(h, sqrt(I K)), where spin_max needs the top speed
+        levers = np.append(self.levers, best["lever"][b] / h)
         for frac in self.approaches:
             alpha = frac * a_max
-            for lf in self.levers:
+            for lf in levers:
                 lever = lf * h
                 v = abs(target) * (inertia * k + lever**2) / ((1 + e) * lever * math.cos(alpha))
                 xi = sign * lever
@@ -88,40 +110,111 @@ class RodSpinOracle:
             lever = h * math.cos(theta)
             v = abs(target) * (inertia * k + lever**2) / ((1 + e) * lever)
             out.append((sign * lever / reach, -sign * theta / a_max, 2 * (v - lo) / (hi - lo) - 1))
-        acts = np.clip(np.array(out), -1, 1)
-        ok = (np.abs(np.array(out)) <= 1).all(axis=1)  # reachable without clipping
-        return acts[ok] if ok.any() else acts
+        # every one, clipped into the box (those that need no clipping first): those a target
+        # beyond them clips are tried too (a spinning rod can come round and hit the striker
+        # again, which the closed form does not see: spin_max's own strike, square on, gets
+        # all its spin taken back that way)
+        out = np.array(out)
+        inside = (np.abs(out) <= 1.0).all(axis=1)
+        return np.clip(np.concatenate([out[inside], out[~inside]]), -1, 1), int(inside.sum())
+
+    def _rewards(self, task: RodSpinTask, acts: np.ndarray) -> np.ndarray:
+        """The reward of each strike of ``acts`` from element 0's state, simulated in chunks
+        of ``samples`` in a what-if copy of the env's task (rebuilt for another env's config:
+        one oracle used on two envs planned the second's strikes with the first's speed range
+        and scene)."""
+        if self._scratch is None or self._scratch[0] is not task.cfg:
+            self._scratch = (task.cfg, {})
+        scratches = self._scratch[1]
+        out = np.empty(len(acts))
+        for i in range(0, len(acts), self.samples):
+            chunk = acts[i:i + self.samples]
+            scratch = scratches.get(len(chunk))
+            if scratch is None:
+                scratch = scratches[len(chunk)] = RodSpinTask(task.cfg, len(chunk))
+            scratch.world.load_element(task.world, 0)
+            scratch.goal[:] = task.goal[0]
+            out[i:i + len(chunk)] = scratch.step(chunk)[0]
+        return out
 
     def __call__(self, env, obs) -> np.ndarray:
         task = env.unwrapped.task
-        acts = self.candidates(task)
-        # a what-if copy of this env's task: rebuilt for another env's config (one oracle used
-        # on two envs planned the second's strikes with the first's speed range and scene)
-        if (self._scratch is None or self._scratch.batch_size != len(acts)
-                or self._scratch.cfg is not task.cfg):
-            self._scratch = RodSpinTask(task.cfg, len(acts))
-        scratch = self._scratch
-        scratch.world.load_element(task.world, 0)
-        scratch.goal[:] = task.goal[0]
-        reward, _, info = scratch.step(acts)
-        return acts[int(np.argmax(reward))].astype(np.float32)
+        acts, inside = self.candidates(task)
+        # the strikes the closed form reaches first: one of them nearly always pays 1
+        reward = self._rewards(task, acts[:inside]) if inside else np.zeros(0)
+        if not inside or reward.max() < PAID_IN_FULL:
+            reward = np.concatenate([reward, self._rewards(task, acts[inside:])])
+        k = int(np.argmax(reward))
+        best, best_reward = acts[k], reward[k]
+        rng = np.random.default_rng(0)  # the same search at every call: a deterministic policy
+        for spread in self.refine:
+            if best_reward >= PAID_IN_FULL:
+                break
+            trial = np.clip(best + spread * rng.standard_normal((self.samples, 3)), -1, 1)
+            reward = self._rewards(task, trial)
+            k = int(np.argmax(reward))
+            if reward[k] > best_reward:
+                best, best_reward = trial[k], reward[k]
+        return best.astype(np.float32)
 
 
 class PuckSpeedOracle:
-    """A centred strike along the target heading, at the closed form's speed."""
+    """A strike along the target heading at the closed form's speed; a target slower than the
+    slowest centred strike sends the puck, an off-centre strike at the slowest speed.
+
+    Centred (frictionless or not: no slip): ``v_puck = (1+e) m_s / (m_s + m_p) v``. Off centre
+    by ``sin(theta)`` of the sum of radii, a frictionless strike sends the puck along the line
+    of centres, ``theta`` from the strike, at ``cos(theta)`` of that speed; with contact
+    friction the tangential impulse turns and slows it a little, which a few what-if strikes
+    from the env's own state correct (``corrections``).
+    """
+
+    def __init__(self, corrections: int = 6) -> None:
+        self.corrections = int(corrections)
+        self._scratch = None
+
+    @staticmethod
+    def _action(task, offset: float, heading: float, speed: float) -> np.ndarray:
+        lo, hi = task.cfg.speed_range
+        heading = math.remainder(heading, 2 * math.pi)
+        if isinstance(task, PuckSpeedVelocityTask):
+            rest = task.action_for(heading, speed, (lo, hi))
+        else:
+            rest = [heading / math.pi, 2 * (speed - lo) / (hi - lo) - 1]
+        return np.clip(np.concatenate([[offset], rest]), -1, 1).astype(np.float32)
 
     def __call__(self, env, obs) -> np.ndarray:
         task: PuckSpeedTask = env.unwrapped.task
         target = task.goal[0]
+        t_speed = math.hypot(*target)
+        t_heading = math.atan2(target[1], target[0])
         gain = task.analytic()["gain"][0]
         lo, hi = task.cfg.speed_range
-        speed = float(np.clip(math.hypot(*target) / gain, lo, hi))
-        heading = math.atan2(target[1], target[0])
-        if isinstance(task, PuckSpeedVelocityTask):
-            return np.clip(np.concatenate([[0.0], task.action_for(heading, speed, (lo, hi))]),
-                           -1, 1).astype(np.float32)
-        return np.clip(np.array([0.0, heading / math.pi, 2 * (speed - lo) / (hi - lo) - 1]),
-                       -1, 1).astype(np.float32)
+        if t_speed >= gain * lo:  # centred
+            return self._action(task, 0.0, t_heading, min(t_speed / gain, hi))
+        # off centre at the slowest speed: cos(theta) = t_speed / (gain lo); a positive offset
+        # sends the puck theta clockwise of the strike
+        theta = math.acos(t_speed / (gain * lo))
+        heading = t_heading + theta
+        act = self._action(task, math.sin(theta), heading, lo)
+        if task.world.friction("puck", "striker")[0] == 0.0:
+            return act
+        if self._scratch is None or self._scratch.cfg is not task.cfg:
+            self._scratch = type(task)(task.cfg, 1)
+        scratch = self._scratch
+        for _ in range(self.corrections):
+            scratch.world.load_element(task.world, 0)
+            scratch.goal[:] = task.goal[0]
+            reward, _, info = scratch.step(act[None])
+            v = info["velocity"][0]
+            speed = math.hypot(*v)
+            if reward[0] >= 1.0 - 1e-9 or speed == 0.0:
+                break
+            # the speed by the offset (cos theta scales it), the direction by the heading
+            theta = math.acos(min(math.cos(theta) * t_speed / speed, 1.0))
+            heading += math.remainder(t_heading - math.atan2(v[1], v[0]), 2 * math.pi)
+            act = self._action(task, math.sin(theta), heading, lo)
+        return act
 
 
 class ChaseAndHit:

@@ -359,3 +359,39 @@ def test_one_rod_oracle_serves_envs_of_different_configs():
         shared(first, first.reset(seed=seed)[0])
         obs, _ = second.reset(seed=2000 + seed)
         np.testing.assert_array_equal(shared(second, obs), RodSpinOracle()(second, obs))
+
+
+@pytest.mark.parametrize("kwargs", [
+    {"goal": "max"},  # the closed forms' w_max square on: the rod comes round
+    {"target_spin": (20, 40)},  # targets beyond w_max: the most spin one impact gives
+])
+def test_rod_oracle_strikes_the_most_spin_one_impact_gives(kwargs):
+    """The rod oracle's closed-form family missed the best lever sqrt(I K) and dropped every
+    strike a target beyond w_max needs clipped: it struck 0.983 of w_max every episode (a
+    search finds 0.9995; with targets above w_max, reward 0.118 where best_reward is 0.154)."""
+    from spinstrike.agents.oracle import RodSpinOracle
+    env = gym.make("SpinStrike/RodSpin-v0", **kwargs)
+    oracle = RodSpinOracle()
+    for seed in range(3):
+        obs, _ = env.reset(seed=seed)
+        info = env.step(oracle(env, obs))[-1]
+        assert abs(info["spin"]) >= 0.99 * info["analytic_max_spin"]
+
+
+@pytest.mark.parametrize("env_id", ["SpinStrike/PuckSpeed-v0", "SpinStrike/PuckSpeed-v1"])
+@pytest.mark.parametrize("friction", [None, 0.3])
+def test_puck_targets_slower_than_a_centred_strike_are_reached_off_centre(env_id, friction):
+    """A 0.5 kg striker's slowest centred strike sends a 0.05 kg puck at 0.864 m/s; targets of
+    0.75-0.8 m/s are reached by an off-centre strike (cos(theta) of it). best_reward and the
+    oracle took the centred strike for the best (0.34-0.62)."""
+    from spinstrike.agents.oracle import PuckSpeedOracle
+    kwargs = {"striker_mass": 0.5, "target_speed": (0.75, 0.8)}
+    if friction is not None:
+        kwargs["friction"] = friction
+    env = gym.make(env_id, **kwargs)
+    oracle = PuckSpeedOracle()
+    for seed in range(4):
+        obs, info = env.reset(seed=seed)
+        _, reward, _, _, info = env.step(oracle(env, obs))
+        assert info["best_reward"] == 1.0
+        assert reward == pytest.approx(1.0, abs=1e-6)
