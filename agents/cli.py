@@ -190,6 +190,11 @@ def _train_rllib(args) -> dict:
         raise AgentConfigError("--resume: not supported with --backend rllib")
     if args.num_env_runners < 0:
         raise AgentConfigError(f"--num-env-runners: must be >= 0 (got {args.num_env_runners})")
+    for flag, value, default in (("--device", args.device, "cpu"),
+                                 ("--torch-threads", args.torch_threads, 1)):
+        if value != default:  # was accepted and ignored
+            raise AgentConfigError(f"{flag}: the SB3 backend's; --backend rllib trains on the "
+                                   f"CPU with RLlib's own settings (got {value!r})")
     from spinstrike.agents.rllib_train import train_rllib
     from spinstrike.agents.train import FINISH
 

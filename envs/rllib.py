@@ -49,6 +49,7 @@ from spinstrike.envs.config import (
     EnvConfig,
     episode_limit,
     parse_config,
+    resolve_scene,
 )
 
 __all__ = ["RunnerSeeds", "check_env_config", "configure", "make_env", "register_envs"]
@@ -226,11 +227,16 @@ def configure(config, env_id: str, env_config: dict | None = None, *,
     connector that turns the observations into what it takes. Returns ``config``."""
     env_id = _bare_id(env_id)
     env_config = dict(env_config or {})
+    if "scene" in env_config:
+        # the scene itself, read now: the config (its pickles, the runners, a checkpoint) held
+        # the path, which another folder could not open and a later edit changed
+        env_config["scene"] = resolve_scene(env_config["scene"])
     parsed = check_env_config(env_id, env_config, vector=vectorize)
-    if "num_envs" in env_config and num_envs_per_env_runner is not None:
-        raise ConfigError("env_config['num_envs']: RLlib sets each runner's envs from "
-                          f"num_envs_per_env_runner ({num_envs_per_env_runner}; the CLI's "
-                          "--n-envs); drop num_envs")
+    if "num_envs" in env_config:  # RLlib replaces it (it was ignored where given alone)
+        per = ("" if num_envs_per_env_runner is None
+               else f" ({num_envs_per_env_runner}; the CLI's --n-envs)")
+        raise ConfigError(f"env_config['num_envs']: RLlib sets each runner's envs from "
+                          f"num_envs_per_env_runner{per}; pass that instead")
     if default_encoders:
         _check_default_encoders(parsed)
     register_envs()

@@ -7,6 +7,7 @@ integrity, fault tolerance, a cluster of two nodes, Tune), not learning.
 from __future__ import annotations
 
 import os
+import pickle
 import subprocess
 import sys
 import time
@@ -15,6 +16,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
+import yaml
 
 ray = pytest.importorskip("ray")
 
@@ -114,7 +116,30 @@ def test_bad_env_config_raises_in_the_driver_before_runners_start():
                 configure(PPOConfig(), CONTROL, {"scene": bad}, vectorize=vectorize)
     with pytest.raises(ValueError, match="env: must be one of"):
         configure(PPOConfig(), "SpinStrike/Nope-v0")
+    # RLlib replaces num_envs with num_envs_per_env_runner: given alone it was ignored
+    with pytest.raises(ConfigError, match=r"env_config\['num_envs'\].*num_envs_per_env_runner"):
+        configure(PPOConfig(), CONTROL, {"num_envs": 4})
     assert not ray.is_initialized()  # nothing started
+
+
+def test_configure_holds_the_scene_a_path_names_not_the_path(tmp_path, monkeypatch):
+    """A scene given as a file path is read by ``configure``: RLlib's env_config (the runners,
+    a checkpoint) held the path, which a restore from another folder could not open (an
+    IndexError in the driver) and a later edit of the file changed under a continued run."""
+    from spinstrike.envs.config import load_packaged_scene
+
+    scene = load_packaged_scene("rod_control")
+    scene["bodies"] = [dict(b, length=0.25) if b["name"] == "rod" else b for b in scene["bodies"]]
+    monkeypatch.chdir(tmp_path)
+    Path("s.yaml").write_text(yaml.safe_dump(scene))
+    config = configure(PPOConfig(), CONTROL, {"scene": "s.yaml"})
+    Path("s.yaml").write_text(yaml.safe_dump(load_packaged_scene("rod_control")))  # an edit
+    monkeypatch.chdir(tmp_path.parent)
+    held = pickle.loads(pickle.dumps(config)).env_config  # as a runner or a checkpoint gets it
+    assert held["scene"] == scene
+    env = make_env(CONTROL, dict(held, num_envs=2))  # RLlib's creator, in another folder
+    w = env.unwrapped.world if hasattr(env, "unwrapped") else env.world
+    assert w.half_length[0, w.index("rod")] == pytest.approx(0.125)
 
 
 def test_creator_returns_a_single_env_or_the_native_vector_env():
@@ -289,12 +314,23 @@ def test_tune_sweep_over_two_seeds(local_ray, tmp_path):
 
 
 def test_cli_train_backend_rllib_writes_the_run_folder(tmp_path):
+    """... with a scene given as a path relative to the working folder: config.yml holds the
+    scene itself (it held the path: evaluate from another folder failed), as SB3's does."""
+    from spinstrike.envs.config import load_packaged_scene
+
     out = tmp_path / "run"
     env = dict(os.environ, SDL_VIDEODRIVER="dummy", SDL_AUDIODRIVER="dummy", MPLBACKEND="Agg")
+    scene = load_packaged_scene("rod_spin")
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(scene))
     cmd = [sys.executable, "-m", "spinstrike.agents.cli", "train", "--backend", "rllib",
            "--env", STRIKE, "--num-env-runners", "2", "--timesteps", "256", "--n-envs", "4",
-           "--eval-episodes", "5", "--out", str(out)]
-    done = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=900)
+           "--eval-episodes", "5", "--out", str(out), "--env-kwargs", "{scene: s.yaml}"]
+    done = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=900,
+                          cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-3000:]
+    entry = yaml.safe_load((out / "config.yml").read_text())["hyperparameters"][STRIKE]
+    assert entry["env_kwargs"]["scene"] == scene
+    (tmp_path / "s.yaml").unlink()
     assert done.returncode == 0, done.stderr[-3000:]
     for name in ("config.yml", "command.txt", "progress.csv", "evaluations.npz",
                  "learning_curve.png", "summary.md", "summary.json", "rollout.mp4"):
@@ -309,7 +345,8 @@ def test_cli_train_backend_rllib_writes_the_run_folder(tmp_path):
     # agent return on the same episodes
     evaluated = subprocess.run([sys.executable, "-m", "spinstrike.agents.cli", "evaluate",
                                 str(out), "--episodes", "5", "--no-save"],
-                               capture_output=True, text=True, env=env, timeout=300)
+                               capture_output=True, text=True, env=env, timeout=300,
+                               cwd=tmp_path.parent)
     assert evaluated.returncode == 0, evaluated.stderr[-3000:]
     import json
 
@@ -473,7 +510,11 @@ def test_configure_refuses_observations_rllibs_default_model_cannot_encode(env_c
      ["obs_mode: 'pixels' (obs_size [224, 96], uint8)", "42x42, 64x64, 84x84 or 96x96"]),
     # the CLI's evaluation and video set their own render_mode
     (["--env-kwargs", "{render_mode: rgb_array}"], ["env_kwargs: render_mode is not an env"]),
-], ids=["minibatch", "minibatch-over-runners", "obs-dict", "obs-pixels", "render-mode"])
+    # the SB3 backend's options: were accepted and ignored
+    (["--device", "cuda"], ["--device: the SB3 backend's", "'cuda'"]),
+    (["--torch-threads", "7"], ["--torch-threads: the SB3 backend's", "7"]),
+], ids=["minibatch", "minibatch-over-runners", "obs-dict", "obs-pixels", "render-mode",
+        "device", "torch-threads"])
 def test_cli_backend_rllib_refuses_before_ray_starts(tmp_path, args, words):
     out = tmp_path / "run"
     cmd = [sys.executable, "-m", "spinstrike.agents.cli", "train", "--backend", "rllib",
