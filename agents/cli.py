@@ -38,9 +38,10 @@ def _kwargs(text: str | None) -> dict:
     import yaml
 
     from spinstrike.agents.config import AgentConfigError, yaml_problem
+    from spinstrike.physics.scene import load_yaml
 
     try:
-        value = yaml.safe_load(text)
+        value = load_yaml(text)
     except yaml.YAMLError as exc:
         raise AgentConfigError(f"--env-kwargs: not valid YAML/JSON ({yaml_problem(exc)})") \
             from None

@@ -167,13 +167,14 @@ def _normalize(value: Any, where: str) -> bool | dict:
 def _read_entry(path: Path, env_id: str) -> tuple[str, dict]:
     """The raw entry of ``env_id`` (or ``default``) in a hyperparameter file."""
     from spinstrike import envs
+    from spinstrike.physics.scene import load_yaml
 
     if path.is_dir():
         raise AgentConfigError(f"config: {str(path)!r} is a directory, not a YAML file")
     if not path.is_file():
         raise AgentConfigError(f"config: file {str(path)!r} does not exist")
     try:
-        data = yaml.safe_load(path.read_text())
+        data = load_yaml(path.read_text())
     except yaml.YAMLError as exc:
         raise AgentConfigError(f"config: {path} is not valid YAML ({yaml_problem(exc)})") from None
     if not isinstance(data, dict):

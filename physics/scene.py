@@ -513,6 +513,35 @@ def packaged_scene(name: str) -> dict[str, Any]:
     return yaml.safe_load(resources.files(SCENES_PACKAGE).joinpath(f"{name}.yaml").read_text())
 
 
+class _StrictLoader(yaml.SafeLoader):
+    """PyYAML's safe loader refusing a key given twice in one mapping (PyYAML keeps the last
+    silently: ``{mass: 1, mass: 2}`` read as mass 2, and a file with two ``bodies:`` blocks as
+    its last one)."""
+
+    def construct_mapping(self, node, deep=False):
+        if isinstance(node, yaml.MappingNode):
+            seen: dict = {}
+            for key_node, _ in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    continue  # keys merged in (<<) may be overridden, as YAML allows
+                key = self.construct_object(key_node, deep=True)
+                try:
+                    first = seen.setdefault(key, key_node.start_mark)
+                except TypeError:  # an unhashable key: PyYAML's own error follows
+                    continue
+                if first is not key_node.start_mark:
+                    raise yaml.constructor.ConstructorError(
+                        None, None, f"found the key {key!r} twice in one mapping (first at "
+                        f"line {first.line + 1}); give it once", key_node.start_mark)
+        return super().construct_mapping(node, deep)
+
+
+def load_yaml(text: str):
+    """``yaml.safe_load``, but a key given twice in a mapping is a ``yaml.YAMLError``: scene
+    files, hyperparameter files and the CLI's ``--env-kwargs`` are read with it."""
+    return yaml.load(text, Loader=_StrictLoader)  # noqa: S506 (a SafeLoader)
+
+
 def read_scene(source: str | Path) -> Any:
     """The raw (unvalidated) data of a scene given as a string or path: a path to a YAML file, a
     packaged scene's name (``"rod_control"``: :func:`packaged_scenes`) or YAML text.
@@ -540,7 +569,7 @@ def read_scene(source: str | Path) -> Any:
     elif isinstance(source, str) and re.fullmatch(r"[A-Za-z0-9_]+", text):
         return packaged_scene(text)
     try:
-        data = yaml.safe_load(text)
+        data = load_yaml(text)
     except yaml.YAMLError as exc:
         raise SceneError(f"scene: not valid YAML: {exc}") from None
     if from_file and not isinstance(data, dict):

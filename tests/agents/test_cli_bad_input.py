@@ -30,6 +30,11 @@ def _config(tmp: Path, name: str, entry: dict, env_id: str = ENV) -> str:
     return str(path)
 
 
+def _text(tmp: Path, name: str, text: str) -> str:
+    (tmp / name).write_text(text)
+    return str(tmp / name)
+
+
 def _dir(tmp: Path, name: str) -> str:
     (tmp / name).mkdir()
     return str(tmp / name)
@@ -94,6 +99,18 @@ CASES = [
     ("env-kwargs-unknown",
      lambda t: ["train", "--env-kwargs", "{bogus_kwarg: 1}"],
      ["bogus_kwarg", "unknown argument", "restitution"]),
+    # a key given twice: PyYAML kept the last silently
+    ("env-kwargs-duplicate-key",
+     lambda t: ["train", "--env-kwargs", "{restitution: 0.5, restitution: 0.7}"],
+     ["--env-kwargs", "found the key 'restitution' twice"]),
+    ("config-duplicate-key",
+     lambda t: ["train", "--config", _text(t, "dup.yml", f"{ENV}:\n  n_timesteps: 100\n"
+                                                      f"  n_envs: 2\n  n_envs: 4\n")],
+     ["dup.yml", "found the key 'n_envs' twice", "line 3"]),
+    ("scene-file-duplicate-key",
+     lambda t: ["train", "--env-kwargs", "{scene: %s}" % _text(
+         t, "dup.yaml", "effects: [rotation]\neffects: [rotation, walls]\n")],
+     ["scene", "found the key 'effects' twice", "line 1"]),
     ("eval-episodes-zero",
      lambda t: ["train", "--eval-episodes", "0"],
      ["--eval-episodes: must be >= 1"]),
