@@ -257,7 +257,7 @@ def effect_scene(effects: Sequence[str], contact_mu: float = 0.2, table_mu: floa
     eff = list(effects)
     rot = "rotation" in eff
     return {
-        "table": {"size": [1.2, 0.8],
+        "table": {"size": [1.2, 0.8] if "walls" in eff else None,
                   "friction": table_mu if "table_friction" in eff else 0.0},
         "effects": eff,
         "materials": {"restitution": 0.9,

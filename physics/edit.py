@@ -255,6 +255,9 @@ class WorldEdit:
             s = as_batch(size, (self.n, 2), "table.size")
             if np.any(s <= 0):
                 raise SceneError("table.size: must be positive lengths (m)")
+            if not self._w.walls:  # as the scene's rule: no cushions, an unbounded table
+                raise SceneError("table.size: is set but the scene does not list the 'walls' "
+                                 "effect")
             self._rows_of("_half")[:] = 0.5 * s
 
     def set_state(self, *, positions: Any = None, angles: Any = None, velocities: Any = None,

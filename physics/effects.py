@@ -27,9 +27,9 @@ EFFECTS: dict[str, Effect] = {
     for e in (
         Effect(
             "rotation",
-            "angular state (angle, omega) and the lever-arm terms (r x n)^2 / I of the impulse; "
-            "without it bodies translate only (infinite inertia).",
-            ("bodies[].angle", "bodies[].omega", "bodies[].inertia", "bodies[].pivot"),
+            "angular state (omega) and the lever-arm terms (r x n)^2 / I of the impulse; "
+            "without it bodies translate only (infinite inertia), each keeping its angle.",
+            ("bodies[].omega", "bodies[].inertia", "bodies[].pivot"),
         ),
         Effect(
             "walls",

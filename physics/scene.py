@@ -371,6 +371,10 @@ class Scene(_Model):
         if "walls" in effects:
             _require(self.table.size is not None, "table.size",
                      "the 'walls' effect needs a table size [width, height] (m)")
+        else:  # a table no cushion bounds: a size would claim one (table_half_size, the view)
+            _require(self.table.size is None, "table.size",
+                     "is set but the scene does not list the 'walls' effect: without "
+                     "cushions the table is unbounded (add 'walls', or drop size)")
         if "table_friction" not in effects:
             _require(self.table.friction == 0.0, "table.friction",
                      "is set but the scene does not list the 'table_friction' effect")

@@ -19,8 +19,7 @@ import pytest
 
 from spinstrike import physics
 
-SCENE = {
-    "table": {"size": [1.6, 1.0]},
+SCENE = {  # an unbounded table: a size is the 'walls' effect's parameter (_with adds it)
     "effects": ["rotation"],
     "materials": {"restitution": 0.8},
     "bodies": [
@@ -48,7 +47,7 @@ def _with(effect, **extra):
     s = copy.deepcopy(SCENE)
     s["effects"] = s["effects"] + [effect]
     for key, value in extra.items():
-        s[key].update(value)
+        s.setdefault(key, {}).update(value)
     return s
 
 
@@ -67,7 +66,7 @@ def test_effects_change_results_when_on():
     base = _run(SCENE)
     assert not np.array_equal(base, _run(_with("contact_friction", materials={"friction": 0.5})))
     assert not np.array_equal(base, _run(_with("table_friction", table={"friction": 0.2})))
-    assert not np.array_equal(base, _run(_with("walls")))
+    assert not np.array_equal(base, _run(_with("walls", table={"size": [1.6, 1.0]})))
 
 
 TRACE = textwrap.dedent("""

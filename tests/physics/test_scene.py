@@ -4,6 +4,7 @@ import copy
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from spinstrike import physics
@@ -211,3 +212,19 @@ def test_packaged_scenes_load_by_name_from_any_folder(tmp_path, monkeypatch):
     # a file of that name in the current folder is still a file
     (tmp_path / "rod_control").write_text("bodies: [{name: p, shape: disk, radius: 1, mass: 1}]")
     assert load_scene("rod_control").names == ("p",)
+
+
+def test_a_table_size_without_walls_is_refused_and_an_angle_without_rotation_kept():
+    """The effects registry's rule, a parameter of an effect the scene does not list is a
+    SceneError: table.size without 'walls' was accepted (a body 5 m out on a '1 m' table,
+    world.table_half_size 0.5 m, nothing bounding it). A body's angle is no rotation
+    parameter: without rotation a rod keeps the orientation it is given."""
+    rod = {"name": "rod", "shape": "rod", "length": 0.4, "thickness": 0.02, "mass": 0.1,
+           "angle": 0.7, "position": [5.0, 0.0]}
+    with pytest.raises(SceneError, match=r"table\.size: is set but the scene does not list "
+                                         r"the 'walls' effect"):
+        physics.World({"effects": [], "table": {"size": [1.0, 1.0]}, "bodies": [rod]})
+    w = physics.World({"effects": [], "bodies": [rod]})
+    assert w.state.angles[0, 0] == 0.7 and np.isinf(w.table_half_size).all()
+    with pytest.raises(SceneError, match="table.size: is set but"), w.edit() as e:
+        e.set_table(size=[1.0, 1.0])
