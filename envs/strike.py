@@ -829,9 +829,9 @@ class RodSpinEnv(_StrikeEnv):
     ``info['n_contacts']`` shows such strikes. The exact solver settles that sustained contact
     in fixed substeps (``info['fallback']``): this env's scene sets ``settle_substep`` to
     1e-5 s, within ~0.2 % of the converged spin (a fixed-step solver of 16384 substeps) at
-    ~13 ms a settled strike; the 1 ms default of other scenes was 25 % off there, and a search
-    over actions found that error (0.999 paid for a strike that earns 0.07). A ``solver``
-    argument replaces the scene's block: give it a ``settle_substep`` too.
+    ~13-25 ms a settled strike (0.2-1 ms at 1 ms); the 1 ms default of other scenes was 25 %
+    off there, and a search over actions found that error (0.999 paid for a strike that earns
+    0.07). A ``solver`` argument replaces the scene's block: give it a ``settle_substep`` too.
 
     ## Starting State
     Rod at rest, angle uniform, centre's x and y each uniform in [-0.1, 0.1] m; striker
@@ -847,8 +847,8 @@ class RodSpinEnv(_StrikeEnv):
 
     ## Info
     ``spin`` (rad/s), ``speed``/``rod_velocity`` (m/s), ``striker_speed``, ``n_contacts``,
-    ``second_contact``, ``impulse`` (normal impulses summed over the strike's contacts, N s; friction's tangential
-    part left out), ``first_impulse``, ``first_contact_point``,
+    ``second_contact``, ``impulse`` (normal impulses summed over the strike's contacts, N s;
+    friction's tangential part left out), ``first_impulse``, ``first_contact_point``,
     ``first_contact_time`` (s), ``sim_time``, ``analytic_max_spin``, ``analytic_best_lever``,
     ``best_reward``, ``reward_spin``, ``fallback`` (the solver settled a resting contact).
 

@@ -108,8 +108,8 @@ CASES = [
                                                       f"  n_envs: 2\n  n_envs: 4\n")],
      ["dup.yml", "found the key 'n_envs' twice", "line 3"]),
     ("scene-file-duplicate-key",
-     lambda t: ["train", "--env-kwargs", "{scene: %s}" % _text(
-         t, "dup.yaml", "effects: [rotation]\neffects: [rotation, walls]\n")],
+     lambda t: ["train", "--env-kwargs", "{scene: " + _text(
+         t, "dup.yaml", "effects: [rotation]\neffects: [rotation, walls]\n") + "}"],
      ["scene", "found the key 'effects' twice", "line 1"]),
     ("eval-episodes-zero",
      lambda t: ["train", "--eval-episodes", "0"],

@@ -942,8 +942,8 @@ def test_a_rod_strike_that_settles_is_paid_the_converged_spin(kwargs, seed, acti
     pays 0.07), an error a search over actions finds. Against a fixed-step solver of 4096
     substeps a chunk (an independent integration; 16384 moves it by 0.05 %)."""
     env = gym.make("SpinStrike/RodSpin-v0", restitution=0.0, **kwargs)
-    ref = gym.make("SpinStrike/RodSpin-v0", restitution=0.0, solver={"mode": "fixed", "substeps": 4096},
-                   **kwargs)
+    ref = gym.make("SpinStrike/RodSpin-v0", restitution=0.0,
+                   solver={"mode": "fixed", "substeps": 4096}, **kwargs)
     a = np.array(action, np.float32)
     env.reset(seed=seed)
     ref.reset(seed=seed)
