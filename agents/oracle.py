@@ -39,6 +39,14 @@ class RandomPolicy:
         return self.rng.uniform(space.low, space.high).astype(np.float32)
 
 
+def _strike_from(task, scratch, actions: np.ndarray):
+    """What-if strikes: ``actions`` (one per element of ``scratch``, a task of the same config)
+    struck from element 0 of ``task`` (its state and goal); ``scratch.step``'s result."""
+    scratch.world.load_element(task.world, 0)
+    scratch.goal[:] = task.goal[0]
+    return scratch.step(actions)
+
+
 #: a strike's reward the rod oracle looks no further from (1 up to the closed form's round-off)
 PAID_IN_FULL = 1.0 - 1e-6
 
@@ -132,9 +140,7 @@ class RodSpinOracle:
             scratch = scratches.get(len(chunk))
             if scratch is None:
                 scratch = scratches[len(chunk)] = RodSpinTask(task.cfg, len(chunk))
-            scratch.world.load_element(task.world, 0)
-            scratch.goal[:] = task.goal[0]
-            out[i:i + len(chunk)] = scratch.step(chunk)[0]
+            out[i:i + len(chunk)] = _strike_from(task, scratch, chunk)[0]
         return out
 
     def __call__(self, env, obs) -> np.ndarray:
@@ -203,9 +209,7 @@ class PuckSpeedOracle:
             self._scratch = type(task)(task.cfg, 1)
         scratch = self._scratch
         for _ in range(self.corrections):
-            scratch.world.load_element(task.world, 0)
-            scratch.goal[:] = task.goal[0]
-            reward, _, info = scratch.step(act[None])
+            reward, _, info = _strike_from(task, scratch, act[None])
             v = info["velocity"][0]
             speed = math.hypot(*v)
             if reward[0] >= 1.0 - 1e-9 or speed == 0.0:

@@ -883,8 +883,9 @@ class World:
     def _step_backend(self) -> int:
         """``STEP`` on the pymunk backend (the compiled element steps zero their own rows);
         returns the worst ``fallback`` statistic, as the compiled step does."""
-        self._stats[:, :STAT_WATCH] = 0  # the watched pair stays
-        self._stats[:, STAT_WATCHED] = 0
+        watch = self._stats[:, STAT_WATCH].copy()  # the watched pair stays
+        self._stats[:] = 0
+        self._stats[:, STAT_WATCH] = watch
         self._backend.step(self.dt)
         self._time += self.dt
         finite = np.isfinite(self._state).all(axis=(1, 2))
