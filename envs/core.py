@@ -296,23 +296,27 @@ def _scalar_info(info: dict[str, np.ndarray], i: int) -> dict[str, Any]:
     return out
 
 
-def _scene_as_read(spec, cfg: EnvConfig):
-    """``spec`` with a scene file given to the env (in its kwargs or its ``config`` dict) as
-    read when the env was made, as the env's pickles and a run's ``config.yml`` hold it:
-    ``gym.make(env.spec)`` re-read the file, so an edit since (or another working directory)
-    made another env, or none."""
-    if spec is None or cfg.scene is None or not isinstance(spec.kwargs, dict):
+def _spec_as_made(spec, cfg: EnvConfig):
+    """``spec`` with its kwargs as they were when the env was made, as the env's pickles and a
+    run's ``config.yml`` hold them: a deep copy (``gym.make`` keeps the caller's dicts, so a
+    ``randomize`` range edited afterwards in a sweep changed what ``gym.make(env.spec)``
+    made), and a scene file given to the env (in its kwargs or its ``config`` dict) as read
+    (``gym.make(env.spec)`` re-read the file: an edit since, or another working directory,
+    made another env, or none)."""
+    if spec is None or not isinstance(spec.kwargs, dict):
         return spec
-    kwargs = dict(spec.kwargs)
-    if "scene" in kwargs:
+    kwargs = copy.deepcopy(spec.kwargs)
+    if cfg.scene is not None and "scene" in kwargs:
         kwargs["scene"] = copy.deepcopy(cfg.scene)
-    elif isinstance(kwargs.get("config"), dict) and "scene" in kwargs["config"]:
+    elif (cfg.scene is not None and isinstance(kwargs.get("config"), dict)
+          and "scene" in kwargs["config"]):
         kwargs["config"] = dict(kwargs["config"], scene=copy.deepcopy(cfg.scene))
     return dataclasses.replace(spec, kwargs=kwargs)
 
 
 class _SpecOfScene:
-    """``spec`` (which ``gym.make`` / ``gym.make_vec`` set) holds the scene as read."""
+    """``spec`` (which ``gym.make`` / ``gym.make_vec`` set) holds the kwargs as they were when
+    the env was made, a scene file as read."""
 
     @property
     def spec(self):
@@ -320,7 +324,7 @@ class _SpecOfScene:
 
     @spec.setter
     def spec(self, value) -> None:
-        self._spec = _scene_as_read(value, self.cfg)
+        self._spec = _spec_as_made(value, self.cfg)
 
 
 class SpinStrikeEnv(_SpecOfScene, gym.Env):
@@ -363,7 +367,9 @@ class SpinStrikeEnv(_SpecOfScene, gym.Env):
                 "np_random": self._np_random, "np_random_seed": self._np_random_seed,
                 "started": self._started, "ended": self._ended,
                 # the video's memory: frames not yet rendered, a strike's clip, trails
-                "frames": self._frames, "trace": self.task.trace(), "spec": self.spec}
+                "frames": self._frames, "trace": self.task.trace(), "spec": self.spec,
+                # the spaces' generators (action_space.seed(...), then sample()): their streams
+                "spaces": (self.action_space, self.observation_space)}
 
     def __setstate__(self, state: dict) -> None:
         self.__init__(render_mode=state["render_mode"], config=state["config"])
@@ -375,6 +381,9 @@ class SpinStrikeEnv(_SpecOfScene, gym.Env):
         self._frames = list(state.get("frames", []))
         self.task.put_trace(state.get("trace", {}))
         self.spec = state.get("spec")
+        if "spaces" in state:
+            self.action_space = self.task.action_space = state["spaces"][0]
+            self.observation_space = state["spaces"][1]
 
     @property
     def world(self):
@@ -549,7 +558,6 @@ class SpinStrikeVectorEnv(_SpecOfScene, VectorEnv):
         self._steps = np.zeros(self.num_envs, dtype=np.int64)
         #: elements whose episode ended at the last step (NEXT_STEP: reset at the next one)
         self._done = np.zeros(self.num_envs, dtype=bool)
-        self._seeds: list[int | None] = [None] * self.num_envs
         self._started = False
 
     @property
@@ -559,8 +567,9 @@ class SpinStrikeVectorEnv(_SpecOfScene, VectorEnv):
     @property
     def np_random_seed(self) -> tuple[int, ...]:
         """Each element's seed, as ``SyncVectorEnv`` reports its envs' (``reset(seed=4)``:
-        4, 5, 6, ...); -1 for an element never seeded."""
-        return tuple(-1 if s is None else s for s in self._seeds)
+        4, 5, 6, ...); an element never seeded reports the seed its generator was drawn from,
+        as a single env does, so ``reset(seed=list(envs.np_random_seed))`` replays it."""
+        return tuple(self._stream.seeds)
 
     def reset(self, *, seed: int | list | None = None, options: dict | None = None):
         n = self.num_envs
@@ -575,8 +584,6 @@ class SpinStrikeVectorEnv(_SpecOfScene, VectorEnv):
             chosen = [i for i in range(n) if seeds[i] is not None
                       and (mask is None or mask[i])]
             self._stream.seed([seeds[i] for i in chosen], np.asarray(chosen, dtype=np.int64))
-            for i in chosen:
-                self._seeds[i] = seeds[i]
         self._np_random = self._stream.generators[0]
         env = np.arange(n) if mask is None else np.flatnonzero(mask)
         info = self.task.reset(env, self._stream.draw(env))

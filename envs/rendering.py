@@ -213,6 +213,12 @@ class Renderer:
         self._window = None
         self._clock = None
 
+    def __getstate__(self) -> dict:
+        """Copies and pickles (a vector env that has drawn) keep the geometry; pygame, its
+        surfaces, fonts and window are made again at the next draw."""
+        return dict(self.__dict__, _pygame=None, _surface=None, _font=None, _small=None,
+                    _window=None, _clock=None)
+
     def _init(self):
         if self._pygame is None:
             os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")

@@ -25,8 +25,14 @@ class UniformStream:
     def __init__(self, batch_size: int, width: int) -> None:
         self.batch_size = batch_size
         self.width = width
-        self.generators: list[np.random.Generator] = [seeding.np_random()[0]
-                                                      for _ in range(batch_size)]
+        self.generators: list[np.random.Generator] = []
+        #: each element's seed: the one given, else the one its generator was drawn from (as a
+        #: single env's ``np_random_seed``: reseeding with it replays an unseeded run)
+        self.seeds: list[int] = []
+        for _ in range(batch_size):
+            generator, seed = seeding.np_random()
+            self.generators.append(generator)
+            self.seeds.append(int(seed))
         self._buffer = np.zeros((batch_size, BLOCK, width))
         self._next = np.full(batch_size, BLOCK)
 
@@ -34,7 +40,8 @@ class UniformStream:
         """Reseed elements (all, or ``env``) with the given seeds (one per element, or None)."""
         idx = np.arange(self.batch_size) if env is None else np.asarray(env)
         for i, s in zip(idx, seeds, strict=True):
-            self.generators[i] = seeding.np_random(None if s is None else int(s))[0]
+            self.generators[i], seed = seeding.np_random(None if s is None else int(s))
+            self.seeds[i] = int(seed)
             self._next[i] = BLOCK
 
     def draw(self, env: np.ndarray) -> np.ndarray:

@@ -803,7 +803,10 @@ class RodSpinEnv(_StrikeEnv):
     ``Box(-1, 1, (3,), float32)``, in the rod's frame (so the rod's random pose does not matter):
 
     * ``offset``: signed distance of the striker's line from the rod's centre, as a fraction of
-      ``half_length + thickness/2 + striker radius`` (beyond 1 it misses);
+      ``half_length + thickness/2 + striker radius``, the reach of a square-on strike; at an
+      approach angle ``a`` the line meets the rod only where ``|offset| x reach <
+      half_length cos(a) + thickness/2 + striker radius``, so part of the box misses
+      (``[0.5, 1, 0.5]`` does; ~22 % of uniform random actions in the default config);
     * ``approach``: angle of the striker's velocity from the rod's normal, as a fraction of
       ``approach_max`` (75 deg);
     * ``speed``: strike speed, mapped linearly onto ``speed_range`` (0.5..4 m/s).

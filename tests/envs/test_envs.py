@@ -951,3 +951,93 @@ def test_a_rod_strike_that_settles_is_paid_the_converged_spin(kwargs, seed, acti
     want = ref.step(a)[-1]["spin"]
     assert info["fallback"] and info["n_contacts"] > 100
     assert info["spin"] == pytest.approx(want, rel=5e-3)
+
+
+@pytest.mark.parametrize("env_id", ["SpinStrike/RodSpin-v0", "SpinStrike/RodSpinControl-v0"])
+def test_a_copy_keeps_the_spaces_random_streams(env_id):
+    """``action_space.seed(42)``, then a copy (deepcopy, pickle) of the env: the copy's
+    ``sample()`` goes on with the original's stream, as Pendulum-v1's does; the copy's spaces
+    were made afresh, with unseeded generators."""
+    env = gym.make(env_id)
+    env.reset(seed=0)
+    env.action_space.seed(42)
+    env.observation_space.seed(7)
+    env.action_space.sample()
+    for twin in (copy.deepcopy(env), pickle.loads(pickle.dumps(env)),
+                 copy.deepcopy(env.unwrapped)):
+        for space, twins in ((env.action_space, twin.action_space),
+                             (env.observation_space, twin.observation_space)):
+            np.testing.assert_array_equal(twins.sample(), copy.deepcopy(space).sample())
+        # the copy's spaces are its own, and its task's
+        assert twin.unwrapped.action_space is twin.unwrapped.task.action_space
+        assert twin.unwrapped.action_space is not env.unwrapped.action_space
+    # a strike through the copy still clips by its (restored) action space
+    twin = pickle.loads(pickle.dumps(env))
+    a = np.array([2.0, 0.1, 0.3] if "Control" not in env_id else [2.0, 0.1], np.float32)
+    np.testing.assert_array_equal(twin.step(a)[0], env.step(a)[0])
+
+
+@pytest.mark.parametrize("env_id", ["SpinStrike/PuckSpeed-v1", "SpinStrike/RodSpinControl-v0"])
+def test_an_unseeded_native_vector_env_reports_seeds_that_replay_it(env_id):
+    """After an unseeded ``reset()`` the native vector env reported ``np_random_seed`` -1 for
+    every element (``reset(seed=[-1, ...])`` then failed), where ``SyncVectorEnv`` and a single
+    env report the seed each drew: resetting with them replays the run."""
+    vec = gym.make_vec(env_id, num_envs=3)
+    first = vec.reset()[0]
+    seeds = vec.np_random_seed
+    assert all(isinstance(s, int) and s >= 0 for s in seeds)
+    assert len(set(seeds)) == 3
+    acts = _actions(vec.single_action_space, 3, seed=1)
+    want = [vec.step(acts)[0] for _ in range(3)]
+    again = gym.make_vec(env_id, num_envs=3)
+    np.testing.assert_array_equal(again.reset(seed=list(seeds))[0], first)
+    assert again.np_random_seed == seeds
+    for w in want:
+        np.testing.assert_array_equal(again.step(acts)[0], w)
+    # element by element as single envs seeded so (the sync env's convention)
+    single = gym.make(env_id)
+    np.testing.assert_array_equal(single.reset(seed=seeds[1])[0], first[1])
+    # a seed list with None keeps that element's stream and its seed, as SyncVectorEnv does
+    again.reset(seed=[None, 5, None])
+    assert again.np_random_seed == (seeds[0], 5, seeds[2])
+
+
+@pytest.mark.parametrize("how", ["deepcopy", "pickle"])
+@pytest.mark.parametrize("kwargs", [{"render_mode": "rgb_array"}, {"obs_mode": "pixels"}])
+def test_a_native_vector_env_that_has_drawn_copies_and_draws_again(kwargs, how):
+    """A native vector env that had rendered (or that observes pixels, drawn at reset) could
+    not be copied or pickled: its renderer held the pygame module. The copy goes on to the same
+    observations and frames."""
+    vec = gym.make_vec("SpinStrike/RodSpinControl-v0", num_envs=2, **kwargs)
+    vec.reset(seed=3)
+    acts = _actions(vec.single_action_space, 2, seed=2)
+    vec.step(acts)
+    if "render_mode" in kwargs:
+        vec.render()
+    clone = copy.deepcopy(vec) if how == "deepcopy" else pickle.loads(pickle.dumps(vec))
+    for _ in range(2):
+        np.testing.assert_array_equal(clone.step(acts)[0], vec.step(acts)[0])
+    if "render_mode" in kwargs:
+        np.testing.assert_array_equal(clone.render(), vec.render())
+    vec.close()
+    clone.close()
+
+
+def test_env_spec_is_the_env_made_not_the_arguments_edited_since():
+    """``gym.make`` keeps the caller's dicts in ``env.spec.kwargs``: a ``randomize`` range
+    edited after the make (a sweep reusing it) changed what ``gym.make(env.spec)`` made, while
+    the env and its pickles kept the range given. The spec now holds the arguments as made,
+    for single and native vector envs."""
+    ranges = {"striker_mass": [0.05, 0.06]}
+    env = gym.make("SpinStrike/RodSpin-v0", randomize=ranges)
+    vec = gym.make_vec("SpinStrike/RodSpin-v0", num_envs=2, randomize=ranges)
+    ranges["striker_mass"] = [5.0, 6.0]
+    for spec in (env.spec, env.unwrapped.spec):
+        assert spec.kwargs["randomize"] == {"striker_mass": [0.05, 0.06]}
+    assert vec.spec.kwargs["randomize"] == {"striker_mass": [0.05, 0.06]}
+    remade = gym.make(env.spec)
+    remade.reset(seed=0)
+    assert 0.05 <= remade.unwrapped.world.mass[0, remade.unwrapped.task.js] <= 0.06
+    revec = gym.make_vec(vec.spec)
+    revec.reset(seed=0)
+    assert (revec.unwrapped.world.mass[:, revec.unwrapped.task.js] <= 0.06).all()
