@@ -225,7 +225,7 @@ def _contact(p, S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_f
     return False, 0
 
 
-@jit
+@jit_uncounted
 def _contact_pass(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_friction,
                   changed, cpair, crec, stats):
     """One sweep: resolve every pair within ``slop`` and approaching. Returns (any, resting)."""
