@@ -12,10 +12,13 @@ the flags and books the step.
 
 **Compile-time flags.** The solver kind, the effects that have code paths of their own and
 whether the scene's contacts can jam are passed as numba *literal* arguments
-(``numba.literally`` in each batch kernel): numba prunes the branches a flag rules out before it
-types them, so code for what a scene does not use is never compiled (the jam block solve alone is
-a quarter of the strike kernel's compile time) and never runs. Each combination is compiled (and
-cached) once.
+(``numba.literally`` in each batch kernel); each combination is compiled (and cached) once.
+Where a flag picks a call through :func:`~spinstrike.physics.jit.static_if` (the solver kind,
+the jam block solve, the many-body calendar) the call a flag rules out is never typed or
+compiled (the jam block solve alone is a quarter of the strike kernel's compile time). The
+effects' flags are tested in ordinary ``if`` statements, which numba does not prune: an effect's
+functions are compiled into every kernel and skipped at run time (their code runs only where the
+effect is listed and its parameter is above zero, ``tests/physics/test_effects.py``).
 """
 
 from __future__ import annotations

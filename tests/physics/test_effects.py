@@ -2,8 +2,11 @@
 
 1. A scene without an effect gives bit-identical results to one with it at zero strength.
 2. A step never executes an unlisted effect's code: the kernels are run as plain Python
-   (``NUMBA_DISABLE_JIT=1``) in a subprocess under a call profiler that counts each effect's
-   functions.
+   (``NUMBA_DISABLE_JIT=1``) in a subprocess under a tracer that counts each effect's
+   functions (and the fixed solver's inline cloth friction), on the exact and fixed solvers and
+   the many-body event calendar. The effects' flags are not what keeps that code from running
+   (it is skipped where its parameter is zero too, which an unlisted effect's always is): the
+   promise is about the code, and the tracer watches the code.
 """
 
 import copy
@@ -70,52 +73,91 @@ def test_effects_change_results_when_on():
 
 
 TRACE = textwrap.dedent("""
-    import json, sys
+    import inspect, json, sys
     import spinstrike.physics.contacts, spinstrike.physics.impulse, spinstrike.physics.motion
+    import spinstrike.physics.solvers
     from spinstrike import physics
     watched = {"contact_friction": physics.impulse._friction.__code__,
                "table_friction": physics.motion.slide.__code__,
                "table_friction_spin": physics.motion.spin_down.__code__,
                "walls": physics.contacts.capsule_wall.__code__,
-               "impulse": physics.impulse.resolve.__code__}
+               "impulse": physics.impulse.resolve.__code__,
+               "calendar": physics.solvers._many_events.__code__}
     codes = {v: k for k, v in watched.items()}
     counts = dict.fromkeys(watched, 0)
-    def prof(frame, event, arg):
-        if event == "call" and frame.f_code in codes:
-            counts[codes[frame.f_code]] += 1
-    scene = json.loads(sys.argv[1])
-    world = physics.World(scene)
-    world.set_force("mallet", [0.5, 0.3])
-    sys.setprofile(prof)
+    # the fixed solver's cloth friction is inline in its kick: count the lines that read the
+    # friction's decelerations
+    kick = physics.solvers._kick
+    lines, first = inspect.getsourcelines(kick)
+    friction_lines = {first + i for i, text in enumerate(lines)
+                      if "FRICTION_DECEL" in text or "SPIN_DECEL" in text}
+    assert len(friction_lines) == 2, friction_lines
+    counts["table_friction_kick"] = 0
+    def in_kick(frame, event, arg):
+        if event == "line" and frame.f_lineno in friction_lines:
+            counts["table_friction_kick"] += 1
+        return in_kick
+    def tracer(frame, event, arg):
+        if event == "call":
+            name = codes.get(frame.f_code)
+            if name is not None:
+                counts[name] += 1
+            if frame.f_code is kick.__code__:
+                return in_kick
+        return None
+    scene, solver = json.loads(sys.argv[1]), json.loads(sys.argv[2])
+    world = physics.World(scene, solver=solver)
+    if "mallet" in world.names:
+        world.set_force("mallet", [0.5, 0.3])
+    sys.settrace(tracer)
     for _ in range(40):
         world.step(0.01)
-    sys.setprofile(None)
+    sys.settrace(None)
     print(json.dumps(counts))
 """)
 
+#: the exact solver's many-body event calendar runs from 8 bodies: a row of pucks and the rod
+MANY = copy.deepcopy(SCENE)
+MANY["bodies"] += [{"name": f"p{i}", "shape": "disk", "radius": 0.03, "mass": 0.05,
+                    "position": [-0.45 + 0.1 * i, 0.4], "velocity": [(-1) ** i * 1.5, -0.3]}
+                   for i in range(8)]
+SOLVERS = [{"mode": "exact"}, {"mode": "fixed", "substeps": 20}]
 
-def _trace(scene):
+
+def _trace(scene, solver):
     env = dict(os.environ, NUMBA_DISABLE_JIT="1")
     # outside the repository, where only the installed names import
-    out = subprocess.run([sys.executable, "-c", TRACE, json.dumps(scene)], env=env,
-                         capture_output=True, text=True, check=True, timeout=300,
+    out = subprocess.run([sys.executable, "-c", TRACE, json.dumps(scene), json.dumps(solver)],
+                         env=env, capture_output=True, text=True, check=True, timeout=600,
                          cwd=tempfile.gettempdir())
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def test_unlisted_effects_never_run():
-    counts = _trace(SCENE)
+@pytest.mark.parametrize("scene", [SCENE, MANY], ids=["three bodies", "eleven bodies"])
+@pytest.mark.parametrize("solver", SOLVERS, ids=["exact", "fixed"])
+def test_unlisted_effects_never_run(scene, solver):
+    counts = _trace(scene, solver)
     assert counts["impulse"] > 0  # the strike happens, so the tracer sees the kernels run
+    assert (counts["calendar"] > 0) == (scene is MANY and solver["mode"] == "exact")
     assert counts["contact_friction"] == 0
     assert counts["table_friction"] == 0 and counts["table_friction_spin"] == 0
+    assert counts["table_friction_kick"] == 0
     assert counts["walls"] == 0
 
 
-def test_listed_effects_do_run():
+@pytest.mark.parametrize("bodies", [SCENE["bodies"], MANY["bodies"]],
+                         ids=["three bodies", "eleven bodies"])
+@pytest.mark.parametrize("solver", SOLVERS, ids=["exact", "fixed"])
+def test_listed_effects_do_run(bodies, solver):
+    """The tracer's counterpart: every effect's code is seen to run where it is listed (so a
+    zero above is not a tracer that sees nothing)."""
     scene = _with("contact_friction", materials={"friction": 0.4}) | {
         "effects": ["rotation", "walls", "contact_friction", "table_friction"],
-        "table": {"size": [1.6, 1.0], "friction": 0.1}}
-    counts = _trace(scene)
+        "table": {"size": [1.6, 1.0], "friction": 0.1}, "bodies": bodies}
+    counts = _trace(scene, solver)
     assert counts["contact_friction"] > 0
-    assert counts["table_friction"] > 0 and counts["table_friction_spin"] > 0
+    if solver["mode"] == "fixed":  # its kick slows the bodies itself
+        assert counts["table_friction_kick"] > 0
+    else:
+        assert counts["table_friction"] > 0 and counts["table_friction_spin"] > 0
     assert counts["walls"] > 0
