@@ -415,6 +415,9 @@ def check_snapshot(w: World, a: dict[str, np.ndarray]) -> None:
         if not w.rotation and np.any(s[..., OMEGA] != 0):
             _snapshot_error(w, "state", _any_element(s[..., OMEGA] != 0),
                             "spin, but the scene does not list the 'rotation' effect")
+    t = a.get("_time")
+    if t is not None and np.any(t < 0):
+        _snapshot_error(w, "time", None, "must be >= 0 s (a world's clock starts at 0)")
     f = a.get("_forces")
     if f is not None:
         pushed = _any_element(np.any(f != 0, axis=-1)) & ~np.asarray(w.driven)
@@ -449,8 +452,13 @@ def _check_snapshot_parameters(w: World, a: dict[str, np.ndarray]) -> None:
     if np.any(mu < 0) or (not w.table_friction and np.any(mu != 0)):
         _snapshot_error(w, "table_friction", None, "must be >= 0, and 0 unless the scene lists "
                                                    "the 'table_friction' effect")
-    if np.any(~(a["_half"] > 0)):
-        _snapshot_error(w, "table_half_size", None, "must be > 0 m (inf: an unbounded table)")
+    half = a["_half"]
+    if w.walls and np.any(~((half > 0) & np.isfinite(half))):
+        _snapshot_error(w, "table_half_size", None, "must be finite and > 0 m: the scene lists "
+                                                    "the 'walls' effect, cushions at +-size/2")
+    if not w.walls and np.any(half != np.inf):
+        _snapshot_error(w, "table_half_size", None, "must be inf: the scene does not list the "
+                                                    "'walls' effect (an unbounded table)")
     m = a["_materials"]
     if np.any((m[..., RESTITUTION] < 0) | (m[..., RESTITUTION] > 1)):
         _snapshot_error(w, "materials", None, "restitution must lie in [0, 1]")

@@ -384,9 +384,17 @@ class Scene(_Model):
         if "contact_friction" not in effects:
             _require(self.materials.friction == 0.0, "materials.friction",
                      "is set but the scene does not list the 'contact_friction' effect")
+        self._check_pairs(set(names), effects)
+        if self.table.size is not None and "walls" in effects:
+            self._check_inside_table()
+        return self
+
+    def _check_pairs(self, names: set[str], effects: set[str]) -> None:
+        """``materials.pairs``: known bodies, a pair that can touch, each property once."""
         cushions = {"walls", *WALL_NAMES}
-        allowed = set(names) | (cushions if "walls" in effects else set())
+        allowed = names | (cushions if "walls" in effects else set())
         static = {b.name for b in self.bodies if b.static} | cushions
+        seen: dict[tuple[frozenset, str], int] = {}
         for k, pair in enumerate(self.materials.pairs):
             field = f"materials.pairs[{k}].bodies"
             for name in pair.bodies:
@@ -403,9 +411,21 @@ class Scene(_Model):
             if "contact_friction" not in effects:
                 _require(not pair.friction, f"materials.pairs[{k}].friction",
                          "is set but the scene does not list the 'contact_friction' effect")
-        if self.table.size is not None and "walls" in effects:
-            self._check_inside_table()
-        return self
+            _require(pair.restitution is not None or pair.friction is not None,
+                     f"materials.pairs[{k}]", "sets neither restitution nor friction")
+            # one entry per property and pair: the last of two would win silently ('walls'
+            # names the four cushions, so it and a cushion's own entry name the same pairs)
+            for x in (WALL_NAMES if a == "walls" else (a,)):
+                for y in (WALL_NAMES if b == "walls" else (b,)):
+                    for prop in ("restitution", "friction"):
+                        if getattr(pair, prop) is None:
+                            continue
+                        key = (frozenset((x, y)), prop)
+                        _require(key not in seen, f"materials.pairs[{k}].{prop}",
+                                 f"{x!r}-{y!r} already has a {prop} from "
+                                 f"materials.pairs[{seen.get(key)}]: give each pair's {prop} "
+                                 f"once")
+                        seen[key] = k
 
     def _check_inside_table(self) -> None:
         half_w, half_h = 0.5 * self.table.size[0], 0.5 * self.table.size[1]

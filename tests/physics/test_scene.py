@@ -87,6 +87,15 @@ INVALID = [
      ["materials.pairs[0].bodies", "ghost"]),
     (_set("materials.pairs", [{"bodies": ["rod", "walls"], "restitution": 2}]),
      ["materials.pairs[0].restitution", "less than or equal to 1"]),
+    # a pair's property given twice (the last won silently; 'walls' names every cushion)
+    (_set("materials.pairs", [{"bodies": ["rod", "striker"], "restitution": 0.1},
+                              {"bodies": ["striker", "rod"], "restitution": 0.9}]),
+     ["materials.pairs[1].restitution", "already has a restitution from materials.pairs[0]"]),
+    (_set("materials.pairs", [{"bodies": ["rod", "wall_left"], "restitution": 0.1},
+                              {"bodies": ["rod", "walls"], "restitution": 0.7}]),
+     ["materials.pairs[1].restitution", "'rod'-'wall_left' already has"]),
+    (_set("materials.pairs", [{"bodies": ["rod", "striker"]}]),
+     ["materials.pairs[0]", "neither restitution nor friction"]),
     (_set("unknown_key", 1), ["unknown_key", "Extra inputs"]),
     # pydantic's wording, said as the scene's: a solver block without its mode; a union's
     # members (a number, or 'thin_rod') in one message, not one field path per member

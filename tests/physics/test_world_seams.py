@@ -278,6 +278,12 @@ _IM = 1  # the mallet's index in both control scenes (checked below)
     ("SpinStrike/RodSpinControl-v0", lambda w: w["forces"].__setitem__((..., 0, 0), 1.0),
      "only bodies marked 'driven: true'"),
     ("SpinStrike/RodSpinControl-v0", lambda w: w.pop("inertia"), "missing ['inertia']"),
+    # cushions gone from a walled table (the mallet then left it); a clock before the start
+    ("SpinStrike/PuckSpeedControl-v0",
+     lambda w: w["table_half_size"].__setitem__(..., math.inf),
+     "snapshot.table_half_size: must be finite and > 0 m"),
+    ("SpinStrike/RodSpinControl-v0", lambda w: w["time"].__setitem__(..., -5.0),
+     "snapshot.time: must be >= 0 s"),
 ])
 def test_a_snapshot_no_edit_could_make_is_refused_naming_the_field(env_id, edit, names):
     """``set_physics_state`` (``World.restore``) took any numbers of the right shape: e = 3
