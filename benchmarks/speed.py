@@ -547,7 +547,8 @@ def main(argv: list[str] | None = None) -> int:
               "Seconds from a fresh interpreter's `import` to a single env's first and 1000th "
               "step (`gym.make`, random actions), with an empty kernel cache of its own (every "
               "kernel the env needs compiles; one line on stderr says so) and with it filled. "
-              "Each env compiles only what its scene uses (`docs/design.md` §5).", "",
+              "Each env compiles only the solver and contact paths its scene uses "
+              "(`docs/design.md` §5).", "",
               "| env | first step, cache empty | 1000th step, cache empty | first step, "
               "cache filled | 1000th step, cache filled |", "|---|---|---|---|---|"]
     lines += [f"| `{env_id}` | {c1:.1f} | {c1000:.1f} | {w1:.1f} | {w1000:.1f} |"
