@@ -24,7 +24,15 @@ def signal_after_checkpoint(args: list[str], cwd: Path, signum: int, run: Path) 
             assert time.time() < deadline, "no checkpoint in 240 s"
             time.sleep(0.2)
         proc.send_signal(signum)
-        assert proc.wait(timeout=60) == 128 + signum
+        # generous: on 2 cores shared with other work the exit (the checkpoint's record, torch's
+        # teardown) took over 60 s in two full-suite runs; the test is of the code, not speed
+        try:
+            code = proc.wait(timeout=240)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            raise AssertionError("no exit 240 s after the signal; stderr:\n"
+                                 + proc.stderr.read().decode()) from None
+        assert code == 128 + signum, proc.stderr.read().decode()
     finally:
         if proc.poll() is None:
             proc.kill()
