@@ -25,16 +25,13 @@ class UniformStream:
     def __init__(self, batch_size: int, width: int) -> None:
         self.batch_size = batch_size
         self.width = width
-        self.generators: list[np.random.Generator] = []
+        self.generators: list[np.random.Generator] = [None] * batch_size  # type: ignore
         #: each element's seed: the one given, else the one its generator was drawn from (as a
         #: single env's ``np_random_seed``: reseeding with it replays an unseeded run)
-        self.seeds: list[int] = []
-        for _ in range(batch_size):
-            generator, seed = seeding.np_random()
-            self.generators.append(generator)
-            self.seeds.append(int(seed))
+        self.seeds: list[int] = [0] * batch_size
         self._buffer = np.zeros((batch_size, BLOCK, width))
         self._next = np.full(batch_size, BLOCK)
+        self.seed([None] * batch_size)  # unseeded: generators from fresh entropy
 
     def seed(self, seeds, env: np.ndarray | None = None) -> None:
         """Reseed elements (all, or ``env``) with the given seeds (one per element, or None)."""

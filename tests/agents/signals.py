@@ -5,6 +5,7 @@ training has passed a given step (the tests of ``--resume`` and of checkpoints).
 from __future__ import annotations
 
 import contextlib
+import signal
 import subprocess
 import sys
 import time
@@ -14,8 +15,6 @@ from pathlib import Path
 def signal_after_checkpoint(args: list[str], cwd: Path, signum: int, run: Path) -> str:
     """Run ``spinstrike train ARGS`` in a subprocess, send ``signum`` once ``run.partial`` holds
     a checkpoint, check the exit code is 128 + ``signum``; return what it wrote to stderr."""
-    import signal
-
     # a background job of a non-interactive shell (`pytest &`, a CI script run so) starts with
     # SIGINT ignored, and the child inherited it: it trained on through the Ctrl-C sent below.
     # The child gets SIGINT's default (Python then turns it into KeyboardInterrupt), as a
@@ -32,10 +31,10 @@ def signal_after_checkpoint(args: list[str], cwd: Path, signum: int, run: Path) 
             time.sleep(0.2)
         proc.send_signal(signum)
         try:
-            code = proc.wait(timeout=120)
+            code = proc.wait(timeout=60)
         except subprocess.TimeoutExpired:
             proc.kill()
-            raise AssertionError("no exit 120 s after the signal; stderr:\n"
+            raise AssertionError("no exit 60 s after the signal; stderr:\n"
                                  + proc.stderr.read().decode()) from None
         assert code == 128 + signum, proc.stderr.read().decode()
     finally:
