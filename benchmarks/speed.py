@@ -22,6 +22,7 @@ not.
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import math
 import os
 import platform
@@ -459,6 +460,16 @@ def main(argv: list[str] | None = None) -> int:
     quick = args.quick
     out = out_dir(p, args.out if args.out is not None else (None if quick else Path("docs")),
                   "speed.md and the plots")
+    # the PPO env-share row trains SB3's PPO (the 'train' extra; 'bench' does not bring torch):
+    # a full run writes it into speed.md, so it needs SB3 before any work; --quick skips it
+    have_sb3 = importlib.util.find_spec("stable_baselines3") is not None
+    if not have_sb3 and args.section == "all":
+        if out is not None:
+            p.error("the PPO env-share row of speed.md needs stable_baselines3, which comes with "
+                    "the 'train' extra: pip install \"spinstrike[train]\" (or run --quick, "
+                    "which prints the rest without it)")
+        print("note: stable_baselines3 is not installed (the 'train' extra): the PPO env-share "
+              "row is skipped", file=sys.stderr)
     load, cores = os.getloadavg()[0], os.cpu_count() or 1
     if load > 0.5 * cores:  # the rates are the fastest of a few runs, not immune to sharing
         print(f"warning: load average {load:.2f} on {cores} cores: other work shares them, "
@@ -508,10 +519,11 @@ def main(argv: list[str] | None = None) -> int:
     startup = _startup_times(list(envs.ENV_IDS))
     for env_id, (c1, c1000, w1, w1000) in startup.items():
         print(f"start-up {env_id}: cold {c1:.1f} / {c1000:.1f} s, warm {w1:.1f} / {w1000:.1f} s")
-    share = _ppo_env_share(8192 if quick else 32768)
-    rows.append(("share of SB3 PPO wall time spent in the env (16 envs, native adapter)", share,
-                 "-", "fraction", ""))
-    print(f"PPO env share {share:.3f}")
+    if have_sb3:
+        share = _ppo_env_share(8192 if quick else 32768)
+        rows.append(("share of SB3 PPO wall time spent in the env (16 envs, native adapter)",
+                     share, "-", "fraction", ""))
+        print(f"PPO env share {share:.3f}")
 
     batches = [1, 4, 16, 64, 256, 1024, 4096] + ([] if quick else [16384, 65536])
     scene = physics.load_scene(envs.config.load_packaged_scene("rod_control"))

@@ -197,7 +197,13 @@ class RecordEveryFrame(gym.Wrapper, gym.utils.RecordConstructorArgs):
         if video_length < 0:
             raise ValueError(f"video_length: must be >= 0 frames (got {video_length})")
         if episode_trigger is None and step_trigger is None:
-            from gymnasium.utils.save_video import capped_cubic_video_schedule
+            try:  # gymnasium's module refuses to import without moviepy
+                from gymnasium.utils.save_video import capped_cubic_video_schedule
+            except gym.error.DependencyNotInstalled as exc:
+                raise gym.error.DependencyNotInstalled(
+                    "RecordEveryFrame's default episode_trigger is Gymnasium's "
+                    "capped_cubic_video_schedule, whose module needs moviepy: pip install "
+                    '"spinstrike[render]" (or pass episode_trigger or step_trigger)') from exc
 
             episode_trigger = capped_cubic_video_schedule
         self.episode_trigger = episode_trigger

@@ -22,7 +22,13 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from stable_baselines3.common.vec_env.base_vec_env import VecEnv
+
+try:
+    from stable_baselines3.common.vec_env.base_vec_env import VecEnv
+except ModuleNotFoundError as exc:  # name the extra; exc.name stays for the CLI's message
+    raise ModuleNotFoundError(
+        f"spinstrike.envs.sb3 needs stable-baselines3 ({exc.name} is missing), which comes with "
+        "the 'train' extra: pip install \"spinstrike[train]\"", name=exc.name) from exc
 
 __all__ = ["SB3VecEnv", "element_infos", "make_sb3_vec_env"]
 

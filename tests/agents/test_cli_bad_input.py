@@ -409,3 +409,36 @@ def test_a_missing_optional_dependency_names_its_extra(monkeypatch, tmp_path, ca
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert f'pip install "spinstrike[{extra}]"' in err and "Traceback" not in err
+
+
+def _uninstalled(monkeypatch, module: str, *importers: str) -> None:
+    """Make ``import module`` raise ModuleNotFoundError, and forget ``importers`` (modules that
+    imported it already) so the next import of them meets the missing module."""
+    for name in [m for m in sys.modules if m == module or m.startswith(module + ".")]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, module, None)
+    for name in importers:
+        monkeypatch.delitem(sys.modules, name, raising=False)
+
+
+def test_the_sb3_adapter_without_sb3_names_the_extra(monkeypatch):
+    """``import spinstrike.envs.sb3`` on a base install was a bare ModuleNotFoundError."""
+    import importlib
+
+    _uninstalled(monkeypatch, "stable_baselines3", "spinstrike.envs.sb3")
+    with pytest.raises(ModuleNotFoundError, match=r'pip install "spinstrike\[train\]"') as exc:
+        importlib.import_module("spinstrike.envs.sb3")
+    assert exc.value.name.split(".")[0] == "stable_baselines3"  # what the CLI maps to the extra
+
+
+def test_record_every_frame_without_moviepy_names_the_extra(monkeypatch, tmp_path):
+    """Gymnasium's own message said ``pip install "gymnasium[other]"``, which leaves pygame out."""
+    import gymnasium as gym
+
+    from spinstrike.envs.recording import RecordEveryFrame
+
+    _uninstalled(monkeypatch, "moviepy", "gymnasium.utils.save_video")
+    env = gym.make(ENV, render_mode="rgb_array_list")
+    with pytest.raises(gym.error.DependencyNotInstalled, match=r"spinstrike\[render\]"):
+        RecordEveryFrame(env, str(tmp_path / "videos"))
+    env.close()

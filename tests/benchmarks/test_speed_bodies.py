@@ -62,3 +62,41 @@ def test_a_loaded_machine_is_named_before_the_rates(monkeypatch, capsys):
         monkeypatch.setattr(os, "getloadavg", lambda x=load: (x, x, x))
         assert speed.main(["--section", "bodies", "--bodies", "2", "--quick"]) == 0
         assert ("other work shares them" in capsys.readouterr().err) is warned
+
+
+def test_without_sb3_a_quick_run_skips_the_ppo_row_and_a_full_run_refuses_first(
+        tmp_path, monkeypatch, capsys):
+    """The 'bench' extra has no torch: ``spinstrike bench speed --quick`` there measured for four
+    minutes and then failed on the PPO env-share row. A quick run now says up front that it skips
+    that row and prints the rest; a run that writes speed.md (whose table has the row) refuses
+    before it measures anything. (The rates themselves are stubbed: this is about the flow.)"""
+    import sys
+
+    import pytest
+
+    from spinstrike.agents.cli import main
+
+    monkeypatch.setitem(sys.modules, "stable_baselines3", None)  # as if not installed
+    with pytest.raises(SystemExit) as exit_:
+        main(["bench", "speed", "--out", str(tmp_path / "docs")])
+    captured = capsys.readouterr()
+    assert exit_.value.code == 2 and "spinstrike[train]" in captured.err
+    assert captured.out == "" and not (tmp_path / "docs" / "speed.md").exists()
+
+    def share(steps):
+        raise AssertionError("the PPO row ran without stable_baselines3")
+
+    monkeypatch.setattr(speed, "_ppo_env_share", share)
+    monkeypatch.setattr(speed, "_vector_rate", lambda *a, **k: (1000.0, 0.5))
+    monkeypatch.setattr(speed, "_sync_pymunk_rate", lambda *a, **k: (10.0, 0.5))
+    monkeypatch.setattr(speed, "_cartpole_rate", lambda *a, **k: 2000.0)
+    monkeypatch.setattr(speed, "_single_rate", lambda *a, **k: (100.0, 0.5))
+    monkeypatch.setattr(speed, "_startup_times", lambda ids: {i: (1.0, 2.0, 0.1, 0.2) for i in ids})
+    monkeypatch.setattr(speed, "_world_step_time", lambda scene, b, *a: (1e-6 * b, 0.5))
+    monkeypatch.setattr(speed, "bodies_sweep", lambda *a: [])
+    monkeypatch.chdir(tmp_path)
+    assert main(["bench", "speed", "--quick"]) == 0
+    captured = capsys.readouterr()
+    assert "PPO env-share row is skipped" in captured.err
+    assert "native vector env (random) / SyncVectorEnv on pymunk: 100.0x" in captured.out
+    assert "PPO env share" not in captured.out
