@@ -73,6 +73,14 @@ def _policy(args):
         raise AgentConfigError("--env-kwargs: a run is evaluated and filmed on the env it was "
                                "trained on (its config.yml's env_kwargs); the option goes with "
                                "--oracle, --random or --planner")
+    # a run's agent on the run's env: these options chose another policy or env, and were
+    # dropped without a word (another env's numbers were the training env's)
+    given = [f"--{flag}" for flag in ("env", "oracle", "random", "planner")
+             if getattr(args, flag, None)]
+    if args.run_dir and given:
+        raise AgentConfigError(f"{', '.join(given)}: a run is evaluated and filmed with its own "
+                               f"agent on the env it was trained on (its config.yml); "
+                               f"{' and '.join(given)} go without a run directory")
     if args.run_dir:
         from spinstrike.agents.evaluate import load_model_policy
 

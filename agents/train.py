@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import csv
 import os
+import pickle
 import re
 import shlex
 import shutil
@@ -114,8 +115,9 @@ def _checkpoint_steps(ckpt: Path) -> int:
 
 def _checkpoint_file(folder: Path, steps: int | str, kind: str = "") -> Path:
     """A checkpoint's file in ``folder``, SB3's names: the model ``model_<steps>_steps.zip``
-    (``kind`` ""), beside it ``model_vecnormalize_...pkl`` and ``model_replay_buffer_...pkl``
-    (``steps`` "*": their glob pattern)."""
+    (``kind`` ""), beside it ``model_vecnormalize_...pkl``, ``model_replay_buffer_...pkl`` and
+    ``model_env_random_...pkl`` (the training env's random streams; ``steps`` "*": their glob
+    pattern)."""
     if not kind:
         return folder / f"model_{steps}_steps.zip"
     return folder / f"model_{kind}_{steps}_steps.pkl"
@@ -282,12 +284,40 @@ def _resume_model(cls, algo: str, cfg: RunConfig, work: Path, env, device: str):
             raise AgentConfigError(f"resume: {ckpt} has no normalisation statistics "
                                    f"({stats.name}) although the run normalizes")
         model.set_env(VecNormalize.load(str(stats), env.venv))
+    _restore_env_random(model, _checkpoint_file(ckpt.parent, steps, "env_random"))
     buf = _checkpoint_file(ckpt.parent, steps, "replay_buffer")
     if algo in OFF_POLICY:
         if not buf.exists():  # an empty buffer would silently restart learning_starts' warm-up
             raise AgentConfigError(f"resume: {ckpt} has no replay buffer ({buf.name})")
         model.load_replay_buffer(buf)
     return model
+
+
+def _native_env(model):
+    """The native vector env under the model's SB3 env (``VecNormalize`` and the adapter)."""
+    return model.get_env().unwrapped.venv.unwrapped
+
+
+def _save_env_random(model, path: Path) -> None:
+    """The training env's random streams, beside a checkpoint (see :func:`_restore_env_random`)."""
+    state = _native_env(model).get_random_state()
+    path.write_bytes(pickle.dumps(state))
+
+
+def _restore_env_random(model, path: Path) -> None:
+    """Put the training env's random streams back as the checkpoint left them, so the resumed
+    stretch draws the tasks that come next. Rebuilt from the run's seed, the env replayed the
+    run's first episodes (a resumed SAC run held each early transition twice in its buffer).
+    A checkpoint written before the streams were kept has none: the episodes restart from the
+    seed, as they did, and a warning says so."""
+    venv = model.get_env().unwrapped
+    if not path.exists():
+        print(f"warning: resume: {path.parent} has no {path.name} (a checkpoint written before "
+              f"the env's random state was kept): the resumed stretch's episodes start again "
+              f"from the run's seed", file=sys.stderr)
+        return
+    _native_env(model).set_random_state(pickle.loads(path.read_bytes()))
+    venv._reset_seeds()  # the adapter's pending seed would reseed the streams at the reset
 
 
 #: seed of the learning curves' evaluation episodes (the same for every run)
@@ -338,6 +368,8 @@ def _checkpoint_callback(every: int, folder: Path, on_policy: bool, normalize: b
             if normalize:
                 _atomic(_checkpoint_file(folder, steps, "vecnormalize"),
                         lambda tmp: self.model.get_vec_normalize_env().save(str(tmp)))
+            _atomic(_checkpoint_file(folder, steps, "env_random"),
+                    lambda tmp: _save_env_random(self.model, tmp))
             _atomic(_checkpoint_file(folder, steps), self.model.save)
             for path in older:
                 path.unlink(missing_ok=True)

@@ -571,6 +571,23 @@ class SpinStrikeVectorEnv(_SpecOfScene, VectorEnv):
         as a single env does, so ``reset(seed=list(envs.np_random_seed))`` replays it."""
         return tuple(self._stream.seeds)
 
+    def get_random_state(self) -> UniformStream:
+        """A copy of the elements' random streams (their generators' states and the rows drawn
+        ahead): what a training checkpoint keeps, so a resumed run's resets draw the tasks that
+        come next, not the seed's first ones again."""
+        return copy.deepcopy(self._stream)
+
+    def set_random_state(self, state: UniformStream) -> None:
+        """Put back streams from :meth:`get_random_state` (of a vector env of this size and
+        task); the next reset of each element draws from where they were."""
+        if not isinstance(state, UniformStream) or (state.batch_size, state.width) != (
+                self.num_envs, self.TASK.UNIFORMS):
+            raise ValueError(f"state: random streams of {self.num_envs} elements and "
+                             f"{self.TASK.UNIFORMS} uniforms a reset (get_random_state() of a "
+                             f"vector env like this one), got {state!r}")
+        self._stream = copy.deepcopy(state)
+        self._np_random = self._stream.generators[0]
+
     def reset(self, *, seed: int | list | None = None, options: dict | None = None):
         n = self.num_envs
         mask = _reset_mask(options, n)

@@ -65,6 +65,16 @@ def _interrupted(tmp: Path) -> str:
 
 # each case: (id, build(tmp) -> argv, words the error line must contain)
 CASES = [
+    # a run's agent on its own env: another env or policy asked for was dropped without a word
+    ("evaluate-run-with-env",
+     lambda t: ["evaluate", _fake_run(t, "done"), "--env", "SpinStrike/PuckSpeed-v1"],
+     ["--env:", "its own agent on the env it was trained on", "without a run directory"]),
+    ("evaluate-run-with-oracle-and-random",
+     lambda t: ["evaluate", _fake_run(t, "done"), "--oracle", "--random"],
+     ["--oracle, --random:", "--oracle and --random go without a run directory"]),
+    ("record-run-with-planner",
+     lambda t: ["record", _fake_run(t, "done"), "--planner"],
+     ["--planner:", "its own agent"]),
     ("config-is-a-directory",
      lambda t: ["train", "--config", _dir(t, "conf.d")],
      ["config:", "conf.d", "is a directory"]),

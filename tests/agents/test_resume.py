@@ -188,3 +188,41 @@ def test_a_resumed_run_finishes_as_its_first_command_asked_and_counts_all_its_ti
     runs = yaml.safe_load((run / "config.yml").read_text())["runs"]
     total = sum(r["wall_time_s"] for r in runs)
     assert len(runs) == 2 and f"{total:.0f} s in 2 sessions" in (run / "summary.md").read_text()
+
+
+def test_a_resumed_run_draws_the_tasks_that_come_next(tmp_path, monkeypatch):
+    """The training env of ``--resume`` was rebuilt from the run's seed, so the resumed stretch
+    replayed the run's first tasks (every observation of it equal to the first stretch's; SAC's
+    buffer held each early transition twice). A checkpoint keeps the env's random streams: the
+    resumed stretch sees the tasks the run left alone goes on to (each element's from the
+    episode after the one in flight at the checkpoint), none of the first stretch's."""
+    seen = []
+    real = sb3.SB3VecEnv.step_wait
+
+    def step_wait(self):
+        out = real(self)
+        if self.num_envs == 4:  # the training envs (the evaluation env has 1)
+            seen.append(out[0].copy())
+        return out
+
+    monkeypatch.setattr(sb3.SB3VecEnv, "step_wait", step_wait)
+    def tasks(upto=None):  # RodSpin's episodes are one step: an observation is a task
+        return {tuple(row) for obs in seen[:upto] for row in obs}
+
+    config = str(_tiny_config(tmp_path / "ppo.yml"))
+    common = ["--algo", "ppo", "--env", ENV, "--config", config, "--no-eval", "--no-video",
+              "--no-progress"]
+    assert main(["train", *common, "--out", str(tmp_path / "alone")]) == 0
+    alone = tasks()
+    seen.clear()
+    partial = _interrupted_run(tmp_path, monkeypatch,
+                               ["train", *common, "--out", str(tmp_path / "run")])
+    ckpt = max(int(p.name.split("_")[1]) for p in (partial / "checkpoints").glob("model_*.zip"))
+    first = tasks(ckpt // 4)  # to the checkpoint (the steps after it are trained again)
+    assert len(first) > 500
+    seen.clear()
+    assert main(["train", "--resume", "--out", str(tmp_path / "run"), "--no-eval", "--no-video",
+                 "--no-progress"]) == 0
+    resumed = tasks()
+    assert len(resumed) > 500 and not resumed & first
+    assert len(resumed - alone) <= 4, len(resumed - alone)  # the last episode of each element
