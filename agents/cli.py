@@ -173,7 +173,7 @@ def cmd_train(args) -> int:
                            video=False if args.no_video else None,
                            env_kwargs=_kwargs(args.env_kwargs),
                            torch_threads=args.torch_threads or None,
-                           command="spinstrike " + shlex.join(sys.argv[1:]),
+                           command="spinstrike " + shlex.join(args.argv),
                            imitate=args.imitate, imitate_rounds=args.imitate_rounds,
                            imitate_episodes=args.imitate_episodes)
         except KeyboardInterrupt:  # Ctrl-C: train() said how to go on; no traceback (as SIGTERM)
@@ -213,7 +213,7 @@ def _train_rllib(args) -> dict:
                        eval_episodes=FINISH["eval_episodes"] if args.eval_episodes is None
                        else args.eval_episodes,
                        video=not args.no_video, env_kwargs=_kwargs(args.env_kwargs),
-                       command="spinstrike " + shlex.join(sys.argv[1:]))
+                       command="spinstrike " + shlex.join(args.argv))
 
 
 def cmd_evaluate(args) -> int:
@@ -532,6 +532,7 @@ def main(argv: list[str] | None = None) -> int:
     from spinstrike.envs.config import ConfigError
     from spinstrike.physics import SceneError
 
+    args.argv = argv  # what command.txt records (main's own argv, not the interpreter's)
     if getattr(args, "env", None):  # gym.make's module-qualified id, as the README shows it
         args.env = args.env.removeprefix("spinstrike:")
     try:

@@ -164,8 +164,9 @@ def _normalize(value: Any, where: str) -> bool | dict:
     return dict(value)
 
 
-def _read_entry(path: Path, env_id: str) -> tuple[str, dict]:
-    """The raw entry of ``env_id`` (or ``default``) in a hyperparameter file."""
+def _read_entry(path: Path, env_id: str, algo: str | None = None) -> tuple[str, dict]:
+    """The raw entry of ``env_id`` (or ``default``) in a hyperparameter file, or in a run's
+    ``config.yml`` (``spinstrike train``'s record: its ``hyperparameters``, for its ``algo``)."""
     from spinstrike import envs
     from spinstrike.physics.scene import load_yaml
 
@@ -179,6 +180,12 @@ def _read_entry(path: Path, env_id: str) -> tuple[str, dict]:
         raise AgentConfigError(f"config: {path} is not valid YAML ({yaml_problem(exc)})") from None
     if not isinstance(data, dict):
         raise AgentConfigError(f"config: {path} must map env ids to hyperparameters")
+    if isinstance(data.get("hyperparameters"), dict) and "algo" in data:  # a run's record
+        if algo is not None and data["algo"] != algo:
+            raise AgentConfigError(f"config: {path} is the record of a {data['algo']} run; its "
+                                   f"hyperparameters are {data['algo']}'s (give --algo "
+                                   f"{data['algo']})")
+        data = data["hyperparameters"]
     for key in data:
         if key != "default" and key not in envs.ENV_IDS:
             raise AgentConfigError(f"config: {path}: unknown env id {key!r}; allowed: "
@@ -310,7 +317,7 @@ def load_agent_config(algo: str, env_id: str, path: str | Path | None = None,
     algo_class(algo)  # an unknown algorithm first, then an unknown id, then the file
     check_env_id(env_id)
     path = Path(path) if path is not None else packaged_config_path(algo)
-    entry_key, entry = _read_entry(path, env_id)
+    entry_key, entry = _read_entry(path, env_id, algo)
     entry.update(overrides or {})
     return _resolve(algo, env_id, entry, f"{path.name}[{entry_key}]", str(path))
 

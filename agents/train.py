@@ -4,7 +4,7 @@ A run directory holds everything needed to reproduce and resume a run::
 
     runs/<name>/
         model.zip            final model            config.yml     resolved entry + metadata
-        command.txt          the command line       checkpoints/   periodic model (+ buffer)
+        command.txt          the command lines      checkpoints/   periodic model (+ buffer)
         tb/                  TensorBoard logs       progress.csv   SB3's training log
         evaluations.npz      periodic evaluations   learning_curve.png
         summary.md/.json     final evaluation vs random and oracle      rollout.mp4
@@ -465,6 +465,8 @@ def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, 
         meta = yaml.safe_load((work / "config.yml").read_text())
         meta["hyperparameters"] = cfg.as_yaml_dict()  # the budget, if --timesteps changed it
         (work / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
+        with (work / "command.txt").open("a") as f:  # the commands that made the run, in order
+            f.write((command or shlex.join(sys.argv)) + "\n")
     else:
         model = cls(cfg.policy, env, seed=seed, device=device, verbose=0,
                     **_model_kwargs(cfg, env))

@@ -226,3 +226,35 @@ def test_a_resumed_run_draws_the_tasks_that_come_next(tmp_path, monkeypatch):
     resumed = tasks()
     assert len(resumed) > 500 and not resumed & first
     assert len(resumed - alone) <= 4, len(resumed - alone)  # the last episode of each element
+
+
+def test_a_runs_record_trains_it_again(tmp_path, capsys):
+    """A run's command.txt kept only its first command (a resume with a new --timesteps left it
+    naming the old budget), and its config.yml was refused as --config ("unknown env id
+    'algo'"): neither re-ran the run. Now command.txt lists each command, and the record is a
+    hyperparameter file for its own algorithm."""
+    run = tmp_path / "run"
+    first = ["train", "--algo", "ppo", "--env", ENV, "--config",
+             str(_tiny_config(tmp_path / "ppo.yml", 1024)), "--env-kwargs",
+             "{restitution: 0.5}", "--out", str(run), "--no-eval", "--no-video", "--no-progress"]
+    assert main(first) == 0
+    again = ["train", "--resume", "--out", str(run), "--timesteps", "1536", "--no-eval",
+             "--no-video", "--no-progress"]
+    assert main(again) == 0
+    import shlex
+
+    lines = (run / "command.txt").read_text().splitlines()
+    assert lines == ["spinstrike " + shlex.join(first), "spinstrike " + shlex.join(again)]
+    record = yaml.safe_load((run / "config.yml").read_text())
+    assert record["hyperparameters"][ENV]["n_timesteps"] == 1536
+
+    copy = tmp_path / "copy"
+    assert main(["train", "--algo", "ppo", "--env", ENV, "--config", str(run / "config.yml"),
+                 "--out", str(copy), "--no-eval", "--no-video", "--no-progress"]) == 0
+    redone = yaml.safe_load((copy / "config.yml").read_text())
+    assert redone["hyperparameters"] == record["hyperparameters"]  # budget and env kwargs too
+    assert redone["hyperparameters"][ENV]["env_kwargs"] == {"restitution": 0.5}
+    capsys.readouterr()
+    assert main(["train", "--algo", "sac", "--env", ENV, "--config", str(run / "config.yml"),
+                 "--out", str(tmp_path / "x")]) == 2
+    assert "is the record of a ppo run" in capsys.readouterr().err
