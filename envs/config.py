@@ -8,6 +8,7 @@ raises :class:`ConfigError` naming the field and what is allowed. Scenes ship in
 from __future__ import annotations
 
 import copy
+import math
 import numbers
 import os
 from collections.abc import Iterator, Mapping
@@ -154,6 +155,30 @@ class _StrikeConfig(EnvConfig):
     _speed_range = field_validator("speed_range")(lambda v: _positive_range(v, "m/s"))
 
 
+#: the strike envs' achieved and desired goals (``obs_mode='dict'``) lie in +-GOAL_BOUND times the
+#: largest target, per component
+GOAL_BOUND = 5.0
+#: what a spin or velocity clipped to GOAL_BOUND may still be paid (see _goal_width)
+GOAL_CLIP_REWARD = 1e-6
+
+
+def _goal_width(cfg) -> None:
+    """In ``obs_mode='dict'`` the reward is the goals' as the observation shows them, so an
+    achieved goal beyond ``GOAL_BOUND`` times the largest target is clipped there and paid as if
+    it were on the bound. That is harmless where the bound pays nothing: the most it pays is at
+    the largest target, ``exp(-((GOAL_BOUND - 1) / reward_width)^2 / 2)``. A wider reward made
+    two different spins pay the same and the dict reward differ from the vector one by ~10 %."""
+    if cfg.obs_mode != "dict":
+        return
+    paid = math.exp(-0.5 * ((GOAL_BOUND - 1.0) / cfg.reward_width) ** 2)
+    if paid > GOAL_CLIP_REWARD:
+        widest = (GOAL_BOUND - 1.0) / math.sqrt(-2.0 * math.log(GOAL_CLIP_REWARD))
+        raise ValueError(f"reward_width: with obs_mode='dict' at most {widest:.3f} (got "
+                         f"{cfg.reward_width}): the achieved goal is clipped at {GOAL_BOUND:g} "
+                         f"times the largest target, where this width still pays {paid:.2g}, "
+                         f"so a result beyond it would be paid as if on it")
+
+
 class RodSpinConfig(_StrikeConfig):
     """``SpinStrike/RodSpin-v0``.
 
@@ -181,6 +206,7 @@ class RodSpinConfig(_StrikeConfig):
         if self.obs_mode == "dict" and self.goal != "target":
             raise ValueError("obs_mode: 'dict' needs goal='target' (with goal='max' there is no "
                              "goal to relabel: use obs_mode='vector')")
+        _goal_width(self)
         return self
 
 
@@ -198,6 +224,11 @@ class PuckSpeedConfig(_StrikeConfig):
     reward_width: Number = Field(0.1, gt=0.0)
 
     _target_speed = field_validator("target_speed")(lambda v: _positive_range(v, "m/s"))
+
+    @model_validator(mode="after")
+    def _goal_width(self):
+        _goal_width(self)
+        return self
 
 
 class ControlConfig(EnvConfig):

@@ -18,6 +18,7 @@ import numpy as np
 
 from spinstrike.envs import fast
 from spinstrike.envs.config import (
+    GOAL_BOUND,
     ConfigError,
     PuckSpeedConfig,
     RodSpinConfig,
@@ -515,7 +516,8 @@ class RodSpinTask(_StrikeTask):
         ObsField("half_length", 0.0, 5.0, "the rod's half length, m"),
     )
     GOAL = slice(0, 1)
-    ACHIEVED = (ObsField("spin", -5.0, 5.0, "rod spin after the strike / max target spin"),)
+    ACHIEVED = (ObsField("spin", -GOAL_BOUND, GOAL_BOUND,
+                         "rod spin after the strike / max target spin"),)
     TITLE = "RodSpin-v0"
     UNIFORMS = len(RodSpinConfig.RANDOMIZABLE) + 4
 
@@ -641,8 +643,8 @@ class PuckSpeedTask(_StrikeTask):
         ObsField("friction", 0.0, 5.0, "contact friction mu of the puck-striker pair"),
     )
     GOAL = slice(0, 2)
-    ACHIEVED = (ObsField("vx", -5.0, 5.0, "puck velocity x / max target speed"),
-                ObsField("vy", -5.0, 5.0, "puck velocity y / max target speed"))
+    ACHIEVED = (ObsField("vx", -GOAL_BOUND, GOAL_BOUND, "puck velocity x / max target speed"),
+                ObsField("vy", -GOAL_BOUND, GOAL_BOUND, "puck velocity y / max target speed"))
     UNIFORMS = len(PuckSpeedConfig.RANDOMIZABLE) + 5
     GOAL_WIDTH = 2
     TITLE = "PuckSpeed-v0"

@@ -260,3 +260,31 @@ def test_sb3_adapter_observations_match_the_layout(env_id):
         _check(env_id, native.world, native.single_observation_space, obs, goal)
         for i in np.flatnonzero(done):
             assert not np.array_equal(infos[i]["terminal_observation"], obs[i])
+
+
+@pytest.mark.parametrize("env_id,target", [("SpinStrike/RodSpin-v0", {"target_spin": (2.0, 2.1)}),
+                                           ("SpinStrike/PuckSpeed-v1",
+                                            {"target_speed": (0.3, 0.31)})])
+def test_dict_rewards_are_the_vector_ones_even_beyond_the_goal_bound(env_id, target):
+    """The achieved goal is clipped at 5x the largest target; with a wide reward (width 5) a
+    spin beyond it was paid as if on it (0.4788 for spins of 20.2 and 21.5 rad/s, the vector
+    mode 0.4740 / 0.4350), so such a width is refused with obs_mode='dict', and at the widest
+    allowed the dict reward is the vector one to float32 rounding, results beyond the bound
+    included (narrow, slow targets: many random strikes land beyond it)."""
+    from spinstrike.envs.config import ConfigError
+
+    with pytest.raises(ConfigError, match=r"reward_width: with obs_mode='dict' at most 0\.761"):
+        gym.make(env_id, obs_mode="dict", reward_width=5.0, **target)
+    kw = dict(reward_width=0.76, **target)
+    vec = gym.make_vec(env_id, num_envs=1024, vectorization_mode="vector_entry_point", **kw)
+    dic = gym.make_vec(env_id, num_envs=1024, vectorization_mode="vector_entry_point",
+                       obs_mode="dict", **kw)
+    vec.reset(seed=3)
+    dic.reset(seed=3)
+    vec.action_space.seed(0)
+    actions = vec.action_space.sample()
+    _, r_vec, *_ = vec.step(actions)
+    obs, r_dic, *_ = dic.step(actions)
+    beyond = np.abs(obs["achieved_goal"]).max(axis=1) >= 5.0
+    assert beyond.sum() >= 50 and (r_vec > 0.5).any()  # beyond the bound, and paid strikes
+    np.testing.assert_allclose(r_dic, r_vec, rtol=0, atol=2e-6)
