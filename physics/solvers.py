@@ -352,9 +352,13 @@ def _share(im, ii, c, equal):
 
 
 @jit
-def _separate(S, Pm, hw, PA, PB, weighted, rotate):
+def _separate(S, Pm, hw, PA, PB, weighted, rotate, slop):
     """Push overlapping pairs apart along the normal, in proportion to their inverse masses
     (``weighted``), or in equal shares between the movable bodies of a pair.
+
+    Two rods whose cores cross (a gap below ``-(rho_a + rho_b)``, ``contacts.capsule_capsule``)
+    are pushed ``slop / 2`` beyond touching: pushed to a gap of exactly 0, their cores still
+    touch, and round-off can leave them crossed (a settle left two bare rods crossed by 3e-17 m).
 
     One sweep in pair order; returns the deepest overlap it corrected (0 if none). A sweep can
     push a body into a third one (a puck pressed between the mallet and a cushion), so callers
@@ -376,6 +380,8 @@ def _separate(S, Pm, hw, PA, PB, weighted, rotate):
         g, nx, ny, oax, oay, _, obx, oby, _, _ = pair_geometry(S, Pm, a, b, wall, hw[HALF_W],
                                                                hw[HALF_H])
         if g < 0.0:
+            if wall < 0 and g < -(Pm[a, RADIUS] + Pm[b, RADIUS]):
+                g -= 0.5 * slop  # crossed cores
             ca = oax * ny - oay * nx
             cb = obx * ny - oby * nx
             ira = Pm[a, INV_INERTIA] if rotate else 0.0
@@ -438,7 +444,7 @@ def _substep(S, Pm, F, hw, PA, PB, MAT, h, t, iterations, slop, rotation, contac
     _sweeps(S, Pm, hw, PA, PB, MAT, slop, 0.0, t, rotation, contact_friction, changed,
             cpair, crec, stats, iterations, jam)
     for sweep in range(separate_sweeps):
-        if _separate(S, Pm, hw, PA, PB, sweep == 0, rotate) <= slop:
+        if _separate(S, Pm, hw, PA, PB, sweep == 0, rotate, slop) <= slop:
             break
     if trace is not None:  # the trace hook
         trace_state(trace, t, S)
