@@ -14,6 +14,13 @@ Flat contacts: when two segments are parallel (sin^2 of the angle between them b
 is the middle of the overlap, so a flat impact gets one impulse through the middle, not one at an
 arbitrary end; the gap stays the smallest distance (at an end), so it is continuous.
 
+Crossed cores: two rods whose core segments cross are at core distance 0, and the crossing gives
+no normal. Their gap is instead minus their depth (the smallest translation that uncrosses them:
+the least distance of an end of one from the other's line) less the radii, along that line's
+normal (``_crossed``): a signed distance, continuous where the cores meet, so a crossing is never
+read as touching (bare rods at a gap of 0) and the settle's impulses and positional correction
+push the rods back apart.
+
 All functions are numba kernels on scalars (no allocation).
 """
 

@@ -624,8 +624,11 @@ def _settle_substeps(S, Pm, F, PA, PB, T, settle_substep):
             continue
         size = Pm[a, RADIUS] + Pm[b, RADIUS]
         if Pm[a, HALF_LENGTH] > 0.0 and Pm[b, HALF_LENGTH] > 0.0:
-            # crossing cores are seen (the gap is -(rho_a + rho_b), capsule_capsule) however thin
-            # the rods: a rod 50 um thick against a bare one needed 5e6 substeps for a 1 s step
+            # crossing cores are seen however thin the rods (capsule_capsule gives them their
+            # depth, the least distance of an end from the other's line, and the normal that
+            # uncrosses them): a rod 50 um thick against a bare one needed 5e6 substeps for a
+            # 1 s step. Before crossed cores had a depth they read as -(rho_a + rho_b) with no
+            # usable normal, and this bound let a substep cross them for good
             size = max(size, min(Pm[a, HALF_LENGTH], Pm[b, HALF_LENGTH]))
         closing = _speed_bound(S, Pm, F, a, T) + _speed_bound(S, Pm, F, b, T)
         if closing > 0.0 and 0.5 * size / closing < h:
