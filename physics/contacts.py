@@ -31,7 +31,7 @@ import math
 from spinstrike.physics.jit import jit
 
 __all__ = ["capsule_capsule", "capsule_wall", "closest_segment_params", "core_segment",
-           "wall_frame"]
+           "cores_cross", "wall_frame"]
 
 #: squared sine of the angle below which two segments count as parallel
 PARALLEL = 1e-12
@@ -166,6 +166,28 @@ def _side(ax, ay, bx, by, px, py):
 
 
 @jit
+def _sides(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y):
+    """Signed distances (times the other's length) of P's ends from Q's line and of Q's ends
+    from P's, and whether the segments cross: each one's ends strictly on either side of the
+    other's line."""
+    sp0 = _side(q0x, q0y, q1x, q1y, p0x, p0y)
+    sp1 = _side(q0x, q0y, q1x, q1y, p1x, p1y)
+    sq0 = _side(p0x, p0y, p1x, p1y, q0x, q0y)
+    sq1 = _side(p0x, p0y, p1x, p1y, q1x, q1y)
+    return sp0, sp1, sq0, sq1, sp0 * sp1 < 0.0 and sq0 * sq1 < 0.0
+
+
+@jit
+def cores_cross(xa, ya, anga, ha, xb, yb, angb, hb):
+    """Whether two rods' core segments cross (their capsules overlap by the whole thickness)."""
+    if not (ha > 0.0 and hb > 0.0):
+        return False
+    p0x, p0y, p1x, p1y = core_segment(xa, ya, anga, ha)
+    q0x, q0y, q1x, q1y = core_segment(xb, yb, angb, hb)
+    return _sides(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y)[4]
+
+
+@jit
 def _crossed(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y, xa, ya, ra, xb, yb, rb):
     """:func:`capsule_capsule`'s result for core segments P (body a) and Q (body b) that cross
     (each one's ends strictly on either side of the other's line); else a result whose gap is
@@ -183,12 +205,8 @@ def _crossed(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y, xa, ya, ra, xb, yb, rb):
     uy = p1y - p0y
     vx = q1x - q0x
     vy = q1y - q0y
-    # signed distances (times the lengths) of P's ends from Q's line and Q's ends from P's
-    sp0 = _side(q0x, q0y, q1x, q1y, p0x, p0y)
-    sp1 = _side(q0x, q0y, q1x, q1y, p1x, p1y)
-    sq0 = _side(p0x, p0y, p1x, p1y, q0x, q0y)
-    sq1 = _side(p0x, p0y, p1x, p1y, q1x, q1y)
-    if not (sp0 * sp1 < 0.0 and sq0 * sq1 < 0.0):
+    sp0, sp1, sq0, sq1, crossed = _sides(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y)
+    if not crossed:
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     lv = math.sqrt(vx * vx + vy * vy)
     lu = math.sqrt(ux * ux + uy * uy)
