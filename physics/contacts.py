@@ -201,13 +201,13 @@ def _crossed(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y, xa, ya, ra, xb, yb, rb):
     less the radii, so it goes on continuously from the touching cores' ``-(ra + rb)``; the
     closest points are that end and its foot on the line, so the contact point lies midway.
     """
+    sp0, sp1, sq0, sq1, crossed = _sides(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y)
+    if not crossed:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     ux = p1x - p0x
     uy = p1y - p0y
     vx = q1x - q0x
     vy = q1y - q0y
-    sp0, sp1, sq0, sq1, crossed = _sides(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y)
-    if not crossed:
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     lv = math.sqrt(vx * vx + vy * vy)
     lu = math.sqrt(ux * ux + uy * uy)
     # the shallowest end: one of P's (moved back across Q's line, a moves along -n) or of Q's
