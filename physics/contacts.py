@@ -14,6 +14,13 @@ Flat contacts: when two segments are parallel (sin^2 of the angle between them b
 is the middle of the overlap, so a flat impact gets one impulse through the middle, not one at an
 arbitrary end; the gap stays the smallest distance (at an end), so it is continuous.
 
+Crossed cores: two rods whose core segments cross are at core distance 0, and the crossing gives
+no normal. Their gap is instead minus their depth (the smallest translation that uncrosses them:
+the least distance of an end of one from the other's line) less the radii, along that line's
+normal (``_crossed``): a signed distance, continuous where the cores meet, so a crossing is never
+read as touching (bare rods at a gap of 0) and the settle's impulses and positional correction
+push the rods back apart.
+
 All functions are numba kernels on scalars (no allocation).
 """
 
@@ -24,7 +31,7 @@ import math
 from spinstrike.physics.jit import jit
 
 __all__ = ["capsule_capsule", "capsule_wall", "closest_segment_params", "core_segment",
-           "wall_frame"]
+           "cores_cross", "wall_frame"]
 
 #: squared sine of the angle below which two segments count as parallel
 PARALLEL = 1e-12
@@ -108,6 +115,10 @@ def capsule_capsule(xa, ya, anga, ha, ra, xb, yb, angb, hb, rb):
     """
     p0x, p0y, p1x, p1y = core_segment(xa, ya, anga, ha)
     q0x, q0y, q1x, q1y = core_segment(xb, yb, angb, hb)
+    if ha > 0.0 and hb > 0.0:
+        crossed = _crossed(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y, xa, ya, ra, xb, yb, rb)
+        if crossed[0] < 0.0:
+            return crossed
     s, t = closest_segment_params(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y)
     cax = p0x + s * (p1x - p0x)
     cay = p0y + s * (p1y - p0y)
@@ -146,6 +157,86 @@ def capsule_capsule(xa, ya, anga, ha, ra, xb, yb, angb, hb, rb):
                     _point_segment(q0x, q0y, p0x, p0y, p1x, p1y),
                     _point_segment(q1x, q1y, p0x, p0y, p1x, p1y))
     return d - ra - rb, nx, ny, cax - xa, cay - ya, cbx - xb, cby - yb, separation
+
+
+@jit
+def _side(ax, ay, bx, by, px, py):
+    """Twice the signed area of (a, b, p): > 0 where p lies left of the line from a to b."""
+    return (bx - ax) * (py - ay) - (by - ay) * (px - ax)
+
+
+@jit
+def _sides(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y):
+    """Signed distances (times the other's length) of P's ends from Q's line and of Q's ends
+    from P's, and whether the segments cross: each one's ends strictly on either side of the
+    other's line."""
+    sp0 = _side(q0x, q0y, q1x, q1y, p0x, p0y)
+    sp1 = _side(q0x, q0y, q1x, q1y, p1x, p1y)
+    sq0 = _side(p0x, p0y, p1x, p1y, q0x, q0y)
+    sq1 = _side(p0x, p0y, p1x, p1y, q1x, q1y)
+    return sp0, sp1, sq0, sq1, sp0 * sp1 < 0.0 and sq0 * sq1 < 0.0
+
+
+@jit
+def cores_cross(xa, ya, anga, ha, xb, yb, angb, hb):
+    """Whether two rods' core segments cross (their capsules overlap by the whole thickness)."""
+    if not (ha > 0.0 and hb > 0.0):
+        return False
+    p0x, p0y, p1x, p1y = core_segment(xa, ya, anga, ha)
+    q0x, q0y, q1x, q1y = core_segment(xb, yb, angb, hb)
+    return _sides(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y)[4]
+
+
+@jit
+def _crossed(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y, xa, ya, ra, xb, yb, rb):
+    """:func:`capsule_capsule`'s result for core segments P (body a) and Q (body b) that cross
+    (each one's ends strictly on either side of the other's line); else a result whose gap is
+    0.0, which the caller ignores.
+
+    Crossed cores are at distance 0, and their closest points (the crossing) give no normal:
+    reported so, crossed rods read as touching (bare rods at a gap of 0) and cannot be pushed
+    apart. Their depth is the smallest translation that uncrosses them: the least distance of
+    one's end from the other's line (the edges of their Minkowski difference, a parallelogram
+    holding the origin), taken along that line's normal, from a to b. The gap is ``-depth``
+    less the radii, so it goes on continuously from the touching cores' ``-(ra + rb)``; the
+    closest points are that end and its foot on the line, so the contact point lies midway.
+    """
+    sp0, sp1, sq0, sq1, crossed = _sides(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y)
+    if not crossed:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    ux = p1x - p0x
+    uy = p1y - p0y
+    vx = q1x - q0x
+    vy = q1y - q0y
+    lv = math.sqrt(vx * vx + vy * vy)
+    lu = math.sqrt(ux * ux + uy * uy)
+    # the shallowest end: one of P's (moved back across Q's line, a moves along -n) or of Q's
+    dp = min(abs(sp0), abs(sp1)) / lv
+    dq = min(abs(sq0), abs(sq1)) / lu
+    if dp <= dq:
+        sp = sp0 if abs(sp0) <= abs(sp1) else sp1
+        ex, ey = (p0x, p0y) if abs(sp0) <= abs(sp1) else (p1x, p1y)
+        # Q's left normal is (-vy, vx) / lv; the end lies on the side of sp's sign
+        sign = 1.0 if sp > 0.0 else -1.0
+        nx = -vy / lv * sign
+        ny = vx / lv * sign
+        depth = dp
+        cax, cay = ex, ey
+        cbx = ex - depth * nx
+        cby = ey - depth * ny
+    else:
+        sq = sq0 if abs(sq0) <= abs(sq1) else sq1
+        ex, ey = (q0x, q0y) if abs(sq0) <= abs(sq1) else (q1x, q1y)
+        # Q's end goes back across P's line: b moves along n, away from the end's side
+        sign = -1.0 if sq > 0.0 else 1.0
+        nx = -uy / lu * sign
+        ny = ux / lu * sign
+        depth = dq
+        cbx, cby = ex, ey
+        cax = ex + depth * nx
+        cay = ey + depth * ny
+    gap = -depth - ra - rb
+    return gap, nx, ny, cax - xa, cay - ya, cbx - xb, cby - yb, gap
 
 
 @jit

@@ -14,8 +14,11 @@ Contact is where the gap *reaches zero* (located to ``tol``), not where it first
 ``tol``: a pass that misses by less than ``tol``, or grazes at exactly zero gap with the velocity
 along the surface, gets no impulse. (Declaring contact at ``g <= tol`` instead deflected an exact
 tangential pass of two 5 cm disks by ~1e-4 of their speed, ``sqrt(2 tol / R)``.) The exception
-is a pair of bodies whose radii sum to at most ``tol`` (two zero-thickness rods): their gap never
-goes measurably below zero, so they are in contact at ``g <= tol`` while approaching.
+is a pair of bodies whose radii sum to at most ``tol`` (two zero-thickness rods): their gap goes
+below zero only where their cores cross (``contacts.capsule_capsule`` gives crossed cores a
+negative gap, their depth), so they are in contact at ``g <= tol`` while approaching, before the
+cores meet; a step that would cross them anyway (within ``tol`` and not yet approaching, the
+advancement may close by ``g + tol/2``) is bracketed like any other overlap.
 
 A search that needs more than ``max_iterations`` steps returns a *checkpoint*: a time before
 which the pair provably does not touch. The world advances to it and searches again, so a slow
@@ -197,9 +200,8 @@ def time_of_impact(S, Pm, F, a, b, wall, half_w, half_h, horizon, tol, max_itera
     Returns:
         (t, kind, iterations) with kind ``CONTACT``, ``NONE`` (t = horizon) or ``CHECKPOINT``.
     """
-    # Two bodies whose radii sum to at most tol (zero-thickness rods) cannot overlap by more
-    # than that: their gap is a distance between segments, >= -(ra + rb), and a crossing would
-    # not show as a negative gap. For them contact stays at ``g <= tol`` while approaching.
+    # Two bodies whose radii sum to at most tol (zero-thickness rods) overlap only where their
+    # cores cross: contact is at ``g <= tol`` while approaching, before the cores meet.
     thin = wall < 0 and Pm[a, RADIUS] + Pm[b, RADIUS] <= tol
     t = 0.0
     for it in range(max_iterations):

@@ -51,7 +51,7 @@ from spinstrike.physics.calendar import (
     watch_insert,
     watch_remove,
 )
-from spinstrike.physics.contacts import wall_frame
+from spinstrike.physics.contacts import cores_cross, wall_frame
 from spinstrike.physics.events import far_apart, pair_bodies, pair_geometry, time_of_impact
 from spinstrike.physics.impulse import apply_impulse, resolve
 from spinstrike.physics.jam import (
@@ -352,9 +352,13 @@ def _share(im, ii, c, equal):
 
 
 @jit
-def _separate(S, Pm, hw, PA, PB, weighted, rotate):
+def _separate(S, Pm, hw, PA, PB, weighted, rotate, slop):
     """Push overlapping pairs apart along the normal, in proportion to their inverse masses
     (``weighted``), or in equal shares between the movable bodies of a pair.
+
+    Two rods whose cores cross (a gap below ``-(rho_a + rho_b)``, ``contacts.capsule_capsule``)
+    are pushed ``slop / 2`` beyond touching: pushed to a gap of exactly 0, their cores still
+    touch, and round-off can leave them crossed (a settle left two bare rods crossed by 3e-17 m).
 
     One sweep in pair order; returns the deepest overlap it corrected (0 if none). A sweep can
     push a body into a third one (a puck pressed between the mallet and a cushion), so callers
@@ -376,6 +380,8 @@ def _separate(S, Pm, hw, PA, PB, weighted, rotate):
         g, nx, ny, oax, oay, _, obx, oby, _, _ = pair_geometry(S, Pm, a, b, wall, hw[HALF_W],
                                                                hw[HALF_H])
         if g < 0.0:
+            if wall < 0 and g < -(Pm[a, RADIUS] + Pm[b, RADIUS]):
+                g -= 0.5 * slop  # crossed cores
             ca = oax * ny - oay * nx
             cb = obx * ny - oby * nx
             ira = Pm[a, INV_INERTIA] if rotate else 0.0
@@ -400,6 +406,19 @@ def _separate(S, Pm, hw, PA, PB, weighted, rotate):
                     if rb > 0.0:
                         S[b, ANGLE] += depth * rb / cb
     return deepest
+
+
+@jit
+def _cores_crossed(S, Pm, PA, PB):
+    """Whether any two rods' cores cross (``contacts.cores_cross``)."""
+    n = S.shape[0]
+    for p in range(PA.shape[0]):
+        a = PA[p]
+        b = PB[p]
+        if b < n and cores_cross(S[a, X], S[a, Y], S[a, ANGLE], Pm[a, HALF_LENGTH],
+                                 S[b, X], S[b, Y], S[b, ANGLE], Pm[b, HALF_LENGTH]):
+            return True
+    return False
 
 
 @jit
@@ -433,12 +452,17 @@ def _substep(S, Pm, F, hw, PA, PB, MAT, h, t, iterations, slop, rotation, contac
     sequential impulses on the pairs within ``slop`` and approaching (``iterations`` sweeps,
     then the block solve of a jam if ``jam``), then positional correction, repeated up to
     ``separate_sweeps`` times while a sweep still corrects an overlap deeper than ``slop``
-    (``rotate``: turning the bodies too, :func:`_separate`)."""
+    (``rotate``: turning the bodies too, :func:`_separate`) or while it leaves two rods' cores
+    crossed. (A push of less than ``slop`` can cross bare rods that touch: one pair's correction
+    crossed two bare rods in a pile of twelve bodies by 4e-12 m, and the last sweep, which
+    corrected nothing deeper than ``slop``, handed them on crossed.)"""
     _kick(S, Pm, F, h, rotation, table_friction)
     _sweeps(S, Pm, hw, PA, PB, MAT, slop, 0.0, t, rotation, contact_friction, changed,
             cpair, crec, stats, iterations, jam)
     for sweep in range(separate_sweeps):
-        if _separate(S, Pm, hw, PA, PB, sweep == 0, rotate) <= slop:
+        deepest = _separate(S, Pm, hw, PA, PB, sweep == 0, rotate, slop)
+        if deepest <= slop and (deepest == 0.0 or sweep + 1 == separate_sweeps
+                                or not _cores_crossed(S, Pm, PA, PB)):
             break
     if trace is not None:  # the trace hook
         trace_state(trace, t, S)
@@ -618,8 +642,11 @@ def _settle_substeps(S, Pm, F, PA, PB, T, settle_substep):
             continue
         size = Pm[a, RADIUS] + Pm[b, RADIUS]
         if Pm[a, HALF_LENGTH] > 0.0 and Pm[b, HALF_LENGTH] > 0.0:
-            # crossing cores are seen (the gap is -(rho_a + rho_b), capsule_capsule) however thin
-            # the rods: a rod 50 um thick against a bare one needed 5e6 substeps for a 1 s step
+            # crossing cores are seen however thin the rods (capsule_capsule gives them their
+            # depth, the least distance of an end from the other's line, and the normal that
+            # uncrosses them): a rod 50 um thick against a bare one needed 5e6 substeps for a
+            # 1 s step. Before crossed cores had a depth they read as -(rho_a + rho_b) with no
+            # usable normal, and this bound let a substep cross them for good
             size = max(size, min(Pm[a, HALF_LENGTH], Pm[b, HALF_LENGTH]))
         closing = _speed_bound(S, Pm, F, a, T) + _speed_bound(S, Pm, F, b, T)
         if closing > 0.0 and 0.5 * size / closing < h:
