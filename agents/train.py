@@ -310,14 +310,14 @@ def _restore_env_random(model, path: Path) -> None:
     run's first episodes (a resumed SAC run held each early transition twice in its buffer).
     A checkpoint written before the streams were kept has none: the episodes restart from the
     seed, as they did, and a warning says so."""
-    venv = model.get_env().unwrapped
     if not path.exists():
         print(f"warning: resume: {path.parent} has no {path.name} (a checkpoint written before "
               f"the env's random state was kept): the resumed stretch's episodes start again "
               f"from the run's seed", file=sys.stderr)
         return
     _native_env(model).set_random_state(pickle.loads(path.read_bytes()))
-    venv._reset_seeds()  # the adapter's pending seed would reseed the streams at the reset
+    # the SB3 adapter's pending seed would reseed the streams at the reset
+    model.get_env().unwrapped._reset_seeds()
 
 
 #: seed of the learning curves' evaluation episodes (the same for every run)

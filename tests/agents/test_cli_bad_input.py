@@ -405,17 +405,13 @@ def test_a_missing_optional_dependency_names_its_extra(monkeypatch, tmp_path, ca
                                                        argv, extra):
     """On a base install ``spinstrike train`` died in a ModuleNotFoundError traceback (and the
     accuracy benchmark needed mpmath, which no extra declared)."""
-    import sys
-
     from spinstrike.agents.cli import main
 
     monkeypatch.chdir(tmp_path)
-    for name in [m for m in sys.modules if m == module or m.startswith(module + ".")]:
-        monkeypatch.delitem(sys.modules, name)
-    monkeypatch.setitem(sys.modules, module, None)  # import module: ModuleNotFoundError
-    if module == "mpmath":
-        monkeypatch.delitem(sys.modules, "spinstrike.benchmarks.cases", raising=False)
-        monkeypatch.delitem(sys.modules, "spinstrike.benchmarks.accuracy", raising=False)
+    # the benchmark modules import mpmath at their top: forgotten, the next import meets it
+    _uninstalled(monkeypatch, module, *(("spinstrike.benchmarks.cases",
+                                         "spinstrike.benchmarks.accuracy")
+                                        if module == "mpmath" else ()))
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert f'pip install "spinstrike[{extra}]"' in err and "Traceback" not in err
