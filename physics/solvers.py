@@ -734,7 +734,7 @@ def _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, sweeps, tol, r
 # ---------------------------------------------------------------------------------------------
 
 #: most turn (rad) of either body, and slide relative to the pair's size, in one held substep
-HOLD_TURN = 1e-3
+HOLD_TURN = 1e-4
 #: Newton iterations of a held substep's position stage before it gives up (the step settles)
 HOLD_ITERATIONS = 30
 
@@ -847,7 +847,7 @@ def _no_gain(S, Pm, a, b, e0, nx, ny, rna, rnb):
 
 
 @jit
-def _hold(S, Pm, hw, PA, PB, t_now, dt, tol, cpair, crec, stats, trace):
+def _hold(S, Pm, hw, PA, PB, t_now, dt, tol, zeno_speed, cpair, crec, stats, trace):
     """Hold the world's one pair in contact from ``t_now`` (RATTLE, the symmetric second-order
     integrator of constrained motion, on each body's ``x, y, angle``, whose mass matrix is
     constant): an impulse at the start of each substep chosen so that the gap after the
@@ -909,8 +909,10 @@ def _hold(S, Pm, hw, PA, PB, t_now, dt, tol, cpair, crec, stats, trace):
             substeps += 1
             if trace is not None:  # the trace hook
                 trace_state(trace, t, S)
-            if pair_geometry(S, Pm, a, b, -1, 0.0, 0.0)[0] > tol:
-                outcome = 0  # apart beyond the tolerance: let go, the event loop goes on
+            gap, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, -1, 0.0,
+                                                                        0.0)
+            if gap > tol and vn >= zeno_speed:
+                outcome = 0  # apart and leaving faster than a resting bounce: let go
                 break
             continue
         # velocity stage: no normal velocity at the new pose (bilateral: either sign)
@@ -998,8 +1000,8 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
             if (t_now < dt and events < max_events
                     and _holdable(S, Pm, F, PA, PB, MAT, rotation, contact_friction,
                                   table_friction)):
-                t_now, outcome = _hold(S, Pm, hw, PA, PB, t_now, dt, tol, cpair, crec, stats,
-                                       trace)
+                t_now, outcome = _hold(S, Pm, hw, PA, PB, t_now, dt, tol, zeno_speed, cpair,
+                                       crec, stats, trace)
                 if outcome == 0:  # let go: the pair separates, the event loop goes on
                     resting = 0
                     horizon = dt - t_now
