@@ -831,12 +831,12 @@ class RodSpinEnv(_StrikeEnv):
     allow. A strike of several contacts can beat them: at low restitution the striker may
     stay on the rod and push it round (``restitution=0``: |w| up to ~1.56 ``w_max`` found by a
     search, ~250 contacts), so with ``goal='max'`` a reward above 1 is possible;
-    ``info['n_contacts']`` shows such strikes. The exact solver settles that sustained contact
-    in fixed substeps (``info['fallback']``): this env's scene sets ``settle_substep`` to
-    1e-5 s, within ~0.2 % of the converged spin (a fixed-step solver of 16384 substeps) at
-    ~13-25 ms a settled strike (0.2-1 ms at 1 ms); the 1 ms default of other scenes was 25 %
-    off there, and a search over actions found that error (0.999 paid for a strike that earns
-    0.07). A ``solver`` argument replaces the scene's block: give it a ``settle_substep`` too.
+    ``info['n_contacts']`` shows such strikes. The exact solver holds that sustained contact
+    as a frictionless constraint (``physics.solvers._hold``; it settled it in fixed substeps
+    before, ~4x the time, ``info['fallback']``), within ~2e-4 of the converged spin; a strike
+    it still settles (rare: events run out) uses the scene's ``settle_substep`` of 1e-5 s (the
+    1 ms default of other scenes was 25 % off there, and a search over actions found that
+    error). A ``solver`` argument replaces the scene's block: give it a ``settle_substep`` too.
 
     ## Starting State
     Rod at rest, angle uniform, centre's x and y each uniform in [-0.1, 0.1] m; striker

@@ -52,8 +52,14 @@ from spinstrike.physics.calendar import (
     watch_remove,
 )
 from spinstrike.physics.contacts import cores_cross, wall_frame
-from spinstrike.physics.events import far_apart, pair_bodies, pair_geometry, time_of_impact
-from spinstrike.physics.impulse import apply_impulse, resolve
+from spinstrike.physics.events import (
+    far_apart,
+    geometry,
+    pair_bodies,
+    pair_geometry,
+    time_of_impact,
+)
+from spinstrike.physics.impulse import apply_impulse, relative_velocity_of, resolve
 from spinstrike.physics.jam import (
     JAM_COLUMNS,
     JAM_CROSS_A,
@@ -715,6 +721,221 @@ def _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, sweeps, tol, r
     stats[STAT_FALLBACK] = FALLBACK_CAPPED if capped else FALLBACK_SETTLED
 
 
+# ---------------------------------------------------------------------------------------------
+# A sustained contact of one pair, held (e = 0 chatter of a free pair). After a plastic impact
+# two free bodies can stay pressed together with no force but their own motion (a striker left
+# on a spinning rod is pushed round by it): the relative normal velocity is zero after each
+# impact, the curvature of the relative motion closes the gap again at once, and the exact
+# loop makes ever smaller impacts, a Zeno sequence with no end (the inelastic collapse of a
+# single pair). The limit of that sequence is a frictionless contact held as a constraint,
+# ``g = const``, while its force pushes (the Lagrange multiplier is >= 0). A one-pair world
+# of two free, force-free bodies integrates that limit (:func:`_hold`) instead of settling it
+# with fixed first-order substeps.
+# ---------------------------------------------------------------------------------------------
+
+#: most turn (rad) of either body, and slide relative to the pair's size, in one held substep
+HOLD_TURN = 1e-4
+#: Newton iterations of a held substep's position stage before it gives up (the step settles)
+HOLD_ITERATIONS = 30
+
+
+@jit_inline
+def _holdable(S, Pm, F, PA, PB, MAT, rotation, contact_friction, table_friction):
+    """Whether the event loop may hold the sustained contact of its world's pair: one pair
+    (nothing else can meet its bodies), two bodies (not a cushion), both free (mass and
+    inertia finite), turning (``rotation``), no applied force, no cloth friction, no contact
+    friction, and one of them a disk (the gap is then a smooth function of the poses)."""
+    n = S.shape[0]
+    if PA.shape[0] != 1 or not rotation:
+        return False
+    a = PA[0]
+    b = PB[0]
+    if b >= n:
+        return False
+    if contact_friction and MAT[0, FRICTION] > 0.0:
+        return False
+    if Pm[a, HALF_LENGTH] != 0.0 and Pm[b, HALF_LENGTH] != 0.0:
+        return False
+    for i in (a, b):
+        if Pm[i, INV_MASS] <= 0.0 or Pm[i, INV_INERTIA] <= 0.0:
+            return False
+        if F[i, FX] != 0.0 or F[i, FY] != 0.0:
+            return False
+        if table_friction and (Pm[i, FRICTION_DECEL] > 0.0 or Pm[i, SPIN_DECEL] > 0.0):
+            return False
+    return True
+
+
+@jit_inline
+def _gap_moved(S, Pm, a, b, h, j, nx, ny, rna, rnb):
+    """Gap of the pair after flying h seconds with the impulse ``j`` along ``n`` (levers
+    ``rna``, ``rnb``) applied at the start (the poses only; S is not changed)."""
+    ima = Pm[a, INV_MASS]
+    imb = Pm[b, INV_MASS]
+    iia = Pm[a, INV_INERTIA]
+    iib = Pm[b, INV_INERTIA]
+    xa = S[a, X] + h * (S[a, VX] - j * nx * ima)
+    ya = S[a, Y] + h * (S[a, VY] - j * ny * ima)
+    ta = S[a, ANGLE] + h * (S[a, OMEGA] - j * rna * iia)
+    xb = S[b, X] + h * (S[b, VX] + j * nx * imb)
+    yb = S[b, Y] + h * (S[b, VY] + j * ny * imb)
+    tb = S[b, ANGLE] + h * (S[b, OMEGA] + j * rnb * iib)
+    return geometry(xa, ya, ta, 0.0, 0.0, 0.0, Pm[a, HALF_LENGTH], Pm[a, RADIUS],
+                    xb, yb, tb, 0.0, 0.0, 0.0, Pm[b, HALF_LENGTH], Pm[b, RADIUS], -1, 0.0,
+                    0.0)[0]
+
+
+@jit
+def _kinetic(S, Pm, a, b):
+    e = 0.0
+    for i in (a, b):
+        e += 0.5 * ((S[i, VX] ** 2 + S[i, VY] ** 2) / Pm[i, INV_MASS]
+                    + S[i, OMEGA] ** 2 / Pm[i, INV_INERTIA])
+    return e
+
+
+@jit
+def _no_gain(S, Pm, a, b, e0, nx, ny, rna, rnb):
+    """Take back any kinetic energy a held substep gained over ``e0`` (the round-off-free
+    integrator still errs by O(h^2) either way) without touching what the exact motion keeps:
+    linear momentum, angular momentum and the contact's zero normal velocity. Those are four
+    linear conditions on the pair's six velocities; the velocities are moved toward the least
+    energetic ones that meet them, along the line that keeps them, to energy ``e0``."""
+    e1 = _kinetic(S, Pm, a, b)
+    if not e1 > e0:
+        return
+    w = np.empty(6)
+    u = np.empty(6)
+    c = np.zeros((4, 6))
+    ma = 1.0 / Pm[a, INV_MASS]
+    mb = 1.0 / Pm[b, INV_MASS]
+    cx = (ma * S[a, X] + mb * S[b, X]) / (ma + mb)
+    cy = (ma * S[a, Y] + mb * S[b, Y]) / (ma + mb)
+    k = 0
+    for i in (a, b):
+        m = 1.0 / Pm[i, INV_MASS]
+        w[k], w[k + 1], w[k + 2] = Pm[i, INV_MASS], Pm[i, INV_MASS], Pm[i, INV_INERTIA]
+        u[k], u[k + 1], u[k + 2] = S[i, VX], S[i, VY], S[i, OMEGA]
+        c[0, k] = m
+        c[1, k + 1] = m
+        c[2, k] = -m * (S[i, Y] - cy)
+        c[2, k + 1] = m * (S[i, X] - cx)
+        c[2, k + 2] = 1.0 / Pm[i, INV_INERTIA]
+        k += 3
+    c[3, 0], c[3, 1], c[3, 2] = -nx, -ny, -rna
+    c[3, 3], c[3, 4], c[3, 5] = nx, ny, rnb
+    rhs = c @ u
+    a4 = (c * w) @ c.T
+    y = np.linalg.solve(a4, rhs)
+    ustar = w * (c.T @ y)
+    dk = 0.0
+    kstar = 0.0
+    for q in range(6):
+        dk += 0.5 * (u[q] - ustar[q]) ** 2 / w[q]
+        kstar += 0.5 * ustar[q] ** 2 / w[q]
+    if not dk > 0.0:
+        return
+    s = math.sqrt(max(e0 - kstar, 0.0) / dk)
+    if s >= 1.0:
+        return
+    k = 0
+    for i in (a, b):
+        S[i, VX] = ustar[k] + s * (u[k] - ustar[k])
+        S[i, VY] = ustar[k + 1] + s * (u[k + 1] - ustar[k + 1])
+        S[i, OMEGA] = ustar[k + 2] + s * (u[k + 2] - ustar[k + 2])
+        k += 3
+
+
+@jit
+def _hold(S, Pm, hw, PA, PB, t_now, dt, tol, zeno_speed, cpair, crec, stats, trace):
+    """Hold the world's one pair in contact from ``t_now`` (RATTLE, the symmetric second-order
+    integrator of constrained motion, on each body's ``x, y, angle``, whose mass matrix is
+    constant): an impulse at the start of each substep chosen so that the gap after the
+    substep's flight is the gap held (Newton), then the plastic impulse that leaves no normal
+    velocity there. Both act at the pair's one contact point along its normal, so linear and
+    angular momentum are kept to round-off; any energy the O(h^2) error would add is taken
+    back (:func:`_no_gain`). Substeps turn either body, or slide the pair, by at most
+    ``HOLD_TURN``. Each substep is recorded as a contact (its two impulses).
+
+    The contact is let go where it would have to pull (the first impulse comes out negative):
+    the pair separates by its own motion. Returns (time reached, outcome): 1 held to ``dt``,
+    0 let go at that time (the event loop goes on), -1 the position stage did not converge
+    (the caller settles the rest of the step)."""
+    a = PA[0]
+    b = PB[0]
+    n = S.shape[0]
+    g0, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, -1, 0.0, 0.0)
+    held = min(max(g0, 0.0), tol)
+    e0 = _kinetic(S, Pm, a, b)
+    size = Pm[a, RADIUS] + Pm[a, HALF_LENGTH] + Pm[b, RADIUS] + Pm[b, HALF_LENGTH]
+    t = t_now
+    j = 0.0
+    substeps = 0
+    outcome = 1
+    while t < dt:
+        g0, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, -1, 0.0, 0.0)
+        rna = oax * ny - oay * nx
+        rnb = obx * ny - oby * nx
+        k_n = (Pm[a, INV_MASS] + Pm[b, INV_MASS] + rna * rna * Pm[a, INV_INERTIA]
+               + rnb * rnb * Pm[b, INV_INERTIA])
+        rel = math.sqrt((S[b, VX] - S[a, VX]) ** 2 + (S[b, VY] - S[a, VY]) ** 2)
+        rate = max(abs(S[a, OMEGA]), abs(S[b, OMEGA]), rel / size)
+        h = dt - t
+        if rate * h > HOLD_TURN:
+            h = HOLD_TURN / rate
+            if t + h >= dt:
+                h = dt - t
+        # position stage: the impulse whose flight ends at the held gap (Newton on one scalar)
+        g = _gap_moved(S, Pm, a, b, h, j, nx, ny, rna, rnb) - held
+        it = 0
+        while abs(g) > 1e-3 * tol and it < HOLD_ITERATIONS:
+            j -= g / (h * k_n)
+            g = _gap_moved(S, Pm, a, b, h, j, nx, ny, rna, rnb) - held
+            it += 1
+        if abs(g) > 1e-3 * tol or not math.isfinite(j):
+            outcome = -1
+            break
+        free = j < 0.0  # the contact would pull: the pair flies apart this substep
+        if free:
+            j = 0.0
+        else:
+            apply_impulse(S, Pm, a, b, False, j, nx, ny, rna, rnb, True)
+        for i in (a, b):
+            S[i, X] += h * S[i, VX]
+            S[i, Y] += h * S[i, VY]
+            S[i, ANGLE] += h * S[i, OMEGA]
+        t = t + h if t + h < dt else dt
+        if free:
+            substeps += 1
+            if trace is not None:  # the trace hook
+                trace_state(trace, t, S)
+            gap, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, -1, 0.0,
+                                                                        0.0)
+            if gap > tol and vn >= zeno_speed:
+                outcome = 0  # apart and leaving faster than a resting bounce: let go
+                break
+            continue
+        # velocity stage: no normal velocity at the new pose (bilateral: either sign)
+        g1, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, -1, 0.0, 0.0)
+        rna = oax * ny - oay * nx
+        rnb = obx * ny - oby * nx
+        vn, vt, scale = relative_velocity_of(S[a, VX], S[a, VY], S[a, OMEGA], S[b, VX],
+                                             S[b, VY], S[b, OMEGA], False, nx, ny, oax, oay,
+                                             ka, obx, oby, kb)
+        k_n = (Pm[a, INV_MASS] + Pm[b, INV_MASS] + rna * rna * Pm[a, INV_INERTIA]
+               + rnb * rnb * Pm[b, INV_INERTIA])
+        mu = -vn / k_n
+        apply_impulse(S, Pm, a, b, False, mu, nx, ny, rna, rnb, True)
+        _no_gain(S, Pm, a, b, e0, nx, ny, rna, rnb)
+        _record(0, t, S[a, X] + oax + ka * nx, S[a, Y] + oay + ka * ny, nx, ny, j + mu, 0.0,
+                cpair, crec, stats)
+        substeps += 1
+        if trace is not None:  # the trace hook
+            trace_state(trace, t, S)
+    stats[STAT_SUBSTEPS] += substeps
+    return t, outcome
+
+
 @jit
 def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
                   zeno_impacts, settle_substep, rotation, contact_friction, table_friction,
@@ -776,6 +997,21 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
                 iterations += it
         if events >= max_events or resting >= zeno_impacts:
             _end_rests(F, rest)
+            if (t_now < dt and events < max_events
+                    and _holdable(S, Pm, F, PA, PB, MAT, rotation, contact_friction,
+                                  table_friction)):
+                t_now, outcome = _hold(S, Pm, hw, PA, PB, t_now, dt, tol, zeno_speed, cpair,
+                                       crec, stats, trace)
+                if outcome == 0:  # let go: the pair separates, the event loop goes on
+                    resting = 0
+                    horizon = dt - t_now
+                    for p in range(n_pairs):
+                        tc, k, it = _search(p, S, Pm, F, hw, PA, PB, horizon, tol,
+                                            max_iterations, rotation, table_friction)
+                        toi[p] = t_now + tc if k != NONE else dt
+                        kind[p] = k
+                        iterations += it
+                    continue
             if t_now < dt:
                 _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, sweeps, tol,
                         rotation, contact_friction, table_friction, cpair, crec, stats, changed,

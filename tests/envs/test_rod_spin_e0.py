@@ -1,0 +1,93 @@
+"""RodSpin-v0 at restitution 0, from the user's side: the striker left on the rod is pushed
+round by it (a sustained contact, the limit of a Zeno run of plastic impacts), which the exact
+solver holds as a constraint (``physics.solvers._hold``) instead of settling it in fixed
+substeps. Over many seeded random strikes: nothing settled, finite, linear and angular momentum
+kept to round-off (angular momentum: in an unsettled strike), nearly nothing settled, no energy gained over the launch, no overlap at the
+end; and the spin of strikes of sustained contact against an independent integration (the
+fixed-step solver, 16384 substeps a chunk)."""
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import spinstrike  # noqa: F401  (registers the ids)
+
+TOL = 1e-9
+
+
+def _launch(env, a):
+    """The striker's launch (start, velocity) the env makes of action ``a`` (its documented
+    geometry: the rod's frame, ``approach_max`` 75 deg, ``speed_range`` 0.5..4 m/s)."""
+    w = env.unwrapped.world
+    a = np.clip(np.asarray(a, float), -1, 1)
+    reach = float(w.half_length[0, 0] + w.radius[0, 0])
+    rs = float(w.radius[0, 1])
+    offset = a[0] * (reach + rs)
+    alpha = a[1] * math.radians(75.0)
+    speed = 0.5 + 0.5 * (a[2] + 1.0) * 3.5
+    phi = float(w.state.angles[0, 0])
+    u = np.array([math.cos(phi), math.sin(phi)])
+    n = np.array([-math.sin(phi), math.cos(phi)])
+    d = math.sin(alpha) * u - math.cos(alpha) * n
+    c = offset * math.cos(alpha) * u + offset * math.sin(alpha) * n
+    start = w.state.positions[0, 0] + c - (reach + rs + 0.02) * d
+    return start, speed * d
+
+
+def test_rod_strikes_at_restitution_0_are_held_and_keep_the_invariants():
+    env = gym.make("SpinStrike/RodSpin-v0", restitution=0.0)
+    env.action_space.seed(0)
+    w = env.unwrapped.world
+    assert w.names[:2] == ("rod", "striker")
+    sustained = settled = 0
+    for seed in range(60):
+        env.reset(seed=seed)
+        a = env.action_space.sample()
+        start, v0 = _launch(env, a)
+        ms = float(w.mass[0, 1])
+        p0 = ms * v0
+        l0 = ms * (start[0] * v0[1] - start[1] * v0[0])
+        k0 = 0.5 * ms * float(v0 @ v0)
+        info = env.step(a)[-1]
+        sustained += info["n_contacts"] > 20
+        settled += bool(info["fallback"])
+        state = w.get_state()["state"][0]
+        assert np.all(np.isfinite(state)) and math.isfinite(info["spin"])
+        scale = ms * float(np.linalg.norm(v0))
+        np.testing.assert_allclose(w.momentum()[0], p0, rtol=0, atol=1e-13 * scale)
+        if not info["fallback"]:  # (settling's positional correction moves r x p)
+            assert w.angular_momentum()[0] == pytest.approx(l0, abs=1e-13 * scale)
+        assert w.kinetic_energy()[0] <= k0 * (1 + 1e-12)
+        # no overlap: the striker's centre at least its radius plus the rod's beyond the core
+        (xr, yr), (xs, ys) = w.state.positions[0, :2]
+        phi, h = float(w.state.angles[0, 0]), float(w.half_length[0, 0])
+        s = np.clip((xs - xr) * math.cos(phi) + (ys - yr) * math.sin(phi), -h, h)
+        gap = math.hypot(xs - xr - s * math.cos(phi), ys - yr - s * math.sin(phi)) - float(
+            w.radius[0, 0] + w.radius[0, 1])
+        assert gap >= -TOL
+    assert sustained >= 10  # the sample has strikes of sustained contact
+    # held, not settled (before the hold every strike of sustained contact was settled, ~1 in
+    # 3; a strike can still run out of events where a fast-turning rod leaves the striker
+    # slowly, its searches stalling: 1 of these 60)
+    assert settled <= 2
+
+
+@pytest.mark.parametrize("seed", [8, 14, 21])
+def test_a_held_strike_gets_the_spin_of_an_independent_integration(seed):
+    """Strikes of ~1000 contacts of sustained contact: within 1e-3 of the fixed-step solver at
+    16384 substeps a chunk (itself first order; 4096 moves it by ~5e-4)."""
+    env = gym.make("SpinStrike/RodSpin-v0", restitution=0.0)
+    ref = gym.make("SpinStrike/RodSpin-v0", restitution=0.0,
+                   solver={"mode": "fixed", "substeps": 16384})
+    env.action_space.seed(0)
+    for _ in range(seed):
+        env.action_space.sample()
+    a = env.action_space.sample()
+    env.reset(seed=seed)
+    ref.reset(seed=seed)
+    info = env.step(a)[-1]
+    want = ref.step(a)[-1]["spin"]
+    assert not info["fallback"] and info["n_contacts"] > 100
+    assert info["spin"] == pytest.approx(want, rel=1e-3)
