@@ -795,6 +795,34 @@ def _kinetic(S, Pm, a, b):
 
 
 @jit
+def _solve_small(m, v):
+    """x with m x = v, by Gaussian elimination with partial pivoting (m and v are overwritten);
+    NaN where m is singular."""
+    k = v.shape[0]
+    for col in range(k):
+        piv = col
+        for r in range(col + 1, k):
+            if abs(m[r, col]) > abs(m[piv, col]):
+                piv = r
+        if piv != col:
+            for q in range(k):
+                m[col, q], m[piv, q] = m[piv, q], m[col, q]
+            v[col], v[piv] = v[piv], v[col]
+        for r in range(col + 1, k):
+            f = m[r, col] / m[col, col]
+            for q in range(col, k):
+                m[r, q] -= f * m[col, q]
+            v[r] -= f * v[col]
+    x = np.empty(k)
+    for r in range(k - 1, -1, -1):
+        acc = v[r]
+        for q in range(r + 1, k):
+            acc -= m[r, q] * x[q]
+        x[r] = acc / m[r, r]
+    return x
+
+
+@jit
 def _no_gain(S, Pm, a, b, e0, nx, ny, rna, rnb):
     """Take back any kinetic energy a held substep gained over ``e0`` (the round-off-free
     integrator still errs by O(h^2) either way) without touching what the exact motion keeps:
@@ -824,10 +852,20 @@ def _no_gain(S, Pm, a, b, e0, nx, ny, rna, rnb):
         k += 3
     c[3, 0], c[3, 1], c[3, 2] = -nx, -ny, -rna
     c[3, 3], c[3, 4], c[3, 5] = nx, ny, rnb
-    rhs = c @ u
-    a4 = (c * w) @ c.T
-    y = np.linalg.solve(a4, rhs)
-    ustar = w * (c.T @ y)
+    # the least-energy velocities meeting c u* = c u: u* = W c^T y, (c W c^T) y = c u (loops and
+    # Gaussian elimination, not numpy's linalg: that doubled the solver's compile time)
+    rhs = np.zeros(4)
+    a4 = np.zeros((4, 4))
+    for r in range(4):
+        for q in range(6):
+            rhs[r] += c[r, q] * u[q]
+            for r2 in range(4):
+                a4[r, r2] += c[r, q] * w[q] * c[r2, q]
+    y = _solve_small(a4, rhs)
+    ustar = np.zeros(6)
+    for q in range(6):
+        for r in range(4):
+            ustar[q] += w[q] * c[r, q] * y[r]
     dk = 0.0
     kstar = 0.0
     for q in range(6):
@@ -863,7 +901,6 @@ def _hold(S, Pm, hw, PA, PB, t_now, dt, tol, zeno_speed, cpair, crec, stats, tra
     (the caller settles the rest of the step)."""
     a = PA[0]
     b = PB[0]
-    n = S.shape[0]
     g0, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, -1, 0.0, 0.0)
     held = min(max(g0, 0.0), tol)
     e0 = _kinetic(S, Pm, a, b)
@@ -937,6 +974,22 @@ def _hold(S, Pm, hw, PA, PB, t_now, dt, tol, zeno_speed, cpair, crec, stats, tra
 
 
 @jit
+def _search_all(S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotation,
+                table_friction, toi, kind):
+    """Search every pair from ``t_now`` to ``dt`` and file the outcomes in ``toi`` / ``kind``;
+    returns the iterations. Not inlined: :func:`exact_element` calls it at the start of a step
+    and where a held contact lets go, and each inlined copy of ``_search`` costs compile time."""
+    iterations = 0
+    for p in range(PA.shape[0]):
+        tc, k, it = _search(p, S, Pm, F, hw, PA, PB, dt - t_now, tol, max_iterations, rotation,
+                            table_friction)
+        toi[p] = t_now + tc if k != NONE else dt
+        kind[p] = k
+        iterations += it
+    return iterations
+
+
+@jit
 def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
                   zeno_impacts, settle_substep, rotation, contact_friction, table_friction,
                   jam, cpair, crec, stats, toi, kind, changed, rest, trace):
@@ -954,13 +1007,8 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
         return
     sweeps = _int(MAX_SWEEPS)
     n_pairs = PA.shape[0]
-    iterations = 0
-    for p in range(n_pairs):
-        tc, k, it = _search(p, S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation,
-                            table_friction)
-        toi[p] = tc
-        kind[p] = k
-        iterations += it
+    iterations = _search_all(S, Pm, F, hw, PA, PB, 0.0, dt, tol, max_iterations, rotation,
+                             table_friction, toi, kind)
     t_now = 0.0
     events = 0
     resting = 0
@@ -1004,13 +1052,9 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
                                        crec, stats, trace)
                 if outcome == 0:  # let go: the pair separates, the event loop goes on
                     resting = 0
-                    horizon = dt - t_now
-                    for p in range(n_pairs):
-                        tc, k, it = _search(p, S, Pm, F, hw, PA, PB, horizon, tol,
-                                            max_iterations, rotation, table_friction)
-                        toi[p] = t_now + tc if k != NONE else dt
-                        kind[p] = k
-                        iterations += it
+                    iterations += _search_all(S, Pm, F, hw, PA, PB, t_now, dt, tol,
+                                              max_iterations, rotation, table_friction, toi,
+                                              kind)
                     continue
             if t_now < dt:
                 _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, sweeps, tol,
