@@ -61,10 +61,11 @@ ROUNDOFF = 1e-12
 
 @jit
 def geometry(xa, ya, anga, vxa, vya, wa, ha, ra, xb, yb, angb, vxb, vyb, wb, hb, rb, wall,
-             half_w, half_h):
+             half_w, half_h, pinned_a=False, pinned_b=False):
     """Geometry and normal relative velocity of a pair given both bodies' poses and velocities.
 
     ``wall`` is -1 for a body-body pair, else the cushion index (body b's values are unused).
+    ``pinned_a``: body a cannot translate (``capsule_wall``'s ``pinned``).
 
     Returns:
         (gap, nx, ny, oax, oay, ka, obx, oby, kb, vn): normal from a to b, lever arms as core
@@ -76,11 +77,12 @@ def geometry(xa, ya, anga, vxa, vya, wa, ha, ra, xb, yb, angb, vxb, vyb, wb, hb,
     # point for both bodies (for a flat contact it is not the gap's nearer end)
     if wall < 0:
         g, nx, ny, oax, oay, obx, oby, sep = capsule_capsule(xa, ya, anga, ha, ra,
-                                                             xb, yb, angb, hb, rb)
+                                                             xb, yb, angb, hb, rb,
+                                                             pinned_a and pinned_b)
         kb = rb + 0.5 * sep
     else:
         g, nx, ny, oax, oay, obx, oby, sep = capsule_wall(xa, ya, anga, ha, ra, wall, half_w,
-                                                          half_h)
+                                                          half_h, pinned_a)
         kb = 0.0
     ka = ra + 0.5 * sep
     vn, vt, scale = relative_velocity_of(vxa, vya, wa, vxb, vyb, wb, wall >= 0, nx, ny, oax, oay,
@@ -108,7 +110,8 @@ def pair_geometry(S, Pm, a, b, wall, half_w, half_h):
     return geometry(S[a, X], S[a, Y], S[a, ANGLE], S[a, VX], S[a, VY], S[a, OMEGA],
                     Pm[a, HALF_LENGTH], Pm[a, RADIUS],
                     S[b, X], S[b, Y], S[b, ANGLE], S[b, VX], S[b, VY], S[b, OMEGA],
-                    Pm[b, HALF_LENGTH], Pm[b, RADIUS], wall, half_w, half_h)
+                    Pm[b, HALF_LENGTH], Pm[b, RADIUS], wall, half_w, half_h,
+                    Pm[a, INV_MASS] == 0.0, Pm[b, INV_MASS] == 0.0)
 
 
 @jit_inline
@@ -129,7 +132,8 @@ def _probe(S, Pm, F, a, b, wall, half_w, half_h, t, rotation, table_friction):
             xb, yb, angb, vxb, vyb, wb = xa, ya, anga, vxa, vya, wa
     g, nx, ny, oax, oay, ka, obx, oby, kb, vn = geometry(
         xa, ya, anga, vxa, vya, wa, Pm[a, HALF_LENGTH], Pm[a, RADIUS],
-        xb, yb, angb, vxb, vyb, wb, Pm[b, HALF_LENGTH], Pm[b, RADIUS], wall, half_w, half_h)
+        xb, yb, angb, vxb, vyb, wb, Pm[b, HALF_LENGTH], Pm[b, RADIUS], wall, half_w, half_h,
+        Pm[a, INV_MASS] == 0.0, Pm[b, INV_MASS] == 0.0)
     return g, nx, ny, vn, vxa, vya, wa, vxb, vyb, wb
 
 

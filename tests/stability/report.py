@@ -304,6 +304,21 @@ def render(results: dict, long_results: list[tuple[str, dict]]) -> str:
         "* A zero-thickness rod lying flat on a cushion and turning into it ended 6.7e-8 m "
         "inside: the gap of a flat contact was the middle's distance, which hid the nearer "
         "end's penetration; it is now the nearer end's (the impulse still acts at the middle).",
+        "* A pivoted rod lying flat on a cushion, or on a static rod, and turning into it was "
+        "left inside it: the flat contact's point was the middle, its pivot, where neither an "
+        "impulse nor a positional correction can act (3e-7 m at every settled step's end on a "
+        "cushion, 300x the tolerance; on a 0.2 m static rod it turned through it, cores "
+        "crossed by 0.117 m). Where neither body can translate, a flat contact's point is now "
+        "the nearer end (`tests/physics/test_settle_fixes.py`). Found by an adversarial walk "
+        "of the engine.",
+        "* A settle's substep was set by the closest pair of the scene, however far from the "
+        "contact being settled: a 0.1 mm static post that no body reaches changed a nine-body "
+        "settle from 7 to 23 substeps, and so the motion (1 mm in that step, 1.05 m after 3 "
+        "s). Pairs that cannot meet within the rest of the step (bounding circles farther "
+        "apart than their speed bound closes, with their own bound to spare) no longer "
+        "shorten the substep; they are checked again after every substep, so a body that got "
+        "faster brings its pairs back and the settle plans again "
+        "(`tests/physics/test_settle_fixes.py`). Found by an adversarial walk of the engine.",
         "* A body touching a cushion was refused at construction when `x + r` rounded past the "
         "edge.",
         "* Env `scene=` arguments (missing file, directory, malformed YAML, wrong types) "
