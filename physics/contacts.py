@@ -313,13 +313,7 @@ def _normal(dx, dy, d, s, anga, ha, t, angb, hb):
 @jit
 def _point_segment(px, py, ax, ay, bx, by):
     """Distance from a point to a segment."""
-    ux = bx - ax
-    uy = by - ay
-    uu = ux * ux + uy * uy
-    f = _clamp01(((px - ax) * ux + (py - ay) * uy) / uu) if uu > _TINY else 0.0
-    dx = px - ax - f * ux
-    dy = py - ay - f * uy
-    return math.sqrt(dx * dx + dy * dy)
+    return _segment_param(px, py, ax, ay, bx, by)[1]
 
 
 @jit

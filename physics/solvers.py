@@ -69,6 +69,7 @@ from spinstrike.physics.jam import (
     JAM_PX,
     JAM_PY,
     MAX_JAM_PAIRS,
+    _solve_small,
     jam_impulses,
 )
 from spinstrike.physics.jit import jit, jit_counted, jit_inline, jit_uncounted, static_if
@@ -820,34 +821,6 @@ def _kinetic(S, Pm, a, b):
 
 
 @jit
-def _solve_small(m, v):
-    """x with m x = v, by Gaussian elimination with partial pivoting (m and v are overwritten);
-    NaN where m is singular."""
-    k = v.shape[0]
-    for col in range(k):
-        piv = col
-        for r in range(col + 1, k):
-            if abs(m[r, col]) > abs(m[piv, col]):
-                piv = r
-        if piv != col:
-            for q in range(k):
-                m[col, q], m[piv, q] = m[piv, q], m[col, q]
-            v[col], v[piv] = v[piv], v[col]
-        for r in range(col + 1, k):
-            f = m[r, col] / m[col, col]
-            for q in range(col, k):
-                m[r, q] -= f * m[col, q]
-            v[r] -= f * v[col]
-    x = np.empty(k)
-    for r in range(k - 1, -1, -1):
-        acc = v[r]
-        for q in range(r + 1, k):
-            acc -= m[r, q] * x[q]
-        x[r] = acc / m[r, r]
-    return x
-
-
-@jit
 def _no_gain(S, Pm, a, b, e0, nx, ny, rna, rnb):
     """Take back any kinetic energy a held substep gained over ``e0`` (the round-off-free
     integrator still errs by O(h^2) either way) without touching what the exact motion keeps:
@@ -878,7 +851,7 @@ def _no_gain(S, Pm, a, b, e0, nx, ny, rna, rnb):
     c[3, 0], c[3, 1], c[3, 2] = -nx, -ny, -rna
     c[3, 3], c[3, 4], c[3, 5] = nx, ny, rnb
     # the least-energy velocities meeting c u* = c u: u* = W c^T y, (c W c^T) y = c u (loops and
-    # Gaussian elimination, not numpy's linalg: that doubled the solver's compile time)
+    # Gaussian elimination (jam._solve_small), not numpy's linalg: that doubled the compile time)
     rhs = np.zeros(4)
     a4 = np.zeros((4, 4))
     for r in range(4):
@@ -886,11 +859,12 @@ def _no_gain(S, Pm, a, b, e0, nx, ny, rna, rnb):
             rhs[r] += c[r, q] * u[q]
             for r2 in range(4):
                 a4[r, r2] += c[r, q] * w[q] * c[r2, q]
-    y = _solve_small(a4, rhs)
+    if not _solve_small(a4, rhs, 4):  # singular to round-off: leave the velocities
+        return
     ustar = np.zeros(6)
     for q in range(6):
         for r in range(4):
-            ustar[q] += w[q] * c[r, q] * y[r]
+            ustar[q] += w[q] * c[r, q] * rhs[r]
     dk = 0.0
     kstar = 0.0
     for q in range(6):
