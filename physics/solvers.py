@@ -808,7 +808,8 @@ def _gap_moved(S, Pm, a, b, h, j, nx, ny, rna, rnb):
     tb = S[b, ANGLE] + h * (S[b, OMEGA] + j * rnb * iib)
     return geometry(xa, ya, ta, 0.0, 0.0, 0.0, Pm[a, HALF_LENGTH], Pm[a, RADIUS],
                     xb, yb, tb, 0.0, 0.0, 0.0, Pm[b, HALF_LENGTH], Pm[b, RADIUS], -1, 0.0,
-                    0.0)[0]
+                    0.0, Pm[a, INV_MASS] == 0.0, Pm[b, INV_MASS] == 0.0)[0]  # typed as
+    # pair_geometry's call (an omitted argument would compile geometry and its callees again)
 
 
 @jit
