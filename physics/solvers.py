@@ -822,6 +822,37 @@ def _kinetic(S, Pm, a, b):
 
 
 @jit
+def _least_energy(c, w, u):
+    """The least-energy velocities ``u*`` (energy weights 1 / ``w``) with ``c u* = c u``:
+    ``u* = W c^T y``, ``(c W c^T) y = c u``; NaN where that system is singular to round-off.
+    Loops and jam's Gaussian elimination (numpy's linalg in numba added to the compile time);
+    the system is scaled to a unit diagonal first (its rows mix masses and inverse masses, 1e18
+    apart for two 1e-9 kg bodies, where the elimination's relative singular test misfires)."""
+    rhs = np.zeros(4)
+    a4 = np.zeros((4, 4))
+    for r in range(4):
+        for q in range(6):
+            rhs[r] += c[r, q] * u[q]
+            for r2 in range(4):
+                a4[r, r2] += c[r, q] * w[q] * c[r2, q]
+    d = np.empty(4)
+    for r in range(4):
+        d[r] = math.sqrt(a4[r, r])
+    for r in range(4):
+        rhs[r] /= d[r]
+        for r2 in range(4):
+            a4[r, r2] /= d[r] * d[r2]
+    ustar = np.zeros(6)
+    if not _solve_small(a4, rhs, 4):
+        ustar[:] = np.nan
+        return ustar
+    for q in range(6):
+        for r in range(4):
+            ustar[q] += w[q] * c[r, q] * rhs[r] / d[r]
+    return ustar
+
+
+@jit
 def _no_gain(S, Pm, a, b, e0, nx, ny, rna, rnb):
     """Take back any kinetic energy a held substep gained over ``e0`` (the round-off-free
     integrator still errs by O(h^2) either way) without touching what the exact motion keeps:
@@ -851,27 +882,13 @@ def _no_gain(S, Pm, a, b, e0, nx, ny, rna, rnb):
         k += 3
     c[3, 0], c[3, 1], c[3, 2] = -nx, -ny, -rna
     c[3, 3], c[3, 4], c[3, 5] = nx, ny, rnb
-    # the least-energy velocities meeting c u* = c u: u* = W c^T y, (c W c^T) y = c u (loops and
-    # Gaussian elimination (jam._solve_small), not numpy's linalg: that doubled the compile time)
-    rhs = np.zeros(4)
-    a4 = np.zeros((4, 4))
-    for r in range(4):
-        for q in range(6):
-            rhs[r] += c[r, q] * u[q]
-            for r2 in range(4):
-                a4[r, r2] += c[r, q] * w[q] * c[r2, q]
-    if not _solve_small(a4, rhs, 4):  # singular to round-off: leave the velocities
-        return
-    ustar = np.zeros(6)
-    for q in range(6):
-        for r in range(4):
-            ustar[q] += w[q] * c[r, q] * rhs[r]
+    ustar = _least_energy(c, w, u)
     dk = 0.0
     kstar = 0.0
     for q in range(6):
         dk += 0.5 * (u[q] - ustar[q]) ** 2 / w[q]
         kstar += 0.5 * ustar[q] ** 2 / w[q]
-    if not dk > 0.0:
+    if not dk > 0.0:  # also NaN: singular
         return
     s = math.sqrt(max(e0 - kstar, 0.0) / dk)
     if s >= 1.0:
