@@ -806,10 +806,11 @@ def _gap_moved(S, Pm, a, b, h, j, nx, ny, rna, rnb):
     xb = S[b, X] + h * (S[b, VX] + j * nx * imb)
     yb = S[b, Y] + h * (S[b, VY] + j * ny * imb)
     tb = S[b, ANGLE] + h * (S[b, OMEGA] + j * rnb * iib)
+    # the pinned flags passed as pair_geometry passes them: omitted, they compiled geometry and
+    # its callees a second time
     return geometry(xa, ya, ta, 0.0, 0.0, 0.0, Pm[a, HALF_LENGTH], Pm[a, RADIUS],
                     xb, yb, tb, 0.0, 0.0, 0.0, Pm[b, HALF_LENGTH], Pm[b, RADIUS], -1, 0.0,
-                    0.0, Pm[a, INV_MASS] == 0.0, Pm[b, INV_MASS] == 0.0)[0]  # typed as
-    # pair_geometry's call (an omitted argument would compile geometry and its callees again)
+                    0.0, Pm[a, INV_MASS] == 0.0, Pm[b, INV_MASS] == 0.0)[0]
 
 
 @jit
