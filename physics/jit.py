@@ -57,12 +57,18 @@ jit_counted = _compiler(_nrt=True)
 
 
 
-def static_if(fn: Any, negate: bool = False, level: int = 1) -> Callable[..., Any]:
+def static_if(fn: Any, negate: bool = False, level: int = 1,
+              otherwise: Any = None) -> Callable[..., Any]:
     """A kernel-callable ``g(flag, *args)`` that calls ``fn(*args)`` if ``flag >= level`` (if
     not, with ``negate``): a *static* if when ``flag`` is a compile-time literal, a boolean or
     an integer level (``kernels.FLAGS``), for then a call ruled out is never typed or compiled.
     numba's own branch pruning does not act on literal booleans, so ``if flag: fn(...)`` would
     compile ``fn`` for every scene; for a non-literal flag ``g`` is an ordinary run-time ``if``.
+    (A literal that allows the call compiles the call alone.)
+
+    With ``otherwise`` (a kernel of ``fn``'s parameters returning what ``fn`` returns), ``g``
+    returns ``fn(*args)``, or ``otherwise(*args)`` where the flag rules ``fn`` out; without it
+    ``g`` returns None.
 
     ``g`` is an ``overload`` inlined into its caller (no compiled layer of its own: each layer
     above the solver costs a compile of its own), which needs ``fn``'s exact parameter list, so
@@ -71,13 +77,19 @@ def static_if(fn: Any, negate: bool = False, level: int = 1) -> Callable[..., An
     py_func = getattr(fn, "py_func", fn)  # a plain function under NUMBA_DISABLE_JIT
     params = ", ".join(f"a{i}" for i in range(py_func.__code__.co_argcount))
     test = f"not flag >= {int(level)}" if negate else f"flag >= {int(level)}"
-    scope: dict[str, Any] = {"fn": fn, "negate": negate, "level": level, "types": types}
-    exec(f"def g(flag, {params}):\n    if {test}:\n        fn({params})\n"  # noqa: S102
-         f"def skip(flag, {params}):\n    return None\n"
+    scope: dict[str, Any] = {"fn": fn, "otherwise": otherwise, "negate": negate,
+                             "level": level, "types": types}
+    if otherwise is None:
+        run, skip = f"fn({params})", "None"
+    else:
+        run, skip = f"return fn({params})", f"otherwise({params})"
+    exec(f"def g(flag, {params}):\n    if {test}:\n        {run}\n"  # noqa: S102
+         f"    return {skip}\n"
+         f"def call(flag, {params}):\n    {run}\n"
+         f"def skip(flag, {params}):\n    return {skip}\n"
          f"def typed(flag, {params}):\n"
-         f"    if isinstance(flag, (types.BooleanLiteral, types.IntegerLiteral)) and (\n"
-         f"            (int(flag.literal_value) >= level) == negate):\n"
-         f"        return skip\n"
+         f"    if isinstance(flag, (types.BooleanLiteral, types.IntegerLiteral)):\n"
+         f"        return skip if (int(flag.literal_value) >= level) == negate else call\n"
          f"    return g\n", scope)
     g = scope["g"]
     overload(g, prefer_literal=True, inline="always")(scope["typed"])

@@ -92,6 +92,7 @@ from spinstrike.physics.layout import (
     HALF_W,
     INV_INERTIA,
     INV_MASS,
+    LEVEL_CAN_JAM,
     LEVEL_MANY_BODIES,
     NONE,
     OMEGA,
@@ -991,6 +992,28 @@ def _hold(S, Pm, hw, PA, PB, t_now, dt, tol, zeno_speed, cpair, crec, stats, tra
     return t, outcome
 
 
+@jit_inline
+def _try_hold(S, Pm, F, hw, PA, PB, MAT, t_now, dt, tol, zeno_speed, rotation,
+              contact_friction, table_friction, cpair, crec, stats, trace):
+    """:func:`_hold` where the world can hold (:func:`_holdable`); returns its (time reached,
+    outcome), or (``t_now``, -1): not held, the caller settles the rest of the step."""
+    if _holdable(S, Pm, F, PA, PB, MAT, rotation, contact_friction, table_friction):
+        return _hold(S, Pm, hw, PA, PB, t_now, dt, tol, zeno_speed, cpair, crec, stats, trace)
+    return t_now, -1
+
+
+@jit_inline
+def _no_hold(S, Pm, F, hw, PA, PB, MAT, t_now, dt, tol, zeno_speed, rotation,
+             contact_friction, table_friction, cpair, crec, stats, trace):
+    """What :func:`_try_hold` returns where the world cannot hold."""
+    return t_now, -1
+
+
+#: the hold, compiled only for one-pair worlds (the ``jam`` flag's level, ``kernels.FLAGS``):
+#: a walled table or a many-body scene never pays for its compile
+_hold_unless = static_if(_try_hold, negate=True, level=LEVEL_CAN_JAM, otherwise=_no_hold)
+
+
 @jit
 def _search_all(S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotation,
                 table_friction, toi, kind):
@@ -1063,11 +1086,10 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
                 iterations += it
         if events >= max_events or resting >= zeno_impacts:
             _end_rests(F, rest)
-            if (t_now < dt and events < max_events
-                    and _holdable(S, Pm, F, PA, PB, MAT, rotation, contact_friction,
-                                  table_friction)):
-                t_now, outcome = _hold(S, Pm, hw, PA, PB, t_now, dt, tol, zeno_speed, cpair,
-                                       crec, stats, trace)
+            if t_now < dt and events < max_events:
+                t_now, outcome = _hold_unless(jam, S, Pm, F, hw, PA, PB, MAT, t_now, dt, tol,
+                                              zeno_speed, rotation, contact_friction,
+                                              table_friction, cpair, crec, stats, trace)
                 if outcome == 0:  # let go: the pair separates, the event loop goes on
                     resting = 0
                     iterations += _search_all(S, Pm, F, hw, PA, PB, t_now, dt, tol,

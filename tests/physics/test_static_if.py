@@ -1,0 +1,102 @@
+"""``jit.static_if``: a call a literal flag rules out is never typed or compiled (promise 3, what
+a scene does not call for costs nothing, also at compile time), a non-literal flag is an
+ordinary run-time ``if``, and with ``otherwise`` the call returns a value either way.
+
+Each test compiles kernels of its own (fresh dispatchers), so a callee's ``overloads`` show
+exactly what the test's caller compiled."""
+
+import numba
+import pytest
+
+from spinstrike.physics.jit import static_if
+
+
+def _kernels(negate=False, level=1, otherwise=True):
+    @numba.njit
+    def double(x):
+        return 2.0 * x, 1
+
+    @numba.njit
+    def same(x):
+        return x, -1
+
+    gate = static_if(double, negate=negate, level=level, otherwise=same if otherwise else None)
+
+    @numba.njit
+    def literal(x, flag):
+        return gate(numba.literally(flag), x)
+
+    @numba.njit
+    def runtime(x, flag):
+        return gate(flag, x)
+
+    return double, same, literal, runtime
+
+
+def test_a_literal_flag_compiles_only_the_call_it_allows():
+    double, same, literal, _ = _kernels()
+    assert literal(3.0, False) == (3.0, -1)
+    assert not double.overloads, "ruled out by a literal False, yet compiled"
+    assert literal(3.0, True) == (6.0, 1)
+    assert double.overloads
+
+
+@pytest.mark.parametrize("jam, called", [(0, True), (1, False), (2, False)])
+def test_a_level_below_which_the_call_is_made(jam, called):
+    """The hold's gate: called only at the ``jam`` level 0 (one pair), as
+    ``static_if(_try_hold, negate=True, level=LEVEL_CAN_JAM, otherwise=_no_hold)``."""
+    double, same, literal, _ = _kernels(negate=True, level=1)
+    assert literal(3.0, jam) == ((6.0, 1) if called else (3.0, -1))
+    assert bool(double.overloads) == called
+    assert bool(same.overloads) == (not called)
+
+
+def test_a_runtime_flag_is_an_ordinary_if():
+    double, same, _, runtime = _kernels()
+    assert runtime(3.0, True) == (6.0, 1)
+    assert runtime(3.0, False) == (3.0, -1)  # the same compiled code, the other branch
+    assert len(runtime.overloads) == 1
+
+
+def test_without_otherwise_the_call_returns_none():
+    double, _, literal, _ = _kernels(otherwise=False)
+    assert literal(3.0, True) is None
+    assert literal(3.0, False) is None
+    assert len(double.overloads) == 1
+
+
+COLD = """
+import os, pathlib, sys
+import gymnasium as gym
+import spinstrike
+env = gym.make(sys.argv[1])
+env.reset(seed=0)
+env.action_space.seed(0)
+for _ in range(50):
+    if any(env.step(env.action_space.sample())[2:4]):
+        env.reset()
+print(sorted(p.name.split("-")[0] for p in
+             pathlib.Path(os.environ["SPINSTRIKE_CACHE_DIR"]).rglob("*.nbi")))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("env_id, holds", [("SpinStrike/RodSpinControl-v0", False),
+                                           ("SpinStrike/RodSpin-v0", True)])
+def test_only_one_pair_envs_compile_the_hold(env_id, holds, tmp_path):
+    """From the user's side, in a fresh process with an empty kernel cache (~40 s each): a
+    walled control env (``jam`` level can-jam) never compiles the sustained-contact hold
+    (``solvers._hold``; it cost ~11 s of its first-run compile, 55 -> 44 CPU s), the one-pair
+    RodSpin-v0, whose e = 0 strikes hold, does. The cache's files name what was compiled."""
+    import ast
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, SPINSTRIKE_CACHE_DIR=str(tmp_path / "cache"), SPINSTRIKE_QUIET="1")
+    out = subprocess.run([sys.executable, "-c", COLD, env_id], env=env, capture_output=True,
+                         text=True, timeout=900, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-3000:]
+    compiled = ast.literal_eval(out.stdout.strip().splitlines()[-1])
+    assert "solvers.exact_element" in compiled  # the cache saw the solver compile
+    assert ("solvers._hold" in compiled) == holds
