@@ -51,10 +51,11 @@ def _kwargs(text: str | None) -> dict:
     return value
 
 
-def _check_env_id(env_id: str) -> None:
+def _check_env_id(env_id: str) -> str:
+    """Refuse an id that is not a SpinStrike env (or a variant of one); return its shipped id."""
     from spinstrike.agents.config import check_env_id
 
-    check_env_id(env_id, "--env")
+    return check_env_id(env_id, "--env")
 
 
 def _check_episodes(option: str, value: int) -> None:
@@ -109,7 +110,7 @@ def _policy(args):
                 raise AgentConfigError(f"--{flag}: needs --env ID; ids: {list(envs.ENV_IDS)}")
         raise AgentConfigError("give a run directory, or --oracle, --random or --planner "
                                "with --env ID")
-    _check_env_id(args.env)
+    base = _check_env_id(args.env)
     env_kwargs = _kwargs(args.env_kwargs)
     if env_kwargs:
         from spinstrike.agents.train import check_env_kwargs
@@ -123,7 +124,7 @@ def _policy(args):
     if args.planner:
         from spinstrike.agents.planner import CEMPlanner
 
-        if "Control" not in args.env:
+        if "Control" not in base:
             raise AgentConfigError(f"--planner: drives the control envs only "
                                    f"(SpinStrike/RodSpinControl-v0, SpinStrike/PuckSpeedControl-v0)"
                                    f"; got {args.env!r}")
@@ -181,9 +182,9 @@ def cmd_train(args) -> int:
     print(f"run: {result['run_dir']}  ({result['timesteps']} steps, {result['wall_time']:.1f} s)")
     from spinstrike.agents.evaluate import policy_label
 
-    env_id = result.get("env") or args.env
+    control = "Control" in _check_env_id(result.get("env") or args.env)
     for name, (mean, std) in result.get("evaluations", {}).items():
-        print(f"  {policy_label(name, 'Control' in env_id):>7s}: {mean:.4f} +/- {std:.4f}")
+        print(f"  {policy_label(name, control):>7s}: {mean:.4f} +/- {std:.4f}")
     if "video" in result:
         print(f"video: {result['video']}")
     return 0
@@ -535,6 +536,11 @@ def main(argv: list[str] | None = None) -> int:
     args.argv = argv  # what command.txt records (main's own argv, not the interpreter's)
     if getattr(args, "env", None):  # gym.make's module-qualified id, as the README shows it
         args.env = args.env.removeprefix("spinstrike:")
+    # a variant's registering module ("mylab:MyLab/Heavy-v0") may sit in the working directory,
+    # which a console script does not put on sys.path (python -m does, first); last, so that it
+    # shadows nothing installed
+    if os.getcwd() not in sys.path and "" not in sys.path:
+        sys.path.append(os.getcwd())
     try:
         return args.func(args)
     except (AgentConfigError, ConfigError, SceneError) as exc:

@@ -187,11 +187,18 @@ def _read_entry(path: Path, env_id: str, algo: str | None = None) -> tuple[str, 
                                    f"{data['algo']})")
         data = data["hyperparameters"]
     for key in data:
-        if key != "default" and key not in envs.ENV_IDS:
-            raise AgentConfigError(f"config: {path}: unknown env id {key!r}; allowed: "
-                                   f"{list(envs.ENV_IDS) + ['default']}")
-    entry_key = env_id if env_id in data else "default"
-    if entry_key not in data:
+        if key != "default" and key not in envs.ENV_IDS and key != env_id:
+            try:  # a variant's own entry (its id as registered, or module-prefixed)
+                envs.base_id(key)
+            except envs.ConfigError as exc:
+                raise AgentConfigError(f"config: {path}: unknown env id {key!r} ({exc}); "
+                                       f"a key is an id such as these, or 'default'") from None
+    # a variant without an entry of its own takes its shipped env's, as rl-zoo3 would want it
+    # written out: the id as given, the id without its module, the shipped id, 'default'
+    bare = env_id.rpartition(":")[2]
+    keys = [env_id, bare, envs.base_id(env_id), "default"]
+    entry_key = next((key for key in keys if key in data), None)
+    if entry_key is None:
         raise AgentConfigError(f"config: {path} has no entry for {env_id!r} and no 'default'")
     return entry_key, dict(data[entry_key] or {})
 
@@ -329,12 +336,15 @@ def recorded_agent_config(algo: str, env_id: str, entry: dict, source: str) -> R
     return _resolve(algo, env_id, dict(entry), f"config.yml[{env_id}]", source)
 
 
-def check_env_id(env_id: str, field: str = "env") -> None:
-    """Refuse an id that is not a registered SpinStrike env, naming ``field``."""
+def check_env_id(env_id: str, field: str = "env") -> str:
+    """Refuse an id that is not a SpinStrike env, naming ``field``; return its shipped id (the
+    id itself, or the one whose env a registered variant makes: ``envs.base_id``)."""
     from spinstrike import envs
 
-    if env_id not in envs.ENV_IDS:
-        raise AgentConfigError(f"{field}: unknown id {env_id!r}; allowed: {list(envs.ENV_IDS)}")
+    try:
+        return envs.base_id(env_id)
+    except envs.ConfigError as exc:
+        raise AgentConfigError(f"{field}: {exc}") from None
 
 
 def _check_keys(algo: str, entry: dict, where: str) -> None:

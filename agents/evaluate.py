@@ -121,9 +121,10 @@ def read_run_config(run_dir: str | Path) -> dict:
     if not isinstance(algo, str) or algo not in ALGOS:
         raise AgentConfigError(f"config.yml: {path}: algo: unknown algorithm {algo!r}; "
                                f"allowed: {list(ALGOS)}")
-    if not isinstance(env_id, str) or env_id not in envs.ENV_IDS:
-        raise AgentConfigError(f"config.yml: {path}: env: unknown id {env_id!r}; allowed: "
-                               f"{list(envs.ENV_IDS)}")
+    try:
+        envs.base_id(env_id)  # a variant's module imports (and registers it) here
+    except envs.ConfigError as exc:
+        raise AgentConfigError(f"config.yml: {path}: env: {exc}") from None
     hyper = meta.get("hyperparameters")
     entry = hyper.get(env_id) if isinstance(hyper, dict) else None
     if not isinstance(entry, dict) or not isinstance(entry.get("env_kwargs") or {}, dict):

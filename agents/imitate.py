@@ -86,7 +86,9 @@ def settings(teacher: str, algo: str, env_id: str, normalize: bool, rounds: int,
     if algo != "ppo":
         raise AgentConfigError(f"--imitate: starts PPO only (got --algo {algo})")
     check_teacher(teacher)
-    if teacher.endswith("planner") and "Control" not in env_id:
+    from spinstrike.envs import base_id
+
+    if teacher.endswith("planner") and "Control" not in base_id(env_id):
         raise AgentConfigError(f"--imitate {teacher}: the planner drives the control envs only "
                                f"(got {env_id})")
     if normalize:

@@ -270,9 +270,12 @@ class ChaseAndHit:
 
 
 def oracle_for(env_id: str):
-    """The reference policy of an env: the analytic oracle, or chase-and-hit for control."""
+    """The reference policy of an env (or of a variant registered with one's env class): the
+    analytic oracle, or chase-and-hit for control."""
+    from spinstrike.envs import base_id
+
     return {"SpinStrike/RodSpin-v0": RodSpinOracle, "SpinStrike/PuckSpeed-v0": PuckSpeedOracle,
             "SpinStrike/PuckSpeed-v1": PuckSpeedOracle,
             "SpinStrike/RodSpinControl-v0": ChaseAndHit,
-            "SpinStrike/PuckSpeedControl-v0": ChaseAndHit}[env_id]()
+            "SpinStrike/PuckSpeedControl-v0": ChaseAndHit}[base_id(env_id)]()
 

@@ -23,7 +23,7 @@ import gymnasium as gym
 
 from spinstrike.envs.config import ConfigError
 
-__all__ = ["ENV_IDS", "ConfigError", "describe"]
+__all__ = ["ENV_IDS", "ConfigError", "base_id", "describe", "native_vector", "variant_kwargs"]
 
 #: registered ids and a one-line description each
 ENV_IDS: dict[str, str] = {
@@ -58,6 +58,100 @@ def _register() -> None:
         gym.register(id=env_id, entry_point=f"spinstrike.envs.{entry}",
                      vector_entry_point=f"spinstrike.envs.{vector_entry}",
                      max_episode_steps=steps, disable_env_checker=False)
+
+
+def _entry_class(entry_point):
+    """The class (or factory) an entry point names."""
+    from gymnasium.envs.registration import load_env_creator
+
+    return load_env_creator(entry_point) if isinstance(entry_point, str) else entry_point
+
+
+def base_id(env_id: str) -> str:
+    """The shipped id whose env ``env_id`` makes: the id itself (also as
+    ``"spinstrike:SpinStrike/RodSpin-v0"``), or for a variant registered elsewhere with
+    ``gym.register`` and a SpinStrike env class as its entry point (that class or a subclass),
+    the id of that class. A variant is given as ``"module:Namespace/Name-vN"``, ``gym.make``'s
+    form, so that importing ``module`` registers it first (a plain id must be registered in
+    this process already).
+
+    Raises:
+        ConfigError: an id that is not registered (the module not importable) or whose entry
+            point is not a SpinStrike env class, naming it and what is allowed.
+    """
+    import importlib
+
+    allowed = (f"allowed: {list(ENV_IDS)}, or a variant of one registered by your module with "
+               "gym.register, given as 'module:Namespace/Name-vN'")
+    if not isinstance(env_id, str):
+        raise ConfigError(f"env id must be a string (got {env_id!r}); {allowed}")
+    module, _, bare = env_id.rpartition(":")
+    if bare in ENV_IDS:
+        return bare
+    if module:
+        try:
+            importlib.import_module(module)
+        except ImportError as exc:
+            raise ConfigError(f"{env_id!r}: cannot import {module!r}, the module that should "
+                              f"register it ({exc}; run from its folder or install it); "
+                              f"{allowed}") from None
+    spec = gym.registry.get(bare)
+    if spec is None:
+        raise ConfigError(f"unknown id {env_id!r}; {allowed}")
+    try:
+        cls = _entry_class(spec.entry_point)
+    except Exception as exc:  # noqa: BLE001  (whatever the user's entry point raises)
+        raise ConfigError(f"{env_id!r}: its entry point {spec.entry_point!r} does not load "
+                          f"({type(exc).__name__}: {exc})") from None
+    if isinstance(cls, type):
+        shipped = {base: _entry_class(f"spinstrike.envs.{entry}")
+                   for base, (entry, _, _) in _ENTRY.items()}
+        for base, base_cls in shipped.items():
+            if cls is base_cls:
+                return base
+        # a subclass: the most derived shipped class it extends (PuckSpeed-v1's before v0's)
+        matches = [base for base, base_cls in shipped.items() if issubclass(cls, base_cls)]
+        if matches:
+            return max(matches, key=lambda base: len(shipped[base].__mro__))
+    raise ConfigError(f"{env_id!r}: its entry point {spec.entry_point!r} is not a SpinStrike env "
+                      f"class (nor a subclass of one); {allowed}")
+
+
+def variant_kwargs(env_id: str) -> dict:
+    """The keyword arguments ``env_id`` is registered with (none for a shipped id), and its
+    ``max_episode_steps`` if it registers one: what ``gym.make(env_id)`` passes its env."""
+    bare = env_id.rpartition(":")[2]
+    if bare in ENV_IDS:
+        return {}
+    base_id(env_id)  # checked, its module imported
+    spec = gym.registry[bare]
+    kwargs = dict(spec.kwargs)
+    if spec.max_episode_steps is not None:
+        kwargs["max_episode_steps"] = spec.max_episode_steps
+    return kwargs
+
+
+def native_vector(env_id: str) -> tuple[str, dict]:
+    """The id and keyword arguments that build ``env_id``'s native vector env with
+    ``gym.make_vec(id, n, vectorization_mode="vector_entry_point", **kwargs)``: the id itself
+    where it has a vector entry point; for a variant registered without one whose entry point
+    is a shipped env class itself, that class's id with the variant's registered arguments
+    (:func:`variant_kwargs`), so the variant trains as it steps under ``gym.make``.
+
+    Raises:
+        ConfigError: a subclass of a shipped env registered without a vector entry point (the
+            shipped vector env would silently drop what the subclass changes).
+    """
+    base = base_id(env_id)
+    spec = gym.registry[env_id.rpartition(":")[2]]
+    if spec.vector_entry_point is not None:
+        return env_id, {}
+    if _entry_class(spec.entry_point) is _entry_class(f"spinstrike.envs.{_ENTRY[base][0]}"):
+        return base, variant_kwargs(env_id)
+    raise ConfigError(f"{env_id!r}: registered without a vector_entry_point, and its entry point "
+                      f"{spec.entry_point!r} subclasses {base}'s env: the batched vector env "
+                      f"training uses would not be the subclass; register a vector_entry_point "
+                      f"too (a subclass of {_ENTRY[base][1].split(':')[1]})")
 
 
 def describe() -> str:

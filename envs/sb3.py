@@ -242,13 +242,14 @@ def _plain(x: Any) -> Any:
 
 def make_sb3_vec_env(env_id: str, n_envs: int, seed: int | None = None,
                      env_kwargs: dict | None = None, step_infos: bool = False) -> SB3VecEnv:
-    """Native batched vector env of ``env_id`` (``gym.make_vec``) wrapped for SB3
-    (``step_infos``: :class:`SB3VecEnv`'s)."""
-    from spinstrike import envs  # noqa: F401  (registers the ids)
+    """Native batched vector env of ``env_id`` (``gym.make_vec``; a registered variant's as
+    ``envs.native_vector`` builds it) wrapped for SB3 (``step_infos``: :class:`SB3VecEnv`'s)."""
+    from spinstrike import envs  # registers the ids
 
-    kwargs = dict(env_kwargs or {})
+    make_id, kwargs = envs.native_vector(env_id)  # a variant without a vector entry point too
+    kwargs.update(env_kwargs or {})
     kwargs["autoreset_mode"] = gym.vector.AutoresetMode.SAME_STEP  # SB3's convention
-    venv = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point",
+    venv = gym.make_vec(make_id, num_envs=n_envs, vectorization_mode="vector_entry_point",
                         **kwargs)
     vec = SB3VecEnv(venv, step_infos=step_infos)
     if seed is not None:

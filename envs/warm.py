@@ -41,9 +41,20 @@ class WarmUp:
 def warm_up(env_id: str, num_envs: int = 1, env_kwargs: dict | None = None) -> WarmUp:
     """Start compiling the kernels of ``env_id`` (native vector env of ``num_envs``) in a
     background process; returns at once."""
-    args = [sys.executable, "-m", "spinstrike.envs.warm", env_id, str(int(num_envs)),
-            json.dumps(env_kwargs or {})]
     import spinstrike
+    from spinstrike import envs
+
+    if env_id.rpartition(":")[2] not in envs.ENV_IDS:
+        # a variant, registered in this process or by a module the process below may not
+        # find: its shipped env with its registered arguments (if they do not fit, the process
+        # fails and the caller compiles as it would have anyway)
+        env_kwargs = {**envs.variant_kwargs(env_id), **(env_kwargs or {})}
+        env_id = envs.base_id(env_id)
+    try:
+        args = [sys.executable, "-m", "spinstrike.envs.warm", env_id, str(int(num_envs)),
+                json.dumps(env_kwargs or {})]
+    except TypeError:  # arguments JSON cannot carry: no warm-up, the caller compiles
+        return WarmUp(None)
 
     # run beside the package this process imported: `python -m` puts the working directory
     # first on sys.path, and from the root of a checkout it compiled the checkout's kernels
