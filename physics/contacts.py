@@ -12,7 +12,10 @@ i.e. exactly 0 for a disk.
 Flat contacts: when two segments are parallel (sin^2 of the angle between them below
 ``PARALLEL``) and their projections overlap, or a rod lies parallel to a cushion, the contact point
 is the middle of the overlap, so a flat impact gets one impulse through the middle, not one at an
-arbitrary end; the gap stays the smallest distance (at an end), so it is continuous.
+arbitrary end; the gap stays the smallest distance (at an end), so it is continuous. Two flat rods
+are resolved at both ends of their overlap instead (:func:`flat_ends`, ``impulse.resolve_flat``:
+the end impacts a slightly tilted rod makes, in turn), so the outcome does not jump at the
+threshold; all the callers share one parallel test (:func:`_parallel`).
 
 Crossed cores: two rods whose core segments cross are at core distance 0, and the crossing gives
 no normal. Their gap is instead minus their depth (the smallest translation that uncrosses them:
