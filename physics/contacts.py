@@ -12,7 +12,10 @@ i.e. exactly 0 for a disk.
 Flat contacts: when two segments are parallel (sin^2 of the angle between them below
 ``PARALLEL``) and their projections overlap, or a rod lies parallel to a cushion, the contact point
 is the middle of the overlap, so a flat impact gets one impulse through the middle, not one at an
-arbitrary end; the gap stays the smallest distance (at an end), so it is continuous.
+arbitrary end; the gap stays the smallest distance (at an end), so it is continuous. Two flat rods
+are resolved at both ends of their overlap instead (:func:`flat_ends`, ``impulse.resolve_flat``:
+the end impacts a slightly tilted rod makes, in turn), so the outcome does not jump at the
+threshold; all the callers share one parallel test (:func:`_parallel`).
 
 Crossed cores: two rods whose core segments cross are at core distance 0, and the crossing gives
 no normal. Their gap is instead minus their depth (the smallest translation that uncrosses them:
@@ -31,7 +34,7 @@ import math
 from spinstrike.physics.jit import jit
 
 __all__ = ["capsule_capsule", "capsule_wall", "closest_segment_params", "core_segment",
-           "cores_cross", "wall_frame"]
+           "cores_cross", "flat_ends", "wall_frame"]
 
 #: squared sine of the angle below which two segments count as parallel
 PARALLEL = 1e-12
@@ -47,6 +50,17 @@ def core_segment(x, y, angle, h):
     c = h * math.cos(angle)
     s = h * math.sin(angle)
     return x - c, y - s, x + c, y + s
+
+
+@jit
+def _parallel(ux, uy, vx, vy):
+    """Whether two segments of directions u and v count as parallel: the same test, written the
+    same way, as :func:`closest_segment_params`' (which then picks the middle of the overlap), so
+    that every caller agrees on which pairs are flat, down to round-off at the threshold."""
+    a = ux * ux + uy * uy
+    e = vx * vx + vy * vy
+    b = ux * vx + uy * vy
+    return not (a * e - b * b > PARALLEL * a * e)
 
 
 @jit
@@ -153,17 +167,78 @@ def capsule_capsule(xa, ya, anga, ha, ra, xb, yb, angb, hb, rb, pinned=False):
         # impact), but the gap is the smallest distance, at an end of the overlap, so that it
         # does not jump when the segments turn out of parallel (the middle's distance hid up to
         # sqrt(PARALLEL) x length of penetration)
-        ux = p1x - p0x
-        uy = p1y - p0y
-        vx = q1x - q0x
-        vy = q1y - q0y
-        cross = ux * vy - uy * vx
-        if cross * cross <= PARALLEL * (ux * ux + uy * uy) * (vx * vx + vy * vy):
+        if _parallel(p1x - p0x, p1y - p0y, q1x - q0x, q1y - q0y):
             d = min(d, _point_segment(p0x, p0y, q0x, q0y, q1x, q1y),
                     _point_segment(p1x, p1y, q0x, q0y, q1x, q1y),
                     _point_segment(q0x, q0y, p0x, p0y, p1x, p1y),
                     _point_segment(q1x, q1y, p0x, p0y, p1x, p1y))
     return d - ra - rb, nx, ny, cax - xa, cay - ya, cbx - xb, cby - yb, separation
+
+
+@jit
+def flat_ends(xa, ya, anga, ha, ra, xb, yb, angb, hb, rb, nx, ny):
+    """The two ends of a flat (parallel, ``PARALLEL``) rod-rod contact's overlap, as contact
+    points: an end of one core over the other core, the points a slightly tilted pair would
+    touch at (the event-driven solver's end impacts).
+
+    ``(nx, ny)`` is the pair's normal (:func:`capsule_capsule`'s, a to b). Each point lies on
+    that normal midway between the surfaces at its end, given relative to each centre (the same
+    point from both bodies, so the impulse there keeps angular momentum).
+
+    Returns:
+        (flat, p1ax, p1ay, p1bx, p1by, d1, p2ax, p2ay, p2bx, p2by, d2): ``flat`` is False when
+        the cores are not parallel, a core is a point, or their projections do not overlap;
+        else the two points (1 the nearer end: core distance ``d1 <= d2``).
+    """
+    if not (ha > 0.0 and hb > 0.0):
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    p0x, p0y, p1x, p1y = core_segment(xa, ya, anga, ha)
+    q0x, q0y, q1x, q1y = core_segment(xb, yb, angb, hb)
+    ux = p1x - p0x
+    uy = p1y - p0y
+    vx = q1x - q0x
+    vy = q1y - q0y
+    if not _parallel(ux, uy, vx, vy):
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    aa = ux * ux + uy * uy
+    ee = vx * vx + vy * vy
+    rx = p0x - q0x
+    ry = p0y - q0y
+    bb = ux * vx + uy * vy
+    c = ux * rx + uy * ry
+    f = vx * rx + vy * ry
+    s0 = -c / aa
+    s1 = (bb - c) / aa
+    lo = max(0.0, min(s0, s1))
+    hi = min(1.0, max(s0, s1))
+    if lo > hi:
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    # the overlap's ends on P and their feet on Q
+    alx = p0x + lo * ux
+    aly = p0y + lo * uy
+    tl = _clamp01((bb * lo + f) / ee)
+    blx = q0x + tl * vx
+    bly = q0y + tl * vy
+    ahx = p0x + hi * ux
+    ahy = p0y + hi * uy
+    th = _clamp01((bb * hi + f) / ee)
+    bhx = q0x + th * vx
+    bhy = q0y + th * vy
+    dl = math.sqrt((blx - alx) ** 2 + (bly - aly) ** 2)
+    dh = math.sqrt((bhx - ahx) ** 2 + (bhy - ahy) ** 2)
+    # each point on the normal, midway between the surfaces: a's surface at ra along n from its
+    # core point, b's at rb back from its own (their distance along n is that end's gap)
+    kl = ra + 0.5 * ((blx - alx) * nx + (bly - aly) * ny - ra - rb)
+    kh = ra + 0.5 * ((bhx - ahx) * nx + (bhy - ahy) * ny - ra - rb)
+    mlx = alx + kl * nx
+    mly = aly + kl * ny
+    mhx = ahx + kh * nx
+    mhy = ahy + kh * ny
+    if dl <= dh:
+        return True, mlx - xa, mly - ya, mlx - xb, mly - yb, dl, mhx - xa, mhy - ya, mhx - xb, \
+            mhy - yb, dh
+    return True, mhx - xa, mhy - ya, mhx - xb, mhy - yb, dh, mlx - xa, mly - ya, mlx - xb, \
+        mly - yb, dl
 
 
 @jit
@@ -182,12 +257,7 @@ def _segment_param(px, py, ax, ay, bx, by):
 def _nearest_ends(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y, s, t):
     """(s, t) of a parallel pair's nearest end and its foot on the other segment (the first on
     a tie), else (s, t) unchanged."""
-    ux = p1x - p0x
-    uy = p1y - p0y
-    vx = q1x - q0x
-    vy = q1y - q0y
-    cross = ux * vy - uy * vx
-    if cross * cross > PARALLEL * (ux * ux + uy * uy) * (vx * vx + vy * vy):
+    if not _parallel(p1x - p0x, p1y - p0y, q1x - q0x, q1y - q0y):
         return s, t
     f, d = _segment_param(p0x, p0y, q0x, q0y, q1x, q1y)
     best, bs, bt = d, 0.0, f

@@ -35,7 +35,7 @@ from __future__ import annotations
 from spinstrike.physics.jit import jit, jit_counted, jit_inline
 from spinstrike.physics.layout import INV_INERTIA, INV_MASS, OMEGA, VX, VY
 
-__all__ = ["apply_impulse", "relative_velocity", "relative_velocity_of", "resolve"]
+__all__ = ["apply_impulse", "relative_velocity", "relative_velocity_of", "resolve", "resolve_flat"]
 
 
 
@@ -161,3 +161,110 @@ def resolve(S, Pm, a, b, is_wall, nx, ny, oax, oay, ka, obx, oby, kb, e, mu, rot
                            mu, j, k_n, rotation)
         j += j2
     return j, jt, vn
+
+
+#: relative round-off of a normal velocity (``events.ROUNDOFF``, which imports this module)
+_ROUNDOFF = 1e-12
+#: end impacts of one flat contact before the rest is left to the next sweep
+FLAT_IMPACTS = 64
+
+
+@jit_inline
+def _end_velocity(S, a, b, nx, ny, oax, oay, obx, oby):
+    """Normal relative velocity at a point given relative to both centres, 0 below round-off."""
+    vn, _, scale = relative_velocity(S, a, b, False, nx, ny, oax, oay, 0.0, obx, oby, 0.0)
+    return 0.0 if abs(vn) <= _ROUNDOFF * scale else vn
+
+
+@jit_counted
+def resolve_flat(S, Pm, a, b, nx, ny, o1ax, o1ay, o1bx, o1by, o2ax, o2ay, o2bx, o2by, tie, e, mu,
+                 rotation, contact_friction):
+    """Resolve a flat rod-rod contact (``contacts.flat_ends``) in place: the limit of the
+    event-driven end impacts as the tilt goes to 0.
+
+    A rod landing at a small tilt hits at its lower end (point 1, the nearer), turns, hits at
+    the other (point 2), and so on until neither end approaches; the sequence, and so the
+    outcome, does not depend on the tilt as it goes to 0 (the time between impacts does). It is
+    applied here at once, each impact by the ``-e`` law at its end: momentum exact, no energy
+    gained. Points at an exact tie (``tie``: parallel to round-off, where neither end comes
+    first) are solved as one simultaneous two-point impact, ``-e`` at both, if both impulses come
+    out >= 0 (the symmetric outcome: a rod dropped exactly flat bounces without spin), else as
+    the sequence. Friction, if any, acts after the normal impulses at their centre of pressure.
+
+    Returns:
+        (j, jt, vn, ox_a, oy_a): total normal impulse, tangential impulse, the most approaching
+        end's normal velocity before (nothing applied unless < 0) and the centre of pressure
+        relative to a's centre.
+    """
+    vn1 = _end_velocity(S, a, b, nx, ny, o1ax, o1ay, o1bx, o1by)
+    vn2 = _end_velocity(S, a, b, nx, ny, o2ax, o2ay, o2bx, o2by)
+    vn0 = min(vn1, vn2)
+    if vn0 >= 0.0:
+        return 0.0, 0.0, vn0, 0.0, 0.0
+    c1a = o1ax * ny - o1ay * nx
+    c1b = o1bx * ny - o1by * nx
+    c2a = o2ax * ny - o2ay * nx
+    c2b = o2bx * ny - o2by * nx
+    k11 = _effective_inverse_mass(Pm, a, b, False, c1a, c1b, rotation)
+    k22 = _effective_inverse_mass(Pm, a, b, False, c2a, c2b, rotation)
+    if k11 <= 0.0 or k22 <= 0.0:
+        return 0.0, 0.0, vn0, 0.0, 0.0
+    j1 = 0.0
+    j2 = 0.0
+    done = False
+    if tie and vn1 < 0.0 and vn2 < 0.0:
+        k12 = Pm[a, INV_MASS] + Pm[b, INV_MASS]
+        if rotation:
+            k12 += c1a * c2a * Pm[a, INV_INERTIA] + c1b * c2b * Pm[b, INV_INERTIA]
+        det = k11 * k22 - k12 * k12
+        if det > 1e-9 * k11 * k22:
+            x1 = -(1.0 + e) * (k22 * vn1 - k12 * vn2) / det
+            x2 = -(1.0 + e) * (k11 * vn2 - k12 * vn1) / det
+            if x1 >= 0.0 and x2 >= 0.0:
+                apply_impulse(S, Pm, a, b, False, x1, nx, ny, c1a, c1b, rotation)
+                apply_impulse(S, Pm, a, b, False, x2, nx, ny, c2a, c2b, rotation)
+                j1 = x1
+                j2 = x2
+                done = True
+    if not done:
+        # the nearer end first if it approaches, then each end in turn while one approaches
+        second = vn1 >= 0.0
+        quiet = 0
+        for _ in range(FLAT_IMPACTS):
+            if second:
+                vn = _end_velocity(S, a, b, nx, ny, o2ax, o2ay, o2bx, o2by)
+                if vn < 0.0:
+                    j = -(1.0 + e) * vn / k22
+                    apply_impulse(S, Pm, a, b, False, j, nx, ny, c2a, c2b, rotation)
+                    j2 += j
+                    quiet = 0
+                else:
+                    quiet += 1
+            else:
+                vn = _end_velocity(S, a, b, nx, ny, o1ax, o1ay, o1bx, o1by)
+                if vn < 0.0:
+                    j = -(1.0 + e) * vn / k11
+                    apply_impulse(S, Pm, a, b, False, j, nx, ny, c1a, c1b, rotation)
+                    j1 += j
+                    quiet = 0
+                else:
+                    quiet += 1
+            if quiet == 2:
+                break
+            second = not second
+    j = j1 + j2
+    w1 = j1 / j if j > 0.0 else 0.5
+    oax = w1 * o1ax + (1.0 - w1) * o2ax
+    oay = w1 * o1ay + (1.0 - w1) * o2ay
+    jt = 0.0
+    if contact_friction and mu > 0.0 and j > 0.0:
+        obx = w1 * o1bx + (1.0 - w1) * o2bx
+        oby = w1 * o1by + (1.0 - w1) * o2by
+        rna = oax * ny - oay * nx
+        rnb = obx * ny - oby * nx
+        k_n = _effective_inverse_mass(Pm, a, b, False, rna, rnb, rotation)
+        if k_n > 0.0:
+            jt, jp = _friction(S, Pm, a, b, False, nx, ny, oax, oay, 0.0, obx, oby, 0.0, rna,
+                               rnb, mu, j, k_n, rotation)
+            j += jp
+    return j, jt, vn0, oax, oay

@@ -319,6 +319,15 @@ def render(results: dict, long_results: list[tuple[str, dict]]) -> str:
         "shorten the substep; they are checked again after every substep, so a body that got "
         "faster brings its pairs back and the settle plans again "
         "(`tests/physics/test_settle_fixes.py`). Found by an adversarial walk of the engine.",
+        "* Near-parallel rod-on-rod impacts jumped at the flat-contact threshold (cores "
+        "parallel to ~1e-6 rad): a rod falling on a static one offset by 0.3 m ended spinning "
+        "at -2.76 rad/s for tilts below 1e-6 rad (one impulse through the overlap's middle), "
+        "+0.21 at 1.005-1.02e-6 (settled steps) and +0.46 above (event-driven, the physical "
+        "value). A flat rod-rod contact is now the limit of the event-driven end impacts as "
+        "the tilt goes to 0: the overlap's ends hit in turn, the nearer first; +-0.46258 for "
+        "every tilt 1e-8..1e-5, none settled, p and L kept, no energy gained "
+        "(`tests/physics/test_flat_contacts.py`, docs/design.md §2). Found by an adversarial "
+        "walk of the engine.",
         "* A body touching a cushion was refused at construction when `x + r` rounded past the "
         "edge.",
         "* Env `scene=` arguments (missing file, directory, malformed YAML, wrong types) "
