@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 
 from spinstrike.physics.contacts import capsule_capsule, capsule_wall, wall_frame
-from spinstrike.physics.impulse import relative_velocity_of
+from spinstrike.physics.impulse import ROUNDOFF, relative_velocity_of
 from spinstrike.physics.jit import jit, jit_counted, jit_inline
 from spinstrike.physics.layout import (
     ANGLE,
@@ -55,8 +55,6 @@ __all__ = ["ROUNDOFF", "far_apart", "geometry", "pair_bodies", "pair_geometry", 
 
 
 _BRACKET_ITERATIONS = 200
-#: relative size of round-off in a normal velocity: |vn| below this times the speeds counts as 0
-ROUNDOFF = 1e-12
 
 
 @jit

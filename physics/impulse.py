@@ -35,7 +35,8 @@ from __future__ import annotations
 from spinstrike.physics.jit import jit, jit_counted, jit_inline
 from spinstrike.physics.layout import INV_INERTIA, INV_MASS, OMEGA, VX, VY
 
-__all__ = ["apply_impulse", "relative_velocity", "relative_velocity_of", "resolve", "resolve_flat"]
+__all__ = ["ROUNDOFF", "apply_impulse", "relative_velocity", "relative_velocity_of", "resolve",
+           "resolve_flat"]
 
 
 
@@ -163,8 +164,9 @@ def resolve(S, Pm, a, b, is_wall, nx, ny, oax, oay, ka, obx, oby, kb, e, mu, rot
     return j, jt, vn
 
 
-#: relative round-off of a normal velocity (``events.ROUNDOFF``, which imports this module)
-_ROUNDOFF = 1e-12
+#: relative round-off of a normal velocity: below it times the point speeds, a pair neither
+#: approaches nor separates (also ``events.ROUNDOFF``)
+ROUNDOFF = 1e-12
 #: end impacts of one flat contact before the rest is left to the next sweep
 FLAT_IMPACTS = 64
 
@@ -173,7 +175,7 @@ FLAT_IMPACTS = 64
 def _end_velocity(S, a, b, nx, ny, oax, oay, obx, oby):
     """Normal relative velocity at a point given relative to both centres, 0 below round-off."""
     vn, _, scale = relative_velocity(S, a, b, False, nx, ny, oax, oay, 0.0, obx, oby, 0.0)
-    return 0.0 if abs(vn) <= _ROUNDOFF * scale else vn
+    return 0.0 if abs(vn) <= ROUNDOFF * scale else vn
 
 
 @jit_counted
