@@ -23,6 +23,7 @@ from spinstrike.physics.layout import (
     CHECKPOINT,
     CONTACT,
     FORCE_COLUMNS,
+    FRICTION_DECEL,
     FX,
     FY,
     HALF_LENGTH,
@@ -32,12 +33,14 @@ from spinstrike.physics.layout import (
     OMEGA,
     PARAM_COLUMNS,
     RADIUS,
+    SPIN_DECEL,
     STATE_COLUMNS,
     VX,
     VY,
     X,
     Y,
 )
+from spinstrike.physics.motion import flight
 
 TOL = 1e-9
 HALF = 1.0  # the table's half sizes (cushions), m
@@ -79,15 +82,16 @@ def _ends(x, y, ang, h):
             (x - h * np.cos(ang), y - h * np.sin(ang)))
 
 
-def _gap(a, b, t, wall=-1):
-    """The pair's gap at times t, from the flights alone; crossed cores give -inf."""
+def _gap(a, b, t, wall=-1, poses=None):
+    """The pair's gap at times t, from the flights alone (or ``poses``, each body's (x, y,
+    angle) at those times); crossed cores give -inf."""
     t = np.asarray(t, float)
-    xa, ya, anga = _pose(a, t)
+    xa, ya, anga = _pose(a, t) if poses is None else poses[0]
     ha = a.get("h", 0.0)
     if wall >= 0:  # the left cushion, x = -HALF
         (p0x, _), (p1x, _) = _ends(xa, ya, anga, ha)
         return np.minimum(p0x, p1x) + HALF - a["r"]
-    xb, yb, angb = _pose(b, t)
+    xb, yb, angb = _pose(b, t) if poses is None else poses[1]
     hb = b.get("h", 0.0)
     d = np.minimum.reduce(
         [_to_segment(px, py, xa, ya, anga, ha) for px, py in _ends(xb, yb, angb, hb)]
@@ -212,6 +216,34 @@ def test_the_curved_step_keeps_the_gap_above_its_level(pair, depth):
     assert 0.0 <= s <= span
     if s > 0.0:
         g = _gap(rod, other, np.linspace(0.0, s, 2001), wall)
+        assert g.min() > low - 1e-15 * (1 + abs(low)), (s, g.min(), low)
+
+
+@given(_pairs(), st.floats(0.0, 30.0), st.floats(0.0, 300.0), st.floats(0.0, 1.0))
+def test_the_curved_step_keeps_the_gap_above_its_level_on_the_cloth(pair, decel, spin_decel,
+                                                                     depth):
+    """The same under cloth friction (``table_friction``: each body slows at ``decel`` along
+    its velocity and its spin at ``spin_decel`` until they stop), the flights sampled by
+    ``motion.flight``."""
+    rod, other, wall = pair
+    g0 = float(_gap(rod, other, 0.0, wall))
+    if not np.isfinite(g0):
+        return
+    low = g0 - 1e-10 - depth * 1e-6
+    bodies = [rod] if wall >= 0 else [rod, other]
+    S, Pm, F = _arrays(bodies)
+    F[:] = 0.0  # (sliding bodies are not driven)
+    Pm[:, FRICTION_DECEL] = decel
+    Pm[:, SPIN_DECEL] = spin_decel
+    span = 0.05
+    s = events.curved_step(S, Pm, F, 0, 0 if wall >= 0 else 1, wall, HALF, HALF, 0.0, span, low,
+                           True, True)
+    assert 0.0 <= s <= span
+    if s > 0.0:
+        ts = np.linspace(0.0, s, 1001)
+        poses = [np.array([flight(S, Pm, F, i, t, True, True)[:3] for t in ts]).T
+                 for i in range(len(bodies))]
+        g = _gap(rod, other, ts, wall, poses)
         assert g.min() > low - 1e-15 * (1 + abs(low)), (s, g.min(), low)
 
 
