@@ -1,7 +1,7 @@
 """RodSpin-v0 at restitution 0, from the user's side: the striker left on the rod is pushed
 round by it (a sustained contact, the limit of a Zeno run of plastic impacts), which the exact
 solver holds as a constraint (``physics.solvers._hold``) instead of settling it in fixed
-substeps. Over many seeded random strikes: nearly nothing settled, finite, linear and angular
+substeps. Over many seeded random strikes: nothing settled, finite, linear and angular
 momentum kept to round-off (angular momentum: in an unsettled strike), no energy gained over the
 launch, no overlap at the end; and the spin of strikes of sustained contact against an
 independent integration (the fixed-step solver, 16384 substeps a chunk)."""
