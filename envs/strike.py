@@ -833,8 +833,11 @@ class RodSpinEnv(_StrikeEnv):
     search, ~250 contacts), so with ``goal='max'`` a reward above 1 is possible;
     ``info['n_contacts']`` shows such strikes. The exact solver holds that sustained contact
     as a frictionless constraint (``physics.solvers._hold``; it settled it in fixed substeps
-    before, ~4x the time, ``info['fallback']``), within ~2e-4 of the converged spin; a strike
-    it still settles (rare: events run out) uses the scene's ``settle_substep`` of 1e-5 s (the
+    before, ~4x the time, ``info['fallback']``), within ~2e-4 of the converged spin. Strikes where
+    the rod, turning fast, left the striker slowly ran out of events in stalled time-of-impact
+    searches and were settled (1 in 60 random strikes); a stalled search now adds a
+    second-order bound (``physics.events.curved_step``) and none of those settle. A strike it
+    still settles (events run out) uses the scene's ``settle_substep`` of 1e-5 s (the
     1 ms default of other scenes was 25 % off there, and a search over actions found that
     error). A ``solver`` argument replaces the scene's block: give it a ``settle_substep`` too.
 

@@ -112,9 +112,10 @@ class ExactSolver(_Model):
         max_events: events (impacts and checkpoints) per batch element per ``step`` before the
             rest of the step is integrated by the fixed-step contact solver (the element is then
             flagged in ``world.last_step.fallback``). Default 1000.
-        max_iterations: conservative-advancement iterations per time-of-impact search before the
-            search reports a safe checkpoint instead (the world advances to it and searches
-            again). Default 64.
+        max_iterations: conservative-advancement iterations per time-of-impact search before it
+            adds a second-order bound (``events.curved_step``: beside a fast-turning rod the
+            first-order steps get tiny) for up to as many more, and then reports a safe
+            checkpoint instead (the world advances to it and searches again). Default 64.
         zeno_speed: an impact closing slower than this (m/s) counts as a *resting* bounce.
             Default 1e-3 m/s.
         zeno_impacts: after this many resting bounces in one step (an inelastic body pinned by a
