@@ -15,7 +15,9 @@ is the middle of the overlap, so a flat impact gets one impulse through the midd
 arbitrary end; the gap stays the smallest distance (at an end), so it is continuous. Two flat rods
 are resolved at both ends of their overlap instead (:func:`flat_ends`, ``impulse.resolve_flat``:
 the end impacts a slightly tilted rod makes, in turn), so the outcome does not jump at the
-threshold; all the callers share one parallel test (:func:`_parallel`).
+threshold; all the callers share one parallel test (:func:`_parallel`). A free rod flat on a
+cushion likewise, at its core's two ends (:func:`flat_wall_ends`, one test with
+:func:`capsule_wall`'s: :func:`_flat_on_wall`).
 
 Crossed cores: two rods whose core segments cross are at core distance 0, and the crossing gives
 no normal. Their gap is instead minus their depth (the smallest translation that uncrosses them:
@@ -34,7 +36,7 @@ import math
 from spinstrike.physics.jit import jit
 
 __all__ = ["capsule_capsule", "capsule_wall", "closest_segment_params", "core_segment",
-           "cores_cross", "flat_ends", "wall_frame"]
+           "cores_cross", "flat_ends", "flat_wall_ends", "wall_frame"]
 
 #: squared sine of the angle below which two segments count as parallel
 PARALLEL = 1e-12
@@ -400,6 +402,45 @@ def wall_frame(wall, half_w, half_h):
 
 
 @jit
+def _flat_on_wall(d0, d1, h):
+    """Whether a rod of half-length ``h`` whose core ends lie ``d0``, ``d1`` from a cushion
+    lies flat on it (parallel to ``PARALLEL``): the one test of :func:`capsule_wall` and
+    :func:`flat_wall_ends`, so that they agree on which contacts are flat down to round-off."""
+    diff = d0 - d1
+    return h > 0.0 and diff * diff <= PARALLEL * 4.0 * h * h
+
+
+@jit
+def flat_wall_ends(x, y, angle, h, r, wall, half_w, half_h):
+    """The two ends of a rod lying flat on cushion ``wall`` (:func:`capsule_wall`'s flat case),
+    as contact points: the points a slightly tilted rod touches at (the event-driven solver's
+    end impacts), each on the cushion's normal midway between the rod's surface and the
+    cushion, relative to the rod's centre.
+
+    Returns:
+        (flat, o1x, o1y, d1, o2x, o2y, d2): ``flat`` is False when the rod is not flat on the
+        cushion (or is a disk); else the two points, 1 the nearer end (core distance from the
+        cushion ``d1 <= d2``; the first end on a tie).
+    """
+    p0x, p0y, p1x, p1y = core_segment(x, y, angle, h)
+    ix, iy, off = wall_frame(wall, half_w, half_h)
+    d0 = ix * p0x + iy * p0y + off
+    d1 = ix * p1x + iy * p1y + off
+    if not _flat_on_wall(d0, d1, h):
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    # the normal from the rod to the cushion is -i; the point lies r + (d - r) / 2 along it
+    k0 = r + 0.5 * (d0 - r)
+    k1 = r + 0.5 * (d1 - r)
+    o0x = p0x - k0 * ix - x
+    o0y = p0y - k0 * iy - y
+    o1x = p1x - k1 * ix - x
+    o1y = p1y - k1 * iy - y
+    if d0 <= d1:
+        return True, o0x, o0y, d0, o1x, o1y, d1
+    return True, o1x, o1y, d1, o0x, o0y, d0
+
+
+@jit
 def capsule_wall(x, y, angle, h, r, wall, half_w, half_h, pinned=False):
     """Gap, unit normal (body to cushion) and closest core point of a capsule and a cushion.
 
@@ -421,8 +462,7 @@ def capsule_wall(x, y, angle, h, r, wall, half_w, half_h, pinned=False):
     # distance of each core end from the cushion, measured into the table
     d0 = ix * p0x + iy * p0y + off
     d1 = ix * p1x + iy * p1y + off
-    diff = d0 - d1
-    if h > 0.0 and not pinned and diff * diff <= PARALLEL * 4.0 * h * h:
+    if not pinned and _flat_on_wall(d0, d1, h):
         # flat on the cushion: the contact point is the middle (an impact through the middle),
         # the gap the nearer end's, so that it does not jump when the rod turns out of parallel
         # (the middle's distance hid up to sqrt(PARALLEL) h of penetration)

@@ -172,16 +172,31 @@ FLAT_IMPACTS = 64
 
 
 @jit_inline
-def _end_velocity(S, a, b, nx, ny, oax, oay, obx, oby):
+def _end_velocity(S, a, b, is_wall, nx, ny, oax, oay, obx, oby):
     """Normal relative velocity at a point given relative to both centres, 0 below round-off."""
-    vn, _, scale = relative_velocity(S, a, b, False, nx, ny, oax, oay, 0.0, obx, oby, 0.0)
+    vn, _, scale = relative_velocity(S, a, b, is_wall, nx, ny, oax, oay, 0.0, obx, oby, 0.0)
     return 0.0 if abs(vn) <= ROUNDOFF * scale else vn
 
 
+@jit_inline
+def _coupling(Pm, a, b, is_wall, c1a, c1b, c2a, c2b, rotation):
+    """Off-diagonal term of two contact points' effective inverse mass along one normal: the
+    normal velocity at point 1 per unit impulse at point 2 (``c* = r* x n`` at each point)."""
+    k = Pm[a, INV_MASS]
+    if rotation:
+        k += c1a * c2a * Pm[a, INV_INERTIA]
+    if not is_wall:
+        k += Pm[b, INV_MASS]
+        if rotation:
+            k += c1b * c2b * Pm[b, INV_INERTIA]
+    return k
+
+
 @jit_counted
-def resolve_flat(S, Pm, a, b, nx, ny, o1ax, o1ay, o1bx, o1by, o2ax, o2ay, o2bx, o2by, tie, e, mu,
-                 rotation, contact_friction):
-    """Resolve a flat rod-rod contact (``contacts.flat_ends``) in place: the limit of the
+def resolve_flat(S, Pm, a, b, is_wall, nx, ny, o1ax, o1ay, o1bx, o1by, o2ax, o2ay, o2bx, o2by,
+                 tie, e, mu, rotation, contact_friction):
+    """Resolve a flat rod-rod contact (``contacts.flat_ends``), or a rod flat on a cushion
+    (``is_wall``: ``contacts.flat_wall_ends``, b's points unused), in place: the limit of the
     event-driven end impacts as the tilt goes to 0.
 
     A rod landing at a small tilt hits at its lower end (point 1, the nearer), turns, hits at
@@ -198,8 +213,8 @@ def resolve_flat(S, Pm, a, b, nx, ny, o1ax, o1ay, o1bx, o1by, o2ax, o2ay, o2bx, 
         end's normal velocity before (nothing applied unless < 0) and the centre of pressure
         relative to a's centre.
     """
-    vn1 = _end_velocity(S, a, b, nx, ny, o1ax, o1ay, o1bx, o1by)
-    vn2 = _end_velocity(S, a, b, nx, ny, o2ax, o2ay, o2bx, o2by)
+    vn1 = _end_velocity(S, a, b, is_wall, nx, ny, o1ax, o1ay, o1bx, o1by)
+    vn2 = _end_velocity(S, a, b, is_wall, nx, ny, o2ax, o2ay, o2bx, o2by)
     vn0 = min(vn1, vn2)
     if vn0 >= 0.0:
         return 0.0, 0.0, vn0, 0.0, 0.0
@@ -207,24 +222,22 @@ def resolve_flat(S, Pm, a, b, nx, ny, o1ax, o1ay, o1bx, o1by, o2ax, o2ay, o2bx, 
     c1b = o1bx * ny - o1by * nx
     c2a = o2ax * ny - o2ay * nx
     c2b = o2bx * ny - o2by * nx
-    k11 = _effective_inverse_mass(Pm, a, b, False, c1a, c1b, rotation)
-    k22 = _effective_inverse_mass(Pm, a, b, False, c2a, c2b, rotation)
+    k11 = _effective_inverse_mass(Pm, a, b, is_wall, c1a, c1b, rotation)
+    k22 = _effective_inverse_mass(Pm, a, b, is_wall, c2a, c2b, rotation)
     if k11 <= 0.0 or k22 <= 0.0:
         return 0.0, 0.0, vn0, 0.0, 0.0
     j1 = 0.0
     j2 = 0.0
     done = False
     if tie and vn1 < 0.0 and vn2 < 0.0:
-        k12 = Pm[a, INV_MASS] + Pm[b, INV_MASS]
-        if rotation:
-            k12 += c1a * c2a * Pm[a, INV_INERTIA] + c1b * c2b * Pm[b, INV_INERTIA]
+        k12 = _coupling(Pm, a, b, is_wall, c1a, c1b, c2a, c2b, rotation)
         det = k11 * k22 - k12 * k12
         if det > 1e-9 * k11 * k22:
             x1 = -(1.0 + e) * (k22 * vn1 - k12 * vn2) / det
             x2 = -(1.0 + e) * (k11 * vn2 - k12 * vn1) / det
             if x1 >= 0.0 and x2 >= 0.0:
-                apply_impulse(S, Pm, a, b, False, x1, nx, ny, c1a, c1b, rotation)
-                apply_impulse(S, Pm, a, b, False, x2, nx, ny, c2a, c2b, rotation)
+                apply_impulse(S, Pm, a, b, is_wall, x1, nx, ny, c1a, c1b, rotation)
+                apply_impulse(S, Pm, a, b, is_wall, x2, nx, ny, c2a, c2b, rotation)
                 j1 = x1
                 j2 = x2
                 done = True
@@ -234,19 +247,19 @@ def resolve_flat(S, Pm, a, b, nx, ny, o1ax, o1ay, o1bx, o1by, o2ax, o2ay, o2bx, 
         quiet = 0
         for _ in range(FLAT_IMPACTS):
             if second:
-                vn = _end_velocity(S, a, b, nx, ny, o2ax, o2ay, o2bx, o2by)
+                vn = _end_velocity(S, a, b, is_wall, nx, ny, o2ax, o2ay, o2bx, o2by)
                 if vn < 0.0:
                     j = -(1.0 + e) * vn / k22
-                    apply_impulse(S, Pm, a, b, False, j, nx, ny, c2a, c2b, rotation)
+                    apply_impulse(S, Pm, a, b, is_wall, j, nx, ny, c2a, c2b, rotation)
                     j2 += j
                     quiet = 0
                 else:
                     quiet += 1
             else:
-                vn = _end_velocity(S, a, b, nx, ny, o1ax, o1ay, o1bx, o1by)
+                vn = _end_velocity(S, a, b, is_wall, nx, ny, o1ax, o1ay, o1bx, o1by)
                 if vn < 0.0:
                     j = -(1.0 + e) * vn / k11
-                    apply_impulse(S, Pm, a, b, False, j, nx, ny, c1a, c1b, rotation)
+                    apply_impulse(S, Pm, a, b, is_wall, j, nx, ny, c1a, c1b, rotation)
                     j1 += j
                     quiet = 0
                 else:
@@ -264,9 +277,9 @@ def resolve_flat(S, Pm, a, b, nx, ny, o1ax, o1ay, o1bx, o1by, o2ax, o2ay, o2bx, 
         oby = w1 * o1by + (1.0 - w1) * o2by
         rna = oax * ny - oay * nx
         rnb = obx * ny - oby * nx
-        k_n = _effective_inverse_mass(Pm, a, b, False, rna, rnb, rotation)
+        k_n = _effective_inverse_mass(Pm, a, b, is_wall, rna, rnb, rotation)
         if k_n > 0.0:
-            jt, jp = _friction(S, Pm, a, b, False, nx, ny, oax, oay, 0.0, obx, oby, 0.0, rna,
+            jt, jp = _friction(S, Pm, a, b, is_wall, nx, ny, oax, oay, 0.0, obx, oby, 0.0, rna,
                                rnb, mu, j, k_n, rotation)
             j += jp
     return j, jt, vn0, oax, oay

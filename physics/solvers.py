@@ -51,7 +51,7 @@ from spinstrike.physics.calendar import (
     watch_insert,
     watch_remove,
 )
-from spinstrike.physics.contacts import cores_cross, flat_ends, wall_frame
+from spinstrike.physics.contacts import cores_cross, flat_ends, flat_wall_ends, wall_frame
 from spinstrike.physics.events import (
     far_apart,
     geometry,
@@ -132,8 +132,9 @@ MAX_SETTLE_SUBSTEPS = 1_000_000
 #: most positional-correction sweeps of a settle's last substep, the one whose overlap the step
 #: hands on (the other substeps stop at ``MAX_SWEEPS``; see :func:`_settle`)
 MAX_FINAL_SEPARATE_SWEEPS = 4096
-#: a flat rod-rod contact's two ends are simultaneous (neither lands first) when their core
-#: distances differ by less than this times the two half-lengths: parallel to ~1e-12 rad, the
+#: a flat contact's two ends (rod-rod, or a rod on a cushion) are simultaneous (neither lands
+#: first) when their core distances differ by less than this times the two half-lengths (a
+#: rod's own twice on a cushion): parallel to ~1e-12 rad, the
 #: round-off of the ends' coordinates
 FLAT_TIE = 1e-12
 
@@ -229,9 +230,19 @@ def _contact(p, S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_f
             S[a, X], S[a, Y], S[a, ANGLE], Pm[a, HALF_LENGTH], Pm[a, RADIUS],
             S[b, X], S[b, Y], S[b, ANGLE], Pm[b, HALF_LENGTH], Pm[b, RADIUS], nx, ny)
         if flat:
-            return _flat_contact(p, S, Pm, a, b, MAT, nx, ny, o1ax, o1ay, o1bx, o1by, d1, o2ax,
-                                 o2ay, o2bx, o2by, d2, zeno_speed, t, rotation,
+            return _flat_contact(p, S, Pm, a, b, False, MAT, nx, ny, o1ax, o1ay, o1bx, o1by, d1,
+                                 o2ax, o2ay, o2bx, o2by, d2, zeno_speed, t, rotation,
                                  contact_friction, changed, cpair, crec, stats)
+    if g <= slop and wall >= 0 and Pm[a, INV_MASS] != 0.0:
+        # a free rod flat on a cushion: its core's two ends (a pinned one keeps capsule_wall's
+        # nearer end, its middle being its pivot)
+        flat, o1x, o1y, d1, o2x, o2y, d2 = flat_wall_ends(
+            S[a, X], S[a, Y], S[a, ANGLE], Pm[a, HALF_LENGTH], Pm[a, RADIUS], wall, hw[HALF_W],
+            hw[HALF_H])
+        if flat:
+            return _flat_contact(p, S, Pm, a, a, True, MAT, nx, ny, o1x, o1y, o1x, o1y, d1, o2x,
+                                 o2y, o2x, o2y, d2, zeno_speed, t, rotation, contact_friction,
+                                 changed, cpair, crec, stats)
     if g <= slop and vn < 0.0:
         px = S[a, X] + oax + ka * nx
         py = S[a, Y] + oay + ka * ny
@@ -246,17 +257,18 @@ def _contact(p, S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_f
 
 
 @jit_inline
-def _flat_contact(p, S, Pm, a, b, MAT, nx, ny, o1ax, o1ay, o1bx, o1by, d1, o2ax, o2ay, o2bx,
-                  o2by, d2, zeno_speed, t, rotation, contact_friction, changed, cpair, crec,
+def _flat_contact(p, S, Pm, a, b, is_wall, MAT, nx, ny, o1ax, o1ay, o1bx, o1by, d1, o2ax, o2ay,
+                  o2bx, o2by, d2, zeno_speed, t, rotation, contact_friction, changed, cpair, crec,
                   stats):
-    """:func:`_contact` for a flat rod-rod pair within ``slop`` (``contacts.flat_ends``): its two
-    ends' impacts in turn, as the event-driven solver meets them at any small tilt
+    """:func:`_contact` for a flat rod-rod pair within ``slop`` (``contacts.flat_ends``), or a
+    free rod flat on a cushion (``is_wall``, b = a: ``contacts.flat_wall_ends``): its two ends'
+    impacts in turn, as the event-driven solver meets them at any small tilt
     (``impulse.resolve_flat``), so the outcome does not jump at the flat threshold; it is hit
     when either end approaches. Recorded once, at the impulses' centre of pressure."""
     tie = d2 - d1 <= FLAT_TIE * (Pm[a, HALF_LENGTH] + Pm[b, HALF_LENGTH])
-    j, jt, vn0, ox, oy = resolve_flat(S, Pm, a, b, nx, ny, o1ax, o1ay, o1bx, o1by, o2ax, o2ay,
-                                      o2bx, o2by, tie, MAT[p, RESTITUTION], MAT[p, FRICTION],
-                                      rotation, contact_friction)
+    j, jt, vn0, ox, oy = resolve_flat(S, Pm, a, b, is_wall, nx, ny, o1ax, o1ay, o1bx, o1by, o2ax,
+                                      o2ay, o2bx, o2by, tie, MAT[p, RESTITUTION],
+                                      MAT[p, FRICTION], rotation, contact_friction)
     if vn0 >= 0.0:
         return False, 0
     _record(p, t, S[a, X] + ox, S[a, Y] + oy, nx, ny, j, jt, cpair, crec, stats)

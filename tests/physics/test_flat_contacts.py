@@ -1,5 +1,5 @@
-"""Near-parallel rod-on-rod impacts across the flat-contact threshold (``contacts.PARALLEL``:
-cores parallel to ~1e-6 rad count as flat).
+"""Near-parallel rod-on-rod and rod-on-cushion impacts across the flat-contact threshold
+(``contacts.PARALLEL``: cores parallel to ~1e-6 rad count as flat).
 
 A rod landing on another at a small tilt hits at the lower end of their overlap, turns, hits at
 the other end, and so on until neither end approaches. Rigid bodies with Newton restitution at
@@ -122,3 +122,123 @@ def test_an_exactly_flat_landing_is_one_simultaneous_impact_within_the_one_sided
     if static is True:
         assert w.state.omegas[0, 0] == pytest.approx(0.0, abs=1e-12)
         assert w.state.velocities[0, 0, 1] == pytest.approx(e, abs=1e-12)
+
+
+# A rod flat on a cushion (the infinite-mass body): the same limit at the rod's two core ends.
+# It was one impulse through the middle, which no tilt produces: a 1 m rod falling at 1 m/s onto
+# the bottom cushion (e = 1) left spinning at +-0.14055 rad/s for every tilt above 1e-6 rad and
+# at 0 below it; at 1.0-1.01e-6 the step was settled (+-1e-5 rad/s), and at e = 0.5 the settled
+# band reached 2e-6 (-0.43 rad/s, bouncing at 0.62 m/s where the end impacts give 0.34).
+
+#: (restitution, spin before, rad/s)
+WALL_CASES = {"e = 1": (1.0, 0.0), "e = 0.5": (0.5, 0.0), "e = 1, spinning": (1.0, 0.3),
+              "e = 0.5, spinning": (0.5, 0.3)}
+#: the falling rod's centre above the cushion's contact height, m, and its speed, m/s
+DROP, SPEED = 0.05, 1.0
+
+
+def _wall_world(case: str, tilt: float) -> physics.World:
+    """A 1 m, 20 mm, 1 kg rod falling onto the bottom cushion of a walled 1.2 m x 0.8 m table,
+    turned so that it is at about ``tilt`` (same sign) when it lands."""
+    e, omega = WALL_CASES[case]
+    rod = dict(name="rod", shape="rod", length=1.0, thickness=0.02, mass=1.0,
+               position=[0.05, -0.4 + 0.01 + DROP], angle=tilt - omega * DROP / SPEED,
+               velocity=[0.0, -SPEED], omega=omega)
+    return physics.World(dict(table=dict(size=[1.2, 0.8]), effects=["rotation", "walls"],
+                              materials=dict(restitution=e), bodies=[rod]))
+
+
+def _wall_end_impacts(case: str, sign: float) -> tuple[float, float]:
+    """The tilt -> 0 limit of the rod's spin and vertical velocity on the cushion: -e impacts
+    at its core's ends in turn (the lower first: the left for sign +1) until neither approaches
+    (plain Python)."""
+    e, omega = WALL_CASES[case]
+    w = _wall_world(case, 0.0)
+    im, ii = w.params[0, 0, INV_MASS], w.params[0, 0, INV_INERTIA]
+    ends = [-0.5, 0.5] if sign > 0 else [0.5, -0.5]
+    vy, wz = -SPEED, omega
+    quiet, i = 0, 0
+    while quiet < 2:
+        x = ends[i]
+        u = vy + wz * x  # the end's velocity along +y, into the table: < 0 approaches
+        if u < -1e-14:
+            j = -(1.0 + e) * u / (im + x * x * ii)
+            vy, wz = vy + j * im, wz + j * x * ii
+            quiet = 0
+        else:
+            quiet += 1
+        i = 1 - i
+    return wz, vy
+
+
+def _run_on_cushion(world: physics.World) -> None:
+    """Ten steps of 10 ms: none settled, no overlap, no energy gained; only the cushion's
+    normal component (y) of the momentum changes."""
+    e0 = world.kinetic_energy()[0]
+    for _ in range(10):
+        world.step(0.01)
+        assert world.last_step.fallback[0] == 0
+        assert world.gaps()[0].min() >= -world.tolerance
+    assert world.kinetic_energy()[0] <= e0 * (1.0 + 1e-12)
+    assert world.state.velocities[0, 0, 0] == 0.0
+
+
+@pytest.mark.parametrize("case", list(WALL_CASES))
+def test_a_rod_landing_near_flat_on_a_cushion_matches_the_end_impacts_limit(case):
+    for sign in (1.0, -1.0):
+        spin, vy = _wall_end_impacts(case, sign)
+        for tilt in TILTS:
+            w = _wall_world(case, sign * tilt)
+            _run_on_cushion(w)
+            bound = 1e-8 + tilt
+            assert w.state.omegas[0, 0] == pytest.approx(spin, abs=bound), (sign * tilt)
+            assert w.state.velocities[0, 0, 1] == pytest.approx(vy, abs=bound), (sign * tilt)
+
+
+@pytest.mark.parametrize("e", [1.0, 0.5])
+def test_a_rod_dropped_exactly_flat_on_a_cushion_bounces_flat(e):
+    # both ends land at once: the simultaneous impact, a symmetric bounce without spin (what
+    # the impulse through the middle gave too; a guard for the tie)
+    w = _wall_world("e = 1" if e == 1.0 else "e = 0.5", 0.0)
+    _run_on_cushion(w)
+    assert w.state.omegas[0, 0] == pytest.approx(0.0, abs=1e-12)
+    assert w.state.velocities[0, 0, 1] == pytest.approx(e * SPEED, abs=1e-12)
+
+
+# A flat pair's approach was judged at its contact point, the middle, for the time of impact:
+# a rod lying flat on a cushion (or a rod) and turning has its middle at rest along the normal
+# while one end goes in, so the contact went unseen until the tilt left the ~1e-6 rad band;
+# the step stalled and was settled, the end 5e-4 m deep when a 1 ms step's settle met it (1 m
+# rod at 1 rad/s). It is met at once now, an event like any other.
+
+def _lying(omega: float, on: str, vy: float) -> physics.World:
+    rod = dict(name="rod", shape="rod", length=1.0, thickness=0.02, mass=1.0, angle=0.0,
+               velocity=[0.0, vy], omega=omega)
+    if on == "cushion":
+        bodies = [dict(rod, position=[0.05, -0.39])]
+    else:
+        bodies = [dict(rod, position=[0.0, 0.02]),
+                  dict(name="base", shape="rod", length=1.0, thickness=0.02, static=True,
+                       position=[0.0, 0.0], angle=0.0)]
+    return physics.World(dict(table=dict(size=[1.2, 0.8]), effects=["rotation", "walls"],
+                              materials=dict(restitution=0.5), bodies=bodies))
+
+
+@pytest.mark.parametrize("on", ["cushion", "static rod"])
+@pytest.mark.parametrize("omega,vy", [(1.0, 0.0), (-0.01, 0.0), (1.0, 0.1)])
+def test_a_flat_pair_turning_into_contact_is_met_at_once(on, omega, vy):
+    # the middle at rest (vy = 0) or leaving (vy = 0.1 < h omega) while an end goes in
+    w = _lying(omega, on, vy)
+    e0 = w.kinetic_energy()[0]
+    c = w.step(0.001)
+    assert w.last_step.fallback[0] == 0
+    assert len(c) == 1 and c.time[0] <= 1e-12
+    # the end going in (the left for omega > 0) takes the -e impact, the other then leaves
+    x = -0.5 if omega > 0 else 0.5
+    assert c.point[0, 0] == pytest.approx(w.state.positions[0, 0, 0] + x, abs=1e-3)
+    assert w.gaps()[0].min() >= -w.tolerance
+    for _ in range(20):
+        w.step(0.001)
+        assert w.last_step.fallback[0] == 0
+        assert w.gaps()[0].min() >= -w.tolerance
+    assert w.kinetic_energy()[0] <= e0 * (1.0 + 1e-12)

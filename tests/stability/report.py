@@ -328,6 +328,19 @@ def render(results: dict, long_results: list[tuple[str, dict]]) -> str:
         "every tilt 1e-8..1e-5, none settled, p and L kept, no energy gained "
         "(`tests/physics/test_flat_contacts.py`, docs/design.md §2). Found by an adversarial "
         "walk of the engine.",
+        "* A rod landing near flat on a cushion jumped at the flat-contact threshold the same "
+        "way (cushions parallel to ~1e-6 rad): a 1 m rod falling at 1 m/s onto one, e = 1, "
+        "ended spinning at +-0.14055 rad/s for tilts above 1e-6 rad, at 0 below (one impulse "
+        "through its middle), and at 1.0-1.01e-6 its step was settled; at e = 0.5 the settled "
+        "band reached 2e-6 (-0.43 rad/s, bouncing at 0.62 m/s where the end impacts give 0.34)."
+        " A free rod flat on a cushion is now resolved at its core's two ends like a flat rod "
+        "pair: +-0.14055 for every tilt 1e-8..1e-3, none settled. A flat pair's approach was "
+        "also judged at its middle by the time of impact: a rod lying flat on a cushion or a "
+        "rod and turning (its middle at rest, an end going in) went unseen until the tilt left "
+        "the band, the step stalled and was settled, the end 5e-4 m deep when the settle met it"
+        " (1 m rod at 1 rad/s, 1 ms step); it now approaches when either end does "
+        "(`events.flat_approach`) and is met at once (`tests/physics/test_flat_contacts.py`, "
+        "docs/design.md §2).",
         "* A body touching a cushion was refused at construction when `x + r` rounded past the "
         "edge.",
         "* Env `scene=` arguments (missing file, directory, malformed YAML, wrong types) "
