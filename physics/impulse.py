@@ -90,16 +90,23 @@ def apply_impulse(S, Pm, a, b, is_wall, j, dx, dy, cross_a, cross_b, rotation):
 
 
 @jit_inline
-def _effective_inverse_mass(Pm, a, b, is_wall, cross_a, cross_b, rotation):
-    """``1/m_a + 1/m_b + (r_a x d)^2 / I_a + (r_b x d)^2 / I_b``."""
+def _coupling(Pm, a, b, is_wall, c1a, c1b, c2a, c2b, rotation):
+    """Off-diagonal term of two contact points' effective inverse mass along one normal: the
+    normal velocity at point 1 per unit impulse at point 2 (``c* = r* x n`` at each point)."""
     k = Pm[a, INV_MASS]
     if rotation:
-        k += cross_a * cross_a * Pm[a, INV_INERTIA]
+        k += c1a * c2a * Pm[a, INV_INERTIA]
     if not is_wall:
         k += Pm[b, INV_MASS]
         if rotation:
-            k += cross_b * cross_b * Pm[b, INV_INERTIA]
+            k += c1b * c2b * Pm[b, INV_INERTIA]
     return k
+
+
+@jit_inline
+def _effective_inverse_mass(Pm, a, b, is_wall, cross_a, cross_b, rotation):
+    """``1/m_a + 1/m_b + (r_a x d)^2 / I_a + (r_b x d)^2 / I_b``."""
+    return _coupling(Pm, a, b, is_wall, cross_a, cross_b, cross_a, cross_b, rotation)
 
 
 @jit_counted
@@ -179,17 +186,15 @@ def _end_velocity(S, a, b, is_wall, nx, ny, oax, oay, obx, oby):
 
 
 @jit_inline
-def _coupling(Pm, a, b, is_wall, c1a, c1b, c2a, c2b, rotation):
-    """Off-diagonal term of two contact points' effective inverse mass along one normal: the
-    normal velocity at point 1 per unit impulse at point 2 (``c* = r* x n`` at each point)."""
-    k = Pm[a, INV_MASS]
-    if rotation:
-        k += c1a * c2a * Pm[a, INV_INERTIA]
-    if not is_wall:
-        k += Pm[b, INV_MASS]
-        if rotation:
-            k += c1b * c2b * Pm[b, INV_INERTIA]
-    return k
+def _end_impact(S, Pm, a, b, is_wall, nx, ny, oax, oay, obx, oby, ca, cb, k, e, rotation):
+    """The ``-e`` impact at one end of a flat contact if it approaches (``k``: its effective
+    inverse mass, ``ca``/``cb``: the lever arms across n); returns its impulse, 0 if none."""
+    vn = _end_velocity(S, a, b, is_wall, nx, ny, oax, oay, obx, oby)
+    if not vn < 0.0:
+        return 0.0
+    j = -(1.0 + e) * vn / k
+    apply_impulse(S, Pm, a, b, is_wall, j, nx, ny, ca, cb, rotation)
+    return j
 
 
 @jit_counted
@@ -247,23 +252,14 @@ def resolve_flat(S, Pm, a, b, is_wall, nx, ny, o1ax, o1ay, o1bx, o1by, o2ax, o2a
         quiet = 0
         for _ in range(FLAT_IMPACTS):
             if second:
-                vn = _end_velocity(S, a, b, is_wall, nx, ny, o2ax, o2ay, o2bx, o2by)
-                if vn < 0.0:
-                    j = -(1.0 + e) * vn / k22
-                    apply_impulse(S, Pm, a, b, is_wall, j, nx, ny, c2a, c2b, rotation)
-                    j2 += j
-                    quiet = 0
-                else:
-                    quiet += 1
+                j = _end_impact(S, Pm, a, b, is_wall, nx, ny, o2ax, o2ay, o2bx, o2by, c2a, c2b,
+                                k22, e, rotation)
+                j2 += j
             else:
-                vn = _end_velocity(S, a, b, is_wall, nx, ny, o1ax, o1ay, o1bx, o1by)
-                if vn < 0.0:
-                    j = -(1.0 + e) * vn / k11
-                    apply_impulse(S, Pm, a, b, is_wall, j, nx, ny, c1a, c1b, rotation)
-                    j1 += j
-                    quiet = 0
-                else:
-                    quiet += 1
+                j = _end_impact(S, Pm, a, b, is_wall, nx, ny, o1ax, o1ay, o1bx, o1by, c1a, c1b,
+                                k11, e, rotation)
+                j1 += j
+            quiet = 0 if j > 0.0 else quiet + 1
             if quiet == 2:
                 break
             second = not second

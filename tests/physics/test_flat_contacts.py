@@ -64,7 +64,14 @@ def _end_impacts(case: str, sign: float) -> tuple[float, float]:
     ends = [max(offset - la / 2, -lb / 2), min(offset + la / 2, lb / 2)]
     if sign < 0:
         ends.reverse()  # tilted clockwise, the right end is the lower
-    vr, wr, vb, wb = -1.0, 0.0, 0.0, 0.0
+    return _alternate(ends, offset, e, (-1.0, 0.0, imr, iir), (0.0, 0.0, imb, iib))
+
+
+def _alternate(ends, offset, e, rod, base) -> tuple[float, float]:
+    """-e impacts along y at the x of ``ends`` in turn, the first first, until neither end
+    approaches: a rod centred at ``offset`` above a base centred at 0 (each ``(vy, spin,
+    1/m, 1/I)``; a cushion is a base of zeros). Returns the rod's (spin, vy)."""
+    (vr, wr, imr, iir), (vb, wb, imb, iib) = rod, base
     quiet, i = 0, 0
     while quiet < 2:
         x = ends[i]
@@ -156,19 +163,7 @@ def _wall_end_impacts(case: str, sign: float) -> tuple[float, float]:
     w = _wall_world(case, 0.0)
     im, ii = w.params[0, 0, INV_MASS], w.params[0, 0, INV_INERTIA]
     ends = [-0.5, 0.5] if sign > 0 else [0.5, -0.5]
-    vy, wz = -SPEED, omega
-    quiet, i = 0, 0
-    while quiet < 2:
-        x = ends[i]
-        u = vy + wz * x  # the end's velocity along +y, into the table: < 0 approaches
-        if u < -1e-14:
-            j = -(1.0 + e) * u / (im + x * x * ii)
-            vy, wz = vy + j * im, wz + j * x * ii
-            quiet = 0
-        else:
-            quiet += 1
-        i = 1 - i
-    return wz, vy
+    return _alternate(ends, 0.0, e, (-SPEED, omega, im, ii), (0.0, 0.0, 0.0, 0.0))
 
 
 def _run_on_cushion(world: physics.World) -> None:
