@@ -33,10 +33,10 @@ from __future__ import annotations
 
 import math
 
-from spinstrike.physics.jit import jit
+from spinstrike.physics.jit import jit, jit_inline
 
 __all__ = ["capsule_capsule", "capsule_wall", "closest_segment_params", "core_segment",
-           "cores_cross", "flat_ends", "flat_wall_ends", "wall_frame"]
+           "cores_cross", "flat_ends", "flat_points", "flat_wall_ends", "wall_frame"]
 
 #: squared sine of the angle below which two segments count as parallel
 PARALLEL = 1e-12
@@ -477,3 +477,25 @@ def capsule_wall(x, y, angle, h, r, wall, half_w, half_h, pinned=False):
         cx, cy, d = p1x, p1y, d1
         separation = d - r
     return d - r, -ix, -iy, cx - x, cy - y, 0.0, 0.0, separation
+
+
+@jit_inline
+def flat_points(xa, ya, anga, ha, ra, pinned_a, xb, yb, angb, hb, rb, pinned_b, wall, half_w,
+                half_h, nx, ny):
+    """The two contact points of a pair the solvers resolve flat, or ``flat`` False: a flat
+    rod-rod pair not both pinned (:func:`flat_ends`), or a rod flat on cushion ``wall`` that is
+    not pinned (:func:`flat_wall_ends`; a pinned one keeps :func:`capsule_wall`'s nearer end,
+    its middle being its pivot; b's points are then a's, b unused). One decision for the
+    contact's resolution and the time of impact's approach test, so that they agree.
+
+    Returns:
+        (flat, o1ax, o1ay, o1bx, o1by, d1, o2ax, o2ay, o2bx, o2by, d2), as :func:`flat_ends`.
+    """
+    if wall < 0:
+        if pinned_a and pinned_b:
+            return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        return flat_ends(xa, ya, anga, ha, ra, xb, yb, angb, hb, rb, nx, ny)
+    if pinned_a:
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    flat, o1x, o1y, d1, o2x, o2y, d2 = flat_wall_ends(xa, ya, anga, ha, ra, wall, half_w, half_h)
+    return flat, o1x, o1y, o1x, o1y, d1, o2x, o2y, o2x, o2y, d2

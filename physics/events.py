@@ -44,8 +44,7 @@ import math
 from spinstrike.physics.contacts import (
     capsule_capsule,
     capsule_wall,
-    flat_ends,
-    flat_wall_ends,
+    flat_points,
     wall_frame,
 )
 from spinstrike.physics.impulse import ROUNDOFF, relative_velocity_of
@@ -146,17 +145,9 @@ def flat_approach(xa, ya, anga, vxa, vya, wa, ha, ra, xb, yb, angb, vxb, vyb, wb
     the flat band (a 1 m rod flat on a cushion at 1 rad/s: 5e-4 m deep at a 1 ms step's end,
     settled).
     """
-    if wall < 0:
-        if pinned_a and pinned_b:
-            return vn
-        flat, o1ax, o1ay, o1bx, o1by, _, o2ax, o2ay, o2bx, o2by, _ = flat_ends(
-            xa, ya, anga, ha, ra, xb, yb, angb, hb, rb, nx, ny)
-    else:
-        if pinned_a:
-            return vn
-        flat, o1ax, o1ay, _, o2ax, o2ay, _ = flat_wall_ends(xa, ya, anga, ha, ra, wall, half_w,
-                                                            half_h)
-        o1bx, o1by, o2bx, o2by = o1ax, o1ay, o2ax, o2ay
+    flat, o1ax, o1ay, o1bx, o1by, _, o2ax, o2ay, o2bx, o2by, _ = flat_points(
+        xa, ya, anga, ha, ra, pinned_a, xb, yb, angb, hb, rb, pinned_b, wall, half_w, half_h,
+        nx, ny)
     if not flat:
         return vn
     v1, _, s1 = relative_velocity_of(vxa, vya, wa, vxb, vyb, wb, wall >= 0, nx, ny, o1ax, o1ay,

@@ -51,7 +51,7 @@ from spinstrike.physics.calendar import (
     watch_insert,
     watch_remove,
 )
-from spinstrike.physics.contacts import cores_cross, flat_ends, flat_wall_ends, wall_frame
+from spinstrike.physics.contacts import cores_cross, flat_points, wall_frame
 from spinstrike.physics.events import (
     far_apart,
     geometry,
@@ -225,23 +225,16 @@ def _contact(p, S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_f
     a, b, wall = pair_bodies(p, PA, PB, S.shape[0])
     g, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, wall, hw[HALF_W],
                                                               hw[HALF_H])
-    # a flat rod-rod pair (not both pinned), or a free rod flat on a cushion (a pinned one keeps
-    # capsule_wall's nearer end, its middle being its pivot): resolved at its two ends. One call
-    # of _flat_contact, its is_wall a run-time bool: as two literal constants it compiled
-    # resolve_flat twice (~5 s of a first run each)
-    if g <= slop and (Pm[a, INV_MASS] != 0.0 if wall >= 0 else
-                      not (Pm[a, INV_MASS] == 0.0 and Pm[b, INV_MASS] == 0.0)):
-        if wall < 0:
-            flat, o1ax, o1ay, o1bx, o1by, d1, o2ax, o2ay, o2bx, o2by, d2 = flat_ends(
-                S[a, X], S[a, Y], S[a, ANGLE], Pm[a, HALF_LENGTH], Pm[a, RADIUS],
-                S[b, X], S[b, Y], S[b, ANGLE], Pm[b, HALF_LENGTH], Pm[b, RADIUS], nx, ny)
-            other = b
-        else:
-            flat, o1ax, o1ay, d1, o2ax, o2ay, d2 = flat_wall_ends(
-                S[a, X], S[a, Y], S[a, ANGLE], Pm[a, HALF_LENGTH], Pm[a, RADIUS], wall,
-                hw[HALF_W], hw[HALF_H])
-            o1bx, o1by, o2bx, o2by = o1ax, o1ay, o2ax, o2ay
-            other = a  # (the cushion's points and body unused)
+    # a pair resolved flat (contacts.flat_points, the time of impact's decision too): at its
+    # two ends. One call of _flat_contact, its is_wall a run-time bool: as two literal
+    # constants it compiled resolve_flat twice (~5 s of a first run each)
+    if g <= slop:
+        other = b if wall < 0 else a  # (a cushion's points and body unused)
+        flat, o1ax, o1ay, o1bx, o1by, d1, o2ax, o2ay, o2bx, o2by, d2 = flat_points(
+            S[a, X], S[a, Y], S[a, ANGLE], Pm[a, HALF_LENGTH], Pm[a, RADIUS],
+            Pm[a, INV_MASS] == 0.0, S[other, X], S[other, Y], S[other, ANGLE],
+            Pm[other, HALF_LENGTH], Pm[other, RADIUS], Pm[other, INV_MASS] == 0.0, wall,
+            hw[HALF_W], hw[HALF_H], nx, ny)
         if flat:
             return _flat_contact(p, S, Pm, a, other, wall >= 0, MAT, nx, ny, o1ax, o1ay, o1bx,
                                  o1by, d1, o2ax, o2ay, o2bx, o2by, d2, zeno_speed, t, rotation,
