@@ -238,11 +238,12 @@ def _finite_actions(tbuf, start, stop):
 
 
 @jit
-def control_body(fbuf, ibuf, tbuf, kcfg, start, stop, fixed, rotation, cf, tf, jam):
+def control_body(fbuf, ibuf, tbuf, kcfg, start, stop, fixed, rotation, cf, tf, jam, flat):
     """One control step of elements ``start..stop-1``; False (and nothing done) if one of their
     actions is not finite. The last five arguments are the world's compile-time flags
     (``kernels.FLAGS``)."""
-    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam)
+    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam),
+    literally(flat)
     if not _finite_actions(tbuf, start, stop):
         return False
     v = unpack(fbuf, ibuf)
@@ -250,22 +251,23 @@ def control_body(fbuf, ibuf, tbuf, kcfg, start, stop, fixed, rotation, cf, tf, j
     dt = v.fcfg[CF_DT]
     for b in range(start, stop):
         _pre(b, v.S, v.Pm, v.F, dt, tbuf, kcfg)
-        step_element(v, b, dt, fixed, rotation, cf, tf, jam)
+        step_element(v, b, dt, fixed, rotation, cf, tf, jam, flat)
         _post(b, v.S, v.HW, v.PA, v.PB, v.cpair, v.crec, v.stats, n_stored, tbuf, kcfg)
     return True
 
 
 @jit_parallel
-def control_step_parallel(fbuf, ibuf, tbuf, kcfg, fixed, rotation, cf, tf, jam):
+def control_step_parallel(fbuf, ibuf, tbuf, kcfg, fixed, rotation, cf, tf, jam, flat):
     """:func:`control_body` over the whole batch in parallel threads (blocks of ``BLOCK``
     elements); nothing is done if any action is not finite."""
-    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam)
+    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam),
+    literally(flat)
     n = ibuf[H_B]
     if not _finite_actions(tbuf, 0, n):
         return False
     for k in numba.prange(n_blocks(n)):
         control_body(fbuf, ibuf, tbuf, kcfg, k * BLOCK, min(n, (k + 1) * BLOCK), fixed,
-                     rotation, cf, tf, jam)
+                     rotation, cf, tf, jam, flat)
     return True
 
 
@@ -467,17 +469,17 @@ def _trace_contacts(b, t0, PA, PB, cpair, crec, stats, n_stored, contacts, count
 
 
 @jit
-def _traced_chunk(v, b, k, n_stored, scfg, trace, fixed, rotation, cf, tf, jam):
+def _traced_chunk(v, b, k, n_stored, scfg, trace, fixed, rotation, cf, tf, jam, flat):
     """Chunk k of element b's strike in a traced strike: element 0's is recorded (the solver's
     states after its events, the state at the chunk's end, its contacts), the others' not."""
     chunk = scfg[SC_CHUNK]
     if b != 0:
-        step_element(v, b, chunk, fixed, rotation, cf, tf, jam)
+        step_element(v, b, chunk, fixed, rotation, cf, tf, jam, flat)
         return
     t0 = k * chunk
     events = trace.events
     first = events.count[TRACE_ENTRIES]
-    step_element(v, b, chunk, fixed, rotation, cf, tf, jam, events)
+    step_element(v, b, chunk, fixed, rotation, cf, tf, jam, flat, events)
     for q in range(first, events.count[TRACE_ENTRIES]):
         events.time[q] = t0 + events.time[q]  # the hook records times within the step
     trace_state(trace.chunks, (k + 1) * chunk, v.S[b])
@@ -486,12 +488,13 @@ def _traced_chunk(v, b, k, n_stored, scfg, trace, fixed, rotation, cf, tf, jam):
 
 
 @jit
-def strike_body(fbuf, ibuf, sbuf, scfg, trace, start, stop, fixed, rotation, cf, tf, jam):
+def strike_body(fbuf, ibuf, sbuf, scfg, trace, start, stop, fixed, rotation, cf, tf, jam, flat):
     """Simulate the strikes of elements ``start..stop-1`` to their ends (see the section
     comment); ``trace``: None, or a :data:`StrikeTrace` that records element 0 (a separate
     specialisation: with None the tracing code is not compiled). The last five arguments are
     the world's compile-time flags (``kernels.FLAGS``)."""
-    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam)
+    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam),
+    literally(flat)
     v = unpack(fbuf, ibuf)
     n_stored = ibuf[H_M]
     for b in range(start, stop):
@@ -505,22 +508,23 @@ def strike_body(fbuf, ibuf, sbuf, scfg, trace, start, stop, fixed, rotation, cf,
                 trace_state(trace.chunks, 0.0, v.S[b])
         for k in range(int(scfg[SC_CHUNKS])):
             if trace is None:
-                step_element(v, b, scfg[SC_CHUNK], fixed, rotation, cf, tf, jam)
+                step_element(v, b, scfg[SC_CHUNK], fixed, rotation, cf, tf, jam, flat)
             else:
-                _traced_chunk(v, b, k, n_stored, scfg, trace, fixed, rotation, cf, tf, jam)
+                _traced_chunk(v, b, k, n_stored, scfg, trace, fixed, rotation, cf, tf, jam, flat)
             if _strike_post(b, k, v.S, v.Pm, v.cpair, v.crec, v.stats, n_stored, sbuf, scfg):
                 break
 
 
 @jit_parallel
-def strike_parallel(fbuf, ibuf, sbuf, scfg, trace, fixed, rotation, cf, tf, jam):
+def strike_parallel(fbuf, ibuf, sbuf, scfg, trace, fixed, rotation, cf, tf, jam, flat):
     """:func:`strike_body` over the whole batch in parallel threads (blocks of ``BLOCK``
     elements)."""
-    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam)
+    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam),
+    literally(flat)
     n = ibuf[H_B]
     for k in numba.prange(n_blocks(n)):
         strike_body(fbuf, ibuf, sbuf, scfg, trace, k * BLOCK, min(n, (k + 1) * BLOCK), fixed,
-                    rotation, cf, tf, jam)
+                    rotation, cf, tf, jam, flat)
 
 
 @jit

@@ -48,7 +48,7 @@ from spinstrike.physics.contacts import (
     wall_frame,
 )
 from spinstrike.physics.impulse import ROUNDOFF, relative_velocity_of
-from spinstrike.physics.jit import jit, jit_counted, jit_inline
+from spinstrike.physics.jit import jit, jit_counted, jit_inline, static_if
 from spinstrike.physics.layout import (
     ANGLE,
     CHECKPOINT,
@@ -162,7 +162,19 @@ def flat_approach(xa, ya, anga, vxa, vya, wa, ha, ra, xb, yb, angb, vxb, vyb, wb
 
 
 @jit_inline
-def _probe(S, Pm, F, a, b, wall, half_w, half_h, t, rotation, table_friction, tol):
+def _mid_approach(xa, ya, anga, vxa, vya, wa, ha, ra, xb, yb, angb, vxb, vyb, wb, hb, rb, wall,
+                  half_w, half_h, pinned_a, pinned_b, nx, ny, vn):
+    """What :func:`flat_approach` returns for a pair that is never resolved flat: ``vn``."""
+    return vn
+
+
+#: :func:`flat_approach` where the world has a pair that can lie flat (the ``flat`` flag,
+#: ``kernels.FLAGS``), else :func:`geometry`'s ``vn`` with no flat code compiled
+_approach_if = static_if(flat_approach, otherwise=_mid_approach)
+
+
+@jit_inline
+def _probe(S, Pm, F, a, b, wall, half_w, half_h, t, rotation, flat, table_friction, tol):
     """Flight of both bodies to time t, then their geometry; also the flown velocities and
     spins, for the advancement bound: (geometry..., vxa, vya, wa, vxb, vyb, wb).
 
@@ -185,9 +197,9 @@ def _probe(S, Pm, F, a, b, wall, half_w, half_h, t, rotation, table_friction, to
         xb, yb, angb, vxb, vyb, wb, Pm[b, HALF_LENGTH], Pm[b, RADIUS], wall, half_w, half_h,
         pinned_a, pinned_b)
     if g <= tol:
-        vn = flat_approach(xa, ya, anga, vxa, vya, wa, Pm[a, HALF_LENGTH], Pm[a, RADIUS],
-                           xb, yb, angb, vxb, vyb, wb, Pm[b, HALF_LENGTH], Pm[b, RADIUS], wall,
-                           half_w, half_h, pinned_a, pinned_b, nx, ny, vn)
+        vn = _approach_if(flat, xa, ya, anga, vxa, vya, wa, Pm[a, HALF_LENGTH], Pm[a, RADIUS],
+                          xb, yb, angb, vxb, vyb, wb, Pm[b, HALF_LENGTH], Pm[b, RADIUS], wall,
+                          half_w, half_h, pinned_a, pinned_b, nx, ny, vn)
     return g, nx, ny, vn, vxa, vya, wa, vxb, vyb, wb
 
 
@@ -385,7 +397,7 @@ def far_apart(S, Pm, F, a, b, wall, half_w, half_h, horizon, tol, rotation):
 
 @jit_counted
 def time_of_impact(S, Pm, F, a, b, wall, half_w, half_h, horizon, tol, max_iterations, rotation,
-                   table_friction):
+                   flat, table_friction):
     """First time in ``[0, horizon]`` at which the pair touches while approaching: its gap
     reaches zero, the time located to a gap in ``[0, tol]`` (or ``g <= 0`` already).
 
@@ -407,7 +419,7 @@ def time_of_impact(S, Pm, F, a, b, wall, half_w, half_h, horizon, tol, max_itera
     t = 0.0
     for it in range(2 * max_iterations):
         g, nx, ny, vn, vxa, vya, wa, vxb, vyb, wb = _probe(S, Pm, F, a, b, wall, half_w, half_h,
-                                                           t, rotation, table_friction, tol)
+                                                           t, rotation, flat, table_friction, tol)
         if g <= tol:
             if vn < 0.0 and (g <= 0.0 or thin):
                 return t, CONTACT, it + 1
@@ -425,11 +437,12 @@ def time_of_impact(S, Pm, F, a, b, wall, half_w, half_h, horizon, tol, max_itera
                                    g - delta, rotation, table_friction))
         t_new = t + s if t + s < horizon else horizon
         if g <= tol:
-            g_new = _probe(S, Pm, F, a, b, wall, half_w, half_h, t_new, rotation,
+            g_new = _probe(S, Pm, F, a, b, wall, half_w, half_h, t_new, rotation, flat,
                            table_friction, tol)[0]
             if g_new < floor:
                 tc, kind, k = _bracket(S, Pm, F, a, b, wall, half_w, half_h, t, g - floor,
-                                       t_new, g_new - floor, floor, tol, rotation, table_friction)
+                                       t_new, g_new - floor, floor, tol, rotation, flat,
+                                       table_friction)
                 return tc, kind, it + 1 + k
         if t_new >= horizon:
             return horizon, NONE, it + 1
@@ -440,7 +453,7 @@ def time_of_impact(S, Pm, F, a, b, wall, half_w, half_h, horizon, tol, max_itera
 
 
 @jit_counted
-def _bracket(S, Pm, F, a, b, wall, half_w, half_h, lo, f_lo, hi, f_hi, floor, tol, rotation,
+def _bracket(S, Pm, F, a, b, wall, half_w, half_h, lo, f_lo, hi, f_hi, floor, tol, rotation, flat,
              table_friction):
     """Illinois method on f = gap - floor, f(lo) >= 0 > f(hi), to 0 <= f <= tol approaching."""
     side = 0
@@ -454,7 +467,7 @@ def _bracket(S, Pm, F, a, b, wall, half_w, half_h, lo, f_lo, hi, f_hi, floor, to
             if not (lo < tm < hi):
                 break
         g, _, _, vn, _, _, _, _, _, _ = _probe(S, Pm, F, a, b, wall, half_w, half_h, tm, rotation,
-                                               table_friction, tol)
+                                               flat, table_friction, tol)
         fm = g - floor
         if 0.0 <= fm <= tol and vn < 0.0:
             return tm, CONTACT, k + 1

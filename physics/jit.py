@@ -32,8 +32,8 @@ from numba.extending import overload
 
 from spinstrike.physics.cache import KernelCache
 
-__all__ = ["jit", "jit_counted", "jit_inline", "jit_parallel", "jit_uncounted",
-           "static_if"]
+__all__ = ["MAX_STATIC_IF_ARGS", "jit", "jit_counted", "jit_inline", "jit_parallel",
+           "jit_uncounted", "static_if"]
 
 
 def _compiler(**options: Any) -> Callable[[Callable[..., Any]], Any]:
@@ -57,6 +57,11 @@ jit_counted = _compiler(_nrt=True)
 
 
 
+#: arguments of a call that CPython still compiles as a plain call (its ``STACK_USE_GUIDELINE``);
+#: more, and the call builds a tuple and passes ``*args``
+MAX_STATIC_IF_ARGS = 30
+
+
 def static_if(fn: Any, negate: bool = False, level: int = 1,
               otherwise: Any = None) -> Callable[..., Any]:
     """A kernel-callable ``g(flag, *args)`` that calls ``fn(*args)`` if ``flag >= level`` (if
@@ -72,9 +77,16 @@ def static_if(fn: Any, negate: bool = False, level: int = 1,
 
     ``g`` is an ``overload`` inlined into its caller (no compiled layer of its own: each layer
     above the solver costs a compile of its own), which needs ``fn``'s exact parameter list, so
-    ``g`` and its implementations are generated for that arity.
+    ``g`` and its implementations are generated for that arity. ``fn`` takes at most
+    :data:`MAX_STATIC_IF_ARGS` - 1 parameters: Python compiles a call of more than 30 arguments
+    (``g``'s, the flag first) as a call with ``*args``, which numba cannot inline.
     """
     py_func = getattr(fn, "py_func", fn)  # a plain function under NUMBA_DISABLE_JIT
+    if py_func.__code__.co_argcount + 1 > MAX_STATIC_IF_ARGS:
+        raise TypeError(f"static_if({py_func.__name__}): {py_func.__code__.co_argcount} "
+                        f"parameters, at most {MAX_STATIC_IF_ARGS - 1} (the call with the flag "
+                        f"would have more than {MAX_STATIC_IF_ARGS} arguments, which numba "
+                        "cannot inline)")
     params = ", ".join(f"a{i}" for i in range(py_func.__code__.co_argcount))
     test = f"not flag >= {int(level)}" if negate else f"flag >= {int(level)}"
     scope: dict[str, Any] = {"fn": fn, "otherwise": otherwise, "negate": negate,

@@ -10,12 +10,13 @@ bundles a kernel's serial and parallel versions (and, for the pymunk backend, wh
 outside numba, a Python version); ``World.run`` is the one place that picks among them, appends
 the flags and books the step.
 
-**Compile-time flags.** The solver kind, the effects that have code paths of their own and
-whether the scene's contacts can jam are passed as numba *literal* arguments
-(``numba.literally`` in each batch kernel); each combination is compiled (and cached) once.
-Where a flag picks a call through :func:`~spinstrike.physics.jit.static_if` (the solver kind,
-the jam block solve, the many-body calendar) the call a flag rules out is never typed or
-compiled (the jam block solve alone is a quarter of the strike kernel's compile time). The
+**Compile-time flags.** The solver kind, the effects that have code paths of their own,
+whether the scene's contacts can jam and whether a pair can lie flat are passed as numba
+*literal* arguments (``numba.literally`` in each batch kernel); each combination is compiled
+(and cached) once. Where a flag picks a call through :func:`~spinstrike.physics.jit.static_if`
+(the solver kind, the jam block solve, the hold, the many-body calendar, flat pairs) the call a
+flag rules out is never typed or compiled (the jam block solve alone is a quarter of the strike
+kernel's compile time). The
 effects' flags are tested in ordinary ``if`` statements, which numba does not prune: an effect's
 functions are compiled into every kernel and skipped at run time (their code runs only where the
 effect is listed and its parameter is above zero, ``tests/physics/test_effects.py``).
@@ -86,7 +87,7 @@ from spinstrike.physics.layout import (
 )
 from spinstrike.physics.solvers import exact_element, exact_many_element, fixed_element
 
-__all__ = ["BLOCK", "FLAGS", "STEP", "BatchKernel", "Views", "element_overlap", "n_blocks",
+__all__ = ["BLOCK", "FLAGS", "Flags", "STEP", "BatchKernel", "Views", "element_overlap", "n_blocks",
            "step_element", "unpack"]
 
 #: elements per block of the parallel kernels (each block unpacks the buffers once)
@@ -152,8 +153,11 @@ def unpack(fbuf, ibuf):
 #: (``layout.LEVEL``): 0, one contact pair (sequential impulses always converge in one sweep);
 #: 1, two or more pairs, or contact friction; 2, the same among ``layout.CALENDAR_BODIES`` or
 #: more bodies of an exact world, which then steps on its broadphase and event calendar
-#: (``physics.calendar``)
-FLAGS = ("fixed", "rotation", "contact_friction", "table_friction", "jam")
+#: (``physics.calendar``); whether a contact pair can lie ``flat`` (two rods, or a rod and a
+#: cushion: ``contacts.flat_points``)
+FLAGS = ("fixed", "rotation", "contact_friction", "table_friction", "jam", "flat")
+#: a world's flags by name (``World.flags``), in :data:`FLAGS` order
+Flags = namedtuple("Flags", FLAGS)
 
 
 #: one solver or the other, by the world's literal ``fixed`` flag: the other is never compiled
@@ -166,9 +170,10 @@ _many_if = static_if(exact_many_element, level=LEVEL_MANY_BODIES)
 
 
 @jit
-def step_element(v, b, dt, fixed, rotation, contact_friction, table_friction, jam, trace=None):
+def step_element(v, b, dt, fixed, rotation, contact_friction, table_friction, jam, flat,
+                 trace=None):
     """Advance element b of a world's views by dt seconds with the world's solver, from
-    statistics zeroed here; the clock advances too. ``fixed`` to ``jam`` are the world's
+    statistics zeroed here; the clock advances too. ``fixed`` to ``flat`` are the world's
     compile-time flags (:data:`FLAGS`); ``trace``: the solvers' trace hook (``solvers.Trace``),
     passed through (None: nothing recorded, the hook compiled away). Returns the element's
     ``fallback`` statistic (``layout.FALLBACK``), checked last for a state that is no longer
@@ -178,17 +183,18 @@ def step_element(v, b, dt, fixed, rotation, contact_friction, table_friction, ja
             v.stats[b, k] = 0
     v.clock[b] += dt
     _fixed_if(fixed, v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,
-              v.icfg[CI_SUBSTEPS], v.icfg[CI_ITERATIONS], 0.0, 0.0, rotation, contact_friction,
-              table_friction, v.cpair[b], v.crec[b], v.stats[b], v.changed[b], 1, False, trace)
+              v.icfg[CI_SUBSTEPS], v.icfg[CI_ITERATIONS], 0.0, 0.0, rotation, flat,
+              contact_friction, table_friction, v.cpair[b], v.crec[b], v.stats[b], v.changed[b],
+              1, False, trace)
     _exact_unless(fixed, v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,
                   v.fcfg[CF_TOL], v.icfg[CI_MAX_EVENTS], v.icfg[CI_MAX_ITERATIONS],
-                  v.fcfg[CF_ZENO_SPEED], v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE], rotation,
+                  v.fcfg[CF_ZENO_SPEED], v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE], rotation, flat,
                   contact_friction, table_friction, jam, v.cpair[b], v.crec[b], v.stats[b],
                   v.toi[b], v.kind[b], v.changed[b], v.rest[b], trace)
     _many_if(jam, v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt, v.fcfg[CF_TOL],
              v.icfg[CI_MAX_EVENTS], v.icfg[CI_MAX_ITERATIONS], v.fcfg[CF_ZENO_SPEED],
-             v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE], rotation, contact_friction,
-             table_friction, jam, v.cpair[b], v.crec[b], v.stats[b], v.toi[b], v.kind[b],
+             v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE], rotation, flat, contact_friction,
+             table_friction, v.cpair[b], v.crec[b], v.stats[b], v.toi[b], v.kind[b],
              v.changed[b], v.rest[b], v.fbuf, v.ibuf, b, trace)
     for i in range(v.S.shape[1]):
         for k in range(v.S.shape[2]):
@@ -225,27 +231,29 @@ def n_blocks(n):
 
 
 @jit
-def step_body(fbuf, ibuf, start, stop, fixed, rotation, cf, tf, jam):
+def step_body(fbuf, ibuf, start, stop, fixed, rotation, cf, tf, jam, flat):
     """Step elements ``start..stop-1`` of a world by its ``dt`` (``fcfg``); return the worst
     ``fallback`` statistic among them (``layout.FALLBACK``, ordered by severity)."""
-    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam)
+    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam),
+    literally(flat)
     v = unpack(fbuf, ibuf)
     dt = v.fcfg[CF_DT]
     worst = 0
     for b in range(start, stop):
-        worst = max(worst, step_element(v, b, dt, fixed, rotation, cf, tf, jam))
+        worst = max(worst, step_element(v, b, dt, fixed, rotation, cf, tf, jam, flat))
     return worst
 
 
 @jit_parallel
-def step_parallel(fbuf, ibuf, fixed, rotation, cf, tf, jam):
+def step_parallel(fbuf, ibuf, fixed, rotation, cf, tf, jam, flat):
     """:func:`step_body` over the whole batch in parallel threads, a block of elements a task."""
-    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam)
+    literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam),
+    literally(flat)
     n = ibuf[H_B]
     worst = 0
     for k in numba.prange(n_blocks(n)):
         worst = max(worst, step_body(fbuf, ibuf, k * BLOCK, min(n, (k + 1) * BLOCK), fixed,
-                                     rotation, cf, tf, jam))
+                                     rotation, cf, tf, jam, flat))
     return worst
 
 

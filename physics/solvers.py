@@ -207,7 +207,7 @@ def _advance(S, Pm, F, t, rotation, table_friction):
 
 
 @jit_inline
-def _search(p, S, Pm, F, hw, PA, PB, horizon, tol, max_iterations, rotation, table_friction):
+def _search(p, S, Pm, F, hw, PA, PB, horizon, tol, max_iterations, rotation, flat, table_friction):
     """Time of impact of pair p; a pair provably apart for the whole horizon is settled by the
     inlined ``far_apart`` test without calling the search (which is what its first iteration
     would find, so the results are the same bit for bit)."""
@@ -215,30 +215,22 @@ def _search(p, S, Pm, F, hw, PA, PB, horizon, tol, max_iterations, rotation, tab
     if far_apart(S, Pm, F, a, b, wall, hw[HALF_W], hw[HALF_H], horizon, tol, rotation):
         return horizon, NONE, 1
     return time_of_impact(S, Pm, F, a, b, wall, hw[HALF_W], hw[HALF_H], horizon, tol,
-                          max_iterations, rotation, table_friction)
+                          max_iterations, rotation, flat, table_friction)
 
 
 @jit_inline
-def _contact(p, S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_friction,
+def _contact(p, S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, flat, contact_friction,
              changed, cpair, crec, stats):
     """Resolve pair p if it is within ``slop`` and approaching. Returns (hit, resting)."""
     a, b, wall = pair_bodies(p, PA, PB, S.shape[0])
     g, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, wall, hw[HALF_W],
                                                               hw[HALF_H])
-    # a pair resolved flat (contacts.flat_points, the time of impact's decision too): at its
-    # two ends. One call of _flat_contact, its is_wall a run-time bool: as two literal
-    # constants it compiled resolve_flat twice (~5 s of a first run each)
     if g <= slop:
-        other = b if wall < 0 else a  # (a cushion's points and body unused)
-        flat, o1ax, o1ay, o1bx, o1by, d1, o2ax, o2ay, o2bx, o2by, d2 = flat_points(
-            S[a, X], S[a, Y], S[a, ANGLE], Pm[a, HALF_LENGTH], Pm[a, RADIUS],
-            Pm[a, INV_MASS] == 0.0, S[other, X], S[other, Y], S[other, ANGLE],
-            Pm[other, HALF_LENGTH], Pm[other, RADIUS], Pm[other, INV_MASS] == 0.0, wall,
-            hw[HALF_W], hw[HALF_H], nx, ny)
-        if flat:
-            return _flat_contact(p, S, Pm, a, other, wall >= 0, MAT, nx, ny, o1ax, o1ay, o1bx,
-                                 o1by, d1, o2ax, o2ay, o2bx, o2by, d2, zeno_speed, t, rotation,
-                                 contact_friction, changed, cpair, crec, stats)
+        is_flat, hit, resting = _flat_if(flat, p, S, Pm, hw, a, b, wall, MAT, nx, ny,
+                                         zeno_speed, t, rotation, contact_friction, changed,
+                                         cpair, crec, stats)
+        if is_flat:
+            return hit, resting
     if g <= slop and vn < 0.0:
         px = S[a, X] + oax + ka * nx
         py = S[a, Y] + oay + ka * ny
@@ -250,6 +242,40 @@ def _contact(p, S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_f
             changed[b] = 1
         return True, 1 if -vn0 < zeno_speed else 0
     return False, 0
+
+
+@jit_inline
+def _flat_pair(p, S, Pm, hw, a, b, wall, MAT, nx, ny, zeno_speed, t, rotation, contact_friction,
+               changed, cpair, crec, stats):
+    """:func:`_contact` for pair p within ``slop`` if it is resolved flat
+    (``contacts.flat_points``, the time of impact's decision too): (True, hit, resting); if
+    not, (False, False, 0) and :func:`_contact` goes on. One call of :func:`_flat_contact`, its
+    ``is_wall`` a run-time bool: as two literal constants it compiled ``resolve_flat`` twice
+    (~5 s of a first run each)."""
+    other = b if wall < 0 else a  # (a cushion's points and body unused)
+    is_flat, o1ax, o1ay, o1bx, o1by, d1, o2ax, o2ay, o2bx, o2by, d2 = flat_points(
+        S[a, X], S[a, Y], S[a, ANGLE], Pm[a, HALF_LENGTH], Pm[a, RADIUS],
+        Pm[a, INV_MASS] == 0.0, S[other, X], S[other, Y], S[other, ANGLE],
+        Pm[other, HALF_LENGTH], Pm[other, RADIUS], Pm[other, INV_MASS] == 0.0, wall,
+        hw[HALF_W], hw[HALF_H], nx, ny)
+    if not is_flat:
+        return False, False, 0
+    hit, resting = _flat_contact(p, S, Pm, a, other, wall >= 0, MAT, nx, ny, o1ax, o1ay, o1bx,
+                                 o1by, d1, o2ax, o2ay, o2bx, o2by, d2, zeno_speed, t, rotation,
+                                 contact_friction, changed, cpair, crec, stats)
+    return True, hit, resting
+
+
+@jit_inline
+def _not_flat(p, S, Pm, hw, a, b, wall, MAT, nx, ny, zeno_speed, t, rotation, contact_friction,
+              changed, cpair, crec, stats):
+    """What :func:`_flat_pair` returns in a world with no pair that can lie flat."""
+    return False, False, 0
+
+
+#: flat pairs (a rod on a rod or on a cushion), compiled only for worlds that have such a pair
+#: (the ``flat`` flag, ``kernels.FLAGS``): a rod and disks, or pucks, never pay for it
+_flat_if = static_if(_flat_pair, otherwise=_not_flat)
 
 
 @jit_inline
@@ -274,13 +300,13 @@ def _flat_contact(p, S, Pm, a, b, is_wall, MAT, nx, ny, o1ax, o1ay, o1bx, o1by, 
 
 
 @jit_uncounted
-def _contact_pass(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_friction,
+def _contact_pass(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, flat, contact_friction,
                   changed, cpair, crec, stats):
     """One sweep: resolve every pair within ``slop`` and approaching. Returns (any, resting)."""
     hit = False
     resting = 0
     for p in range(PA.shape[0]):
-        h, r = _contact(p, S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation,
+        h, r = _contact(p, S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, flat,
                         contact_friction, changed, cpair, crec, stats)
         hit |= h
         resting += r
@@ -288,7 +314,7 @@ def _contact_pass(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact
 
 
 @jit_uncounted
-def _watched_pass(S, Pm, F, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_friction,
+def _watched_pass(S, Pm, F, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, flat, contact_friction,
                   table_friction, changed, cpair, crec, stats, watch, n_watch, near):
     """:func:`_contact_pass` over the calendar's watch list (pairs in pair order that may be
     within ``slop`` by now, ``physics.calendar``): every other pair is farther apart, so the
@@ -304,7 +330,7 @@ def _watched_pass(S, Pm, F, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, cont
         if ahead > 0.0:  # still apart: not before then
             near[p] = t + ahead
             continue
-        h, r = _contact(p, S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation,
+        h, r = _contact(p, S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, flat,
                         contact_friction, changed, cpair, crec, stats)
         hit |= h
         resting += r
@@ -341,7 +367,7 @@ _jam_if = static_if(_jam)
 
 
 @jit
-def _sweeps(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_friction, changed,
+def _sweeps(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, flat, contact_friction, changed,
             cpair, crec, stats, sweeps, jam):
     """Up to ``sweeps`` contact passes until none hits; then, if ``jam`` and the last pass still
     hit, the block solve of the jam. Returns the number of resting bounces seen.
@@ -351,7 +377,7 @@ def _sweeps(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_frict
     resting = 0
     hit = False
     for _ in range(sweeps):
-        hit, r = _contact_pass(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation,
+        hit, r = _contact_pass(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, flat,
                                contact_friction, changed, cpair, crec, stats)
         resting += r
         if not hit:
@@ -362,15 +388,15 @@ def _sweeps(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_frict
 
 
 @jit_uncounted
-def _watched_sweeps(S, Pm, F, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, contact_friction,
-                    table_friction, changed, cpair, crec, stats, sweeps, jam, watch, n_watch,
-                    near):
+def _watched_sweeps(S, Pm, F, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, flat,
+                    contact_friction, table_friction, changed, cpair, crec, stats, sweeps, jam,
+                    watch, n_watch, near):
     """:func:`_sweeps` with the passes over the calendar's watch list (:func:`_watched_pass`);
     the block solve of a jam, rare, still collects every touching pair itself."""
     resting = 0
     hit = False
     for _ in range(sweeps):
-        hit, r = _watched_pass(S, Pm, F, hw, PA, PB, MAT, slop, zeno_speed, t, rotation,
+        hit, r = _watched_pass(S, Pm, F, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, flat,
                                contact_friction, table_friction, changed, cpair, crec, stats,
                                watch, n_watch, near)
         resting += r
@@ -494,7 +520,7 @@ def _kick(S, Pm, F, h, rotation, table_friction):
 
 
 @jit
-def _substep(S, Pm, F, hw, PA, PB, MAT, h, t, iterations, slop, rotation, contact_friction,
+def _substep(S, Pm, F, hw, PA, PB, MAT, h, t, iterations, slop, rotation, flat, contact_friction,
              table_friction, cpair, crec, stats, changed, separate_sweeps, rotate, jam, trace):
     """One fixed substep of h seconds, ending at time t: forces and drift (:func:`_kick`),
     sequential impulses on the pairs within ``slop`` and approaching (``iterations`` sweeps,
@@ -505,7 +531,7 @@ def _substep(S, Pm, F, hw, PA, PB, MAT, h, t, iterations, slop, rotation, contac
     crossed two bare rods in a pile of twelve bodies by 4e-12 m, and the last sweep, which
     corrected nothing deeper than ``slop``, handed them on crossed.)"""
     _kick(S, Pm, F, h, rotation, table_friction)
-    _sweeps(S, Pm, hw, PA, PB, MAT, slop, 0.0, t, rotation, contact_friction, changed,
+    _sweeps(S, Pm, hw, PA, PB, MAT, slop, 0.0, t, rotation, flat, contact_friction, changed,
             cpair, crec, stats, iterations, jam)
     for sweep in range(separate_sweeps):
         deepest = _separate(S, Pm, hw, PA, PB, sweep == 0, rotate, slop)
@@ -517,7 +543,7 @@ def _substep(S, Pm, F, hw, PA, PB, MAT, h, t, iterations, slop, rotation, contac
 
 
 @jit
-def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, rotation,
+def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, rotation, flat,
                   contact_friction, table_friction, cpair, crec, stats, changed,
                   separate_sweeps, jam, trace):
     """Advance one element by T seconds in ``substeps`` fixed substeps (:func:`_substep`).
@@ -529,7 +555,7 @@ def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, 
     """
     h = T / substeps
     for k in range(substeps):
-        _substep(S, Pm, F, hw, PA, PB, MAT, h, t0 + (k + 1) * h, iterations, slop, rotation,
+        _substep(S, Pm, F, hw, PA, PB, MAT, h, t0 + (k + 1) * h, iterations, slop, rotation, flat,
                  contact_friction, table_friction, cpair, crec, stats, changed,
                  separate_sweeps, rotation and separate_sweeps > 1, jam, trace)
     stats[STAT_SUBSTEPS] += substeps
@@ -738,7 +764,7 @@ def _plan(needed, budget):
 
 
 @jit
-def _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, sweeps, tol, rotation,
+def _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, sweeps, tol, rotation, flat,
             contact_friction, table_friction, cpair, crec, stats, changed, jam, trace):
     """Settle the rest of the step (``t_now..dt``) in fixed substeps (:func:`_substep`, with
     ``sweeps`` impulse sweeps and positional-correction sweeps) and flag the element.
@@ -768,7 +794,7 @@ def _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, sweeps, tol, r
     while True:
         k += 1
         final = k == n
-        _substep(S, Pm, F, hw, PA, PB, MAT, h, t0 + k * h, sweeps, tol, rotation,
+        _substep(S, Pm, F, hw, PA, PB, MAT, h, t0 + k * h, sweeps, tol, rotation, flat,
                  contact_friction, table_friction, cpair, crec, stats, changed,
                  MAX_FINAL_SEPARATE_SWEEPS if final else sweeps, rotation, jam, trace)
         total += 1
@@ -1055,7 +1081,7 @@ _hold_unless = static_if(_try_hold, negate=True, level=LEVEL_CAN_JAM, otherwise=
 
 
 @jit
-def _search_all(S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotation,
+def _search_all(S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotation, flat,
                 table_friction, toi, kind):
     """Search every pair from ``t_now`` to ``dt`` and file the outcomes in ``toi`` / ``kind``;
     returns the iterations. Not inlined: :func:`exact_element` calls it at the start of a step
@@ -1063,7 +1089,7 @@ def _search_all(S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotation,
     iterations = 0
     for p in range(PA.shape[0]):
         tc, k, it = _search(p, S, Pm, F, hw, PA, PB, dt - t_now, tol, max_iterations, rotation,
-                            table_friction)
+                            flat, table_friction)
         toi[p] = t_now + tc if k != NONE else dt
         kind[p] = k
         iterations += it
@@ -1072,23 +1098,24 @@ def _search_all(S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotation,
 
 @jit
 def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
-                  zeno_impacts, settle_substep, rotation, contact_friction, table_friction,
+                  zeno_impacts, settle_substep, rotation, flat, contact_friction, table_friction,
                   jam, cpair, crec, stats, toi, kind, changed, rest, trace):
     """Advance one element by dt seconds, event by event, every pair scanned at every event.
 
     ``toi``, ``kind`` (per pair), ``changed`` and ``rest`` (per body) are the element's scratch
     rows (``rest``: the force components cushions hold back, :func:`_rest_on_cushions`);
-    ``rotation``, ``contact_friction``, ``table_friction`` and ``jam`` are compile-time flags
-    (``kernels.FLAGS``). At the ``jam`` level ``LEVEL_MANY_BODIES`` this does nothing (the
-    test is folded at compile time): :func:`exact_many_element` steps those worlds, on the
-    broadphase and the event calendar, with the same events bit for bit. ``trace``: the trace
-    hook (a ``Trace``: the state after every event that resolved contacts), or None.
+    ``rotation``, ``flat``, ``contact_friction``, ``table_friction`` and ``jam`` are
+    compile-time flags (``kernels.FLAGS``). At the ``jam`` level ``LEVEL_MANY_BODIES`` this
+    does nothing (the test is folded at compile time): :func:`exact_many_element` steps those
+    worlds, on the broadphase and the event calendar, with the same events bit for bit.
+    ``trace``: the trace hook (a ``Trace``: the state after every event that resolved
+    contacts), or None.
     """
     if jam >= LEVEL_MANY_BODIES:
         return
     sweeps = _int(MAX_SWEEPS)
     n_pairs = PA.shape[0]
-    iterations = _search_all(S, Pm, F, hw, PA, PB, 0.0, dt, tol, max_iterations, rotation,
+    iterations = _search_all(S, Pm, F, hw, PA, PB, 0.0, dt, tol, max_iterations, rotation, flat,
                              table_friction, toi, kind)
     t_now = 0.0
     events = 0
@@ -1110,7 +1137,7 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
         if kind[best] == CHECKPOINT:
             resting += _stalled_in_contact(best, S, Pm, hw, PA, PB, tol)
         else:
-            resting += _sweeps(S, Pm, hw, PA, PB, MAT, tol, zeno_speed, t_now, rotation,
+            resting += _sweeps(S, Pm, hw, PA, PB, MAT, tol, zeno_speed, t_now, rotation, flat,
                                contact_friction, changed, cpair, crec, stats, sweeps, jam)
             _rest_on_cushions(S, Pm, F, hw, PA, PB, MAT, rest, changed, tol, zeno_speed,
                               contact_friction, table_friction)
@@ -1120,7 +1147,7 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
         for p in range(n_pairs):
             if p == best or changed[PA[p]] or (PB[p] < S.shape[0] and changed[PB[p]]):
                 tc, k, it = _search(p, S, Pm, F, hw, PA, PB, horizon, tol, max_iterations,
-                                    rotation, table_friction)
+                                    rotation, flat, table_friction)
                 toi[p] = t_now + tc if k != NONE else dt
                 kind[p] = k
                 iterations += it
@@ -1133,13 +1160,13 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
                 if outcome == 0:  # let go: the pair separates, the event loop goes on
                     resting = 0
                     iterations += _search_all(S, Pm, F, hw, PA, PB, t_now, dt, tol,
-                                              max_iterations, rotation, table_friction, toi,
+                                              max_iterations, rotation, flat, table_friction, toi,
                                               kind)
                     continue
             if t_now < dt:
                 _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, sweeps, tol,
-                        rotation, contact_friction, table_friction, cpair, crec, stats, changed,
-                        jam, trace)
+                        rotation, flat, contact_friction, table_friction, cpair, crec, stats,
+                        changed, jam, trace)
             break
     _end_rests(F, rest)
     stats[STAT_EVENTS] += events
@@ -1147,7 +1174,7 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
 
 
 @jit_inline
-def _predict(p, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotation,
+def _predict(p, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotation, flat,
              table_friction, toi, kind, near, heap, hpos, watch, watched, cnt):
     """Search pair p from now to the end of the step and file the outcome: in the calendar if
     it has an event, on the watch list if it may come within ``tol``. Returns the search's
@@ -1156,7 +1183,7 @@ def _predict(p, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotation,
         tc, k, it = dt - t_now, NONE, 0
     else:
         tc, k, it = _search(p, S, Pm, F, hw, PA, PB, dt - t_now, tol, max_iterations,
-                            rotation, table_friction)
+                            rotation, flat, table_friction)
     toi[p] = t_now + tc if k != NONE else dt
     kind[p] = k
     if k != NONE:
@@ -1173,7 +1200,7 @@ def _predict(p, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotation,
 
 
 @jit_uncounted
-def _first_predictions(S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation,
+def _first_predictions(S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation, flat,
                        table_friction, toi, kind, pidx, near, box, cnt, heap, hpos, watch,
                        watched, order, seen):
     """The step's first predictions: the swept boxes, the pairs whose boxes overlap (sweep and
@@ -1200,14 +1227,14 @@ def _first_predictions(S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation,
             p = pidx[i, j]
             if p >= 0 and boxes_meet(box, i, j):
                 n_watch, it = _first(p, S, Pm, F, hw, PA, PB, dt, tol, max_iterations,
-                                     rotation, table_friction, toi, kind, near, heap, hpos,
+                                     rotation, flat, table_friction, toi, kind, near, heap, hpos,
                                      watch, watched, cnt, n_watch)
                 iterations += it
         for w in range(4):
             p = pidx[i, n + w]
             if p >= 0 and box_meets_wall(box, i, w, hw):
                 n_watch, it = _first(p, S, Pm, F, hw, PA, PB, dt, tol, max_iterations,
-                                     rotation, table_friction, toi, kind, near, heap, hpos,
+                                     rotation, flat, table_friction, toi, kind, near, heap, hpos,
                                      watch, watched, cnt, n_watch)
                 iterations += it
     sort_ints(watch, n_watch)
@@ -1216,13 +1243,13 @@ def _first_predictions(S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation,
 
 
 @jit_inline
-def _first(p, S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation, table_friction, toi,
+def _first(p, S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation, flat, table_friction, toi,
            kind, near, heap, hpos, watch, watched, cnt, n_watch):
     """:func:`_predict` at the start of the step, the watch list appended (sorted after)."""
     if stays_clear(p, S, Pm, F, hw, PA, PB, dt, tol, table_friction):
         tc, k, it = dt, NONE, 0
     else:
-        tc, k, it = _search(p, S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation,
+        tc, k, it = _search(p, S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation, flat,
                             table_friction)
     toi[p] = tc
     kind[p] = k
@@ -1238,7 +1265,7 @@ def _first(p, S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation, table_fri
 
 
 @jit_inline
-def _repredict(best, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotation,
+def _repredict(best, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotation, flat,
                table_friction, toi, kind, changed, pidx, near, box, cnt, heap, hpos, watch, stamp,
                watched):
     """After an event at ``t_now``: re-predict its pair and every pair of a body it changed
@@ -1249,7 +1276,7 @@ def _repredict(best, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotat
     mark = cnt[CAL_STAMP]
     stamp[best] = mark
     iterations = _predict(best, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotation,
-                          table_friction, toi, kind, near, heap, hpos, watch, watched, cnt)
+                          flat, table_friction, toi, kind, near, heap, hpos, watch, watched, cnt)
     for i in range(n):
         if changed[i]:
             swept_box(S, Pm, F, i, dt - t_now, tol, box)
@@ -1263,7 +1290,7 @@ def _repredict(best, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotat
             stamp[p] = mark
             if box_meets_wall(box, i, j - n, hw) if j >= n else boxes_meet(box, i, j):
                 iterations += _predict(p, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations,
-                                       rotation, table_friction, toi, kind, near, heap, hpos,
+                                       rotation, flat, table_friction, toi, kind, near, heap, hpos,
                                        watch, watched, cnt)
             else:  # (a call that passes arrays costs reference counting: test first)
                 if hpos[p]:
@@ -1276,13 +1303,17 @@ def _repredict(best, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotat
 
 @jit
 def exact_many_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations,
-                       zeno_speed, zeno_impacts, settle_substep, rotation, contact_friction,
-                       table_friction, jam, cpair, crec, stats, toi, kind, changed, rest, fbuf,
-                       ibuf, element, trace):
-    """:func:`exact_element` for many bodies (the ``jam`` level ``LEVEL_MANY_BODIES``), on the
-    broadphase and the event calendar (``physics.calendar``): the scan's events, found without
-    scanning every pair. ``fbuf``, ``ibuf``: the world's buffers, from which element
-    ``element``'s calendar rows are taken (``calendar.element_rows``).
+                       zeno_speed, zeno_impacts, settle_substep, rotation, flat, contact_friction,
+                       table_friction, cpair, crec, stats, toi, kind, changed, rest, fbuf, ibuf,
+                       element, trace):
+    """:func:`exact_element` for many bodies (the ``jam`` level ``LEVEL_MANY_BODIES``, passed
+    on as that literal), on the broadphase and the event calendar (``physics.calendar``): the
+    scan's events, found without scanning every pair. ``fbuf``, ``ibuf``: the world's buffers,
+    from which element ``element``'s calendar rows are taken (``calendar.element_rows``).
+
+    (No ``jam`` parameter: ``kernels.step_element`` calls this through ``static_if`` with the
+    flag first, and a call of more than 30 arguments is compiled by Python as a call with
+    ``*args``, which numba cannot inline.)
 
     The event loop (:func:`_many_events`) is compiled without reference counting
     (``jit_uncounted``): the counts numba kept on the arrays of inlined helpers in loops (a
@@ -1293,21 +1324,21 @@ def exact_many_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_itera
         fbuf, ibuf, element, n, PA.shape[0])
     t_now, events, iterations, settle = _many_events(
         S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
-        zeno_impacts, rotation, contact_friction, table_friction, jam, cpair, crec, stats, toi,
-        kind, changed, rest, near, box, cnt, heap, hpos, watch, stamp, watched, order, pidx,
-        trace)
+        zeno_impacts, rotation, flat, contact_friction, table_friction, LEVEL_MANY_BODIES, cpair,
+        crec, stats, toi, kind, changed, rest, near, box, cnt, heap, hpos, watch, stamp, watched,
+        order, pidx, trace)
     _end_rests(F, rest)
     if settle:
         _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, _int(MAX_SWEEPS), tol,
-                rotation, contact_friction, table_friction, cpair, crec, stats, changed, jam,
-                trace)
+                rotation, flat, contact_friction, table_friction, cpair, crec, stats, changed,
+                LEVEL_MANY_BODIES, trace)
     stats[STAT_EVENTS] += events
     stats[STAT_ITERATIONS] += iterations
 
 
 @jit_uncounted
 def _many_events(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
-                 zeno_impacts, rotation, contact_friction, table_friction, jam, cpair, crec,
+                 zeno_impacts, rotation, flat, contact_friction, table_friction, jam, cpair, crec,
                  stats, toi, kind, changed, rest, near, box, cnt, heap, hpos, watch, stamp,
                  watched, order, pidx, trace):
     """The event loop of :func:`exact_many_element` on the element's calendar rows. Returns
@@ -1317,7 +1348,7 @@ def _many_events(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations,
     Uncounted (``jit_uncounted``): nothing here allocates; the one callee that does, the block
     solve of a jam (``_jam``), keeps its counting."""
     sweeps = _int(MAX_SWEEPS)
-    iterations = _first_predictions(S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation,
+    iterations = _first_predictions(S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation, flat,
                                     table_friction, toi, kind, pidx, near, box, cnt, heap, hpos,
                                     watch, watched, order, changed)
     t_now = 0.0
@@ -1341,15 +1372,16 @@ def _many_events(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations,
             resting += _stalled_in_contact(best, S, Pm, hw, PA, PB, tol)
         else:
             resting += _watched_sweeps(S, Pm, F, hw, PA, PB, MAT, tol, zeno_speed, t_now,
-                                       rotation, contact_friction, table_friction, changed, cpair,
-                                       crec, stats, sweeps, jam, watch, cnt[CAL_WATCH_SIZE], near)
+                                       rotation, flat, contact_friction, table_friction, changed,
+                                       cpair, crec, stats, sweeps, jam, watch,
+                                       cnt[CAL_WATCH_SIZE], near)
             _rest_on_cushions_indexed(S, Pm, F, hw, MAT, rest, changed, pidx, tol, zeno_speed,
                                       contact_friction, table_friction)
             if trace is not None:  # the trace hook
                 trace_state(trace, t_now, S)
         iterations += _repredict(best, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations,
-                                 rotation, table_friction, toi, kind, changed, pidx, near, box,
-                                 cnt, heap, hpos, watch, stamp, watched)
+                                 rotation, flat, table_friction, toi, kind, changed, pidx, near,
+                                 box, cnt, heap, hpos, watch, stamp, watched)
         if events >= max_events or resting >= zeno_impacts:
             settle = t_now < dt
             break

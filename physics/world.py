@@ -36,7 +36,7 @@ from spinstrike.physics.edit import (
 )
 from spinstrike.physics.events import pair_bodies, pair_geometry
 from spinstrike.physics.jit import jit
-from spinstrike.physics.kernels import STEP, BatchKernel
+from spinstrike.physics.kernels import STEP, BatchKernel, Flags
 from spinstrike.physics.layout import (
     ANGLE,
     CALENDAR_BODIES,
@@ -326,8 +326,9 @@ class World:
         self._backend = None
         self._parallel = B >= PARALLEL_BATCH
         #: compile-time flags of the kernels (kernels.FLAGS)
-        self.flags = (isinstance(self.solver, FixedSolver), self.rotation, self.contact_friction,
-                      self.table_friction, self._contact_level())
+        self.flags = Flags(isinstance(self.solver, FixedSolver), self.rotation,
+                           self.contact_friction, self.table_friction, self._contact_level(),
+                           self._can_lie_flat(pairs))
         #: what follows a batch kernel's own arguments: the flags (parallel), or the range of
         #: elements then the flags (the serial body); and the kernels' compiled entry points
         self._tail = self.flags if self._parallel else (0, B, *self.flags)
@@ -350,6 +351,13 @@ class World:
         if len(self._pair_a) >= 2 or self.contact_friction:
             return LEVEL_CAN_JAM
         return LEVEL_ONE_PAIR
+
+    def _can_lie_flat(self, pairs: tuple[list[int], list[int]]) -> bool:
+        """The ``flat`` flag (``kernels.FLAGS``): a contact pair of two rods, or of a rod and a
+        cushion, which the solvers resolve at both ends when it lies flat
+        (``contacts.flat_points``). Shapes never change, so neither does the flag."""
+        rod = [shape == "rod" for shape in self.shapes] + [True] * 4  # the cushions
+        return any(rod[a] and rod[b] for a, b in zip(*pairs, strict=True))
 
     def __setattr__(self, name: str, value: Any) -> None:
         if name.startswith("_") or not self.__dict__.get("_frozen", False):

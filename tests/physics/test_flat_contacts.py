@@ -237,3 +237,28 @@ def test_a_flat_pair_turning_into_contact_is_met_at_once(on, omega, vy):
         assert w.last_step.fallback[0] == 0
         assert w.gaps()[0].min() >= -w.tolerance
     assert w.kinetic_energy()[0] <= e0 * (1.0 + 1e-12)
+
+
+ROD = dict(shape="rod", length=0.4, thickness=0.02, mass=0.1)
+DISK = dict(shape="disk", radius=0.03, mass=0.1)
+
+
+@pytest.mark.parametrize("bodies, walls, flat", [
+    ([ROD, DISK], False, False),                         # RodSpin-v0: a rod meets only a disk
+    ([DISK, DISK, DISK], True, False),                    # pucks and cushions
+    ([ROD, DISK], True, True),                            # RodSpinControl-v0: a rod on a cushion
+    ([ROD, ROD], False, True),                            # two rods
+    ([dict(ROD, static=True), dict(ROD, static=True), DISK], False, False),  # never touch
+    ([dict(ROD, static=True), DISK], True, False),        # a static rod has no cushion pairs
+    ([dict(ROD, pivot=True), DISK], True, True),          # a pivoted one has
+])
+def test_the_flat_flag_is_set_where_a_pair_can_lie_flat(bodies, walls, flat):
+    """The ``flat`` compile-time flag (``kernels.FLAGS``): the flat-pair code is compiled only
+    into worlds with a contact pair of two rods or of a rod and a cushion; every other world's
+    pairs are never flat (``contacts.flat_points``: a disk's core is a point), so it steps the
+    same without it (the goldens, recorded with it, pass bit for bit)."""
+    spaced = [dict(b, name=f"b{i}", position=[0.0, 0.2 * i - 0.2]) for i, b in enumerate(bodies)]
+    scene = dict(effects=["rotation", "walls"] if walls else ["rotation"], bodies=spaced)
+    if walls:
+        scene["table"] = dict(size=[1.2, 0.8])
+    assert physics.World(scene).flags.flat == flat

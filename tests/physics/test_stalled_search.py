@@ -119,7 +119,7 @@ def _touching(gap, vn, lever, along, w=30.0):
 def _search(a, b, horizon, max_iterations=64, wall=-1):
     S, Pm, F = _arrays([a] if wall >= 0 else [a, b])
     return events.time_of_impact(S, Pm, F, 0, 0 if wall >= 0 else 1, wall, HALF, HALF,
-                                 horizon, TOL, max_iterations, True, False)
+                                 horizon, TOL, max_iterations, True, True, False)
 
 
 def _first_overlap(a, b, horizon, wall=-1, samples=200_001):

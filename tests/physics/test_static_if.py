@@ -81,13 +81,17 @@ print(sorted(p.name.split("-")[0] for p in
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("env_id, holds", [("SpinStrike/RodSpinControl-v0", False),
-                                           ("SpinStrike/RodSpin-v0", True)])
-def test_only_one_pair_envs_compile_the_hold(env_id, holds, tmp_path):
+@pytest.mark.parametrize("env_id, holds, flat", [("SpinStrike/RodSpinControl-v0", False, True),
+                                                 ("SpinStrike/RodSpin-v0", True, False),
+                                                 ("SpinStrike/PuckSpeedControl-v0", False, False)])
+def test_envs_compile_only_the_code_their_scene_can_run(env_id, holds, flat, tmp_path):
     """From the user's side, in a fresh process with an empty kernel cache (~40 s each): a
     walled control env (``jam`` level can-jam) never compiles the sustained-contact hold
     (``solvers._hold``; it cost ~11 s of its first-run compile, 55 -> 44 CPU s), the one-pair
-    RodSpin-v0, whose e = 0 strikes hold, does. The cache's files name what was compiled."""
+    RodSpin-v0, whose e = 0 strikes hold, does. Only a scene with a rod and a cushion or two
+    rods compiles the flat-pair code (``impulse.resolve_flat``, ``events.flat_approach``):
+    RodSpin-v0's rod meets only a disk, PuckSpeedControl-v0 has no rod. The cache's files name
+    what was compiled."""
     import ast
     import os
     import subprocess
@@ -100,3 +104,5 @@ def test_only_one_pair_envs_compile_the_hold(env_id, holds, tmp_path):
     compiled = ast.literal_eval(out.stdout.strip().splitlines()[-1])
     assert "solvers.exact_element" in compiled  # the cache saw the solver compile
     assert ("solvers._hold" in compiled) == holds
+    assert ("impulse.resolve_flat" in compiled) == flat
+    assert ("events.flat_approach" in compiled) == flat

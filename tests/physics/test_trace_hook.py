@@ -22,12 +22,13 @@ SIZE = 4096
 
 @jit
 def _traced_step(fbuf, ibuf, dt, times, states, counts, start, stop, fixed, rotation, cf, tf,
-                 jam):
+                 jam, flat):
     """The world's step, element b traced into row b of ``times``, ``states``, ``counts``."""
     literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam)
+    literally(flat)
     v = unpack(fbuf, ibuf)
     for b in range(start, stop):
-        step_element(v, b, dt, fixed, rotation, cf, tf, jam,
+        step_element(v, b, dt, fixed, rotation, cf, tf, jam, flat,
                      Trace(times[b], states[b], counts[b]))
 
 
