@@ -14,6 +14,7 @@ lets the gap below the level it promises (no tunnelling).
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -276,3 +277,32 @@ def test_a_search_that_stalls_at_once_still_misses_no_contact(pair):
         assert t0 <= t_over + 1e-12
     else:
         assert t_over == math.inf
+
+
+#: zero-size bodies at relative rest in exact contact, drawn by Hypothesis from numbers in the
+#: project's modules (the ``slow`` profile draws them; the default one does not, conftest.py)
+DEGENERATE = {
+    # two zero-thickness rods in a T, the end of one on the other's core, moving together:
+    # the sampled gap dips below -tol by round-off at 1e-6 s, the search finds no contact
+    "T of thin rods moving together": (
+        {"x": 0.0, "y": 0.0, "ang": 0.0, "vx": 0.0, "vy": 1.0, "w": 0.0, "h": 0.25, "r": 0.0,
+         "ax": 0.0, "ay": 0.0},
+        {"vx": 0.0, "vy": 1.0, "w": 0.0, "r": 0.0, "h": 0.25, "ang": -math.pi / 2,
+         "x": 1.5308084989341915e-17, "y": -0.25}, -1),
+    # a point at the centre of a turning zero-thickness rod: touching for ever, never
+    # approaching; the search checkpoints at every restart
+    "point at a turning thin rod's centre": (
+        {"x": 0.0, "y": 0.0, "ang": 0.0, "vx": 0.0, "vy": 0.0, "w": 1.0, "h": 0.25, "r": 0.0,
+         "ax": 0.0, "ay": 0.0},
+        {"vx": 0.0, "vy": 0.0, "w": 0.0, "r": 0.0, "h": 0.0, "x": 0.0, "y": 0.0}, -1),
+}
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError,
+                   reason="known: zero-size bodies at relative rest in exact contact")
+@pytest.mark.parametrize("case", list(DEGENERATE))
+def test_degenerate_contacts_at_relative_rest(case):
+    """Open: the stalled-search property fails on these two (see ``DEGENERATE``); strict, so a
+    fix shows as an unexpected pass."""
+    test_a_search_that_stalls_at_once_still_misses_no_contact.hypothesis.inner_test(
+        DEGENERATE[case])
