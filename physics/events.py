@@ -210,8 +210,10 @@ def _step_bound(delta, nx, ny, S, Pm, F, a, b, wall, vxa, vya, wa, vxb, vyb, wb,
     slide_a = table_friction and Pm[a, FRICTION_DECEL] > 0.0
     spin_a = Pm[a, HALF_LENGTH] * abs(wa) if rotation else 0.0
     if wall >= 0:
+        # the cushion does not slide: wall < 0, False here, as a run-time bool (a literal False
+        # compiled ca_step and its callees a second time)
         return ca_step(delta, nx, ny, vxa, vya, F[a, FX] * ima, F[a, FY] * ima, slide_a, spin_a,
-                       0.0, 0.0, 0.0, 0.0, False, 0.0)
+                       0.0, 0.0, 0.0, 0.0, wall < 0, 0.0)
     imb = Pm[b, INV_MASS]
     slide_b = table_friction and Pm[b, FRICTION_DECEL] > 0.0
     spin_b = Pm[b, HALF_LENGTH] * abs(wb) if rotation else 0.0

@@ -145,7 +145,9 @@ def _try_active_set(A, vn, mask, m, lam, eps):
         rhs[r] = -vn[sel[r]]
         for q in range(k):
             M[r, q] = A[sel[r], sel[q]]
-    if not _solve_small(M, rhs, k):
+    # (k's size passed as len(rhs): k itself, a literal 0 at the first pass of numba's type
+    # inference, compiled _solve_small twice)
+    if not _solve_small(M, rhs, len(rhs)):
         return False
     for r in range(k):
         if rhs[r] < 0.0:

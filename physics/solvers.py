@@ -786,7 +786,7 @@ def _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, sweeps, tol, r
     """
     span = dt - t_now
     n, capped = _plan(_settle_substeps(S, Pm, F, hw, PA, PB, span, settle_substep),
-                      MAX_SETTLE_SUBSTEPS)
+                      _int(MAX_SETTLE_SUBSTEPS))
     h = span / n
     t0 = t_now
     k = 0  # substeps of the current plan done
@@ -860,7 +860,7 @@ def _holdable(S, Pm, F, PA, PB, MAT, rotation, contact_friction, table_friction)
 
 
 @jit_inline
-def _gap_moved(S, Pm, a, b, h, j, nx, ny, rna, rnb):
+def _gap_moved(S, Pm, a, b, wall, h, j, nx, ny, rna, rnb):
     """Gap of the pair after flying h seconds with the impulse ``j`` along ``n`` (levers
     ``rna``, ``rnb``) applied at the start (the poses only; S is not changed)."""
     ima = Pm[a, INV_MASS]
@@ -873,10 +873,10 @@ def _gap_moved(S, Pm, a, b, h, j, nx, ny, rna, rnb):
     xb = S[b, X] + h * (S[b, VX] + j * nx * imb)
     yb = S[b, Y] + h * (S[b, VY] + j * ny * imb)
     tb = S[b, ANGLE] + h * (S[b, OMEGA] + j * rnb * iib)
-    # the pinned flags passed as pair_geometry passes them: omitted, they compiled geometry and
-    # its callees a second time
+    # the wall and pinned flags passed as pair_geometry passes them (run-time values): as
+    # constants, or omitted, they compiled geometry and its callees a second time
     return geometry(xa, ya, ta, 0.0, 0.0, 0.0, Pm[a, HALF_LENGTH], Pm[a, RADIUS],
-                    xb, yb, tb, 0.0, 0.0, 0.0, Pm[b, HALF_LENGTH], Pm[b, RADIUS], -1, 0.0,
+                    xb, yb, tb, 0.0, 0.0, 0.0, Pm[b, HALF_LENGTH], Pm[b, RADIUS], wall, 0.0,
                     0.0, Pm[a, INV_MASS] == 0.0, Pm[b, INV_MASS] == 0.0)[0]
 
 
@@ -984,9 +984,11 @@ def _hold(S, Pm, hw, PA, PB, t_now, dt, tol, zeno_speed, cpair, crec, stats, tra
     the pair separates by its own motion. Returns (time reached, outcome): 1 held to ``dt``,
     0 let go at that time (the event loop goes on), -1 the position stage did not converge
     (the caller settles the rest of the step)."""
-    a = PA[0]
-    b = PB[0]
-    g0, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, -1, 0.0, 0.0)
+    # the one pair is two bodies; its wall (-1) and whether it is a cushion (False) are passed
+    # as run-time values: as literal constants they compiled geometry and its callees, and
+    # relative_velocity_of, a second time
+    a, b, wall = pair_bodies(0, PA, PB, S.shape[0])
+    g0, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, wall, 0.0, 0.0)
     held = min(max(g0, 0.0), tol)
     e0 = _kinetic(S, Pm, a, b)
     size = Pm[a, RADIUS] + Pm[a, HALF_LENGTH] + Pm[b, RADIUS] + Pm[b, HALF_LENGTH]
@@ -995,7 +997,7 @@ def _hold(S, Pm, hw, PA, PB, t_now, dt, tol, zeno_speed, cpair, crec, stats, tra
     substeps = 0
     outcome = 1
     while t < dt:
-        g0, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, -1, 0.0, 0.0)
+        g0, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, wall, 0.0, 0.0)
         rna = oax * ny - oay * nx
         rnb = obx * ny - oby * nx
         k_n = (Pm[a, INV_MASS] + Pm[b, INV_MASS] + rna * rna * Pm[a, INV_INERTIA]
@@ -1008,11 +1010,11 @@ def _hold(S, Pm, hw, PA, PB, t_now, dt, tol, zeno_speed, cpair, crec, stats, tra
             if t + h >= dt:
                 h = dt - t
         # position stage: the impulse whose flight ends at the held gap (Newton on one scalar)
-        g = _gap_moved(S, Pm, a, b, h, j, nx, ny, rna, rnb) - held
+        g = _gap_moved(S, Pm, a, b, wall, h, j, nx, ny, rna, rnb) - held
         it = 0
         while abs(g) > 1e-3 * tol and it < HOLD_ITERATIONS:
             j -= g / (h * k_n)
-            g = _gap_moved(S, Pm, a, b, h, j, nx, ny, rna, rnb) - held
+            g = _gap_moved(S, Pm, a, b, wall, h, j, nx, ny, rna, rnb) - held
             it += 1
         if abs(g) > 1e-3 * tol or not math.isfinite(j):
             outcome = -1
@@ -1031,19 +1033,19 @@ def _hold(S, Pm, hw, PA, PB, t_now, dt, tol, zeno_speed, cpair, crec, stats, tra
             substeps += 1
             if trace is not None:  # the trace hook
                 trace_state(trace, t, S)
-            gap, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, -1, 0.0,
+            gap, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, wall, 0.0,
                                                                         0.0)
             if gap > tol and vn >= zeno_speed:
                 outcome = 0  # apart and leaving faster than a resting bounce: let go
                 break
             continue
         # velocity stage: no normal velocity at the new pose (bilateral: either sign)
-        g1, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, -1, 0.0, 0.0)
+        g1, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, wall, 0.0, 0.0)
         rna = oax * ny - oay * nx
         rnb = obx * ny - oby * nx
         vn, vt, scale = relative_velocity_of(S[a, VX], S[a, VY], S[a, OMEGA], S[b, VX],
-                                             S[b, VY], S[b, OMEGA], False, nx, ny, oax, oay,
-                                             ka, obx, oby, kb)
+                                             S[b, VY], S[b, OMEGA], wall >= 0, nx, ny, oax,
+                                             oay, ka, obx, oby, kb)
         k_n = (Pm[a, INV_MASS] + Pm[b, INV_MASS] + rna * rna * Pm[a, INV_INERTIA]
                + rnb * rnb * Pm[b, INV_INERTIA])
         mu = -vn / k_n
