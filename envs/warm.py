@@ -1,6 +1,6 @@
 """Compile an env's kernels in a background process, while the caller does other work.
 
-A first run compiles the physics kernels (seconds to half a minute on 2 cores). Work that does
+A first run compiles the physics kernels (40 s to a minute on 2 cores). Work that does
 not need them yet — importing PyTorch and Stable-Baselines3, building a model — can run on the
 other core meanwhile: :func:`warm_up` starts a process that builds the env as it will be used
 (the native vector env with the same arguments), resets and steps it once, which compiles its

@@ -26,7 +26,7 @@ behaviour, ``NUMBA_CACHE_DIR`` included):
   kernels would otherwise stay).
 
 On a cache miss the first compilation in a process prints one line to stderr (what, why, first
-run only), so a first run that takes half a minute does not look hung.
+run only), so a first run that takes a minute does not look hung.
 """
 
 from __future__ import annotations
@@ -218,7 +218,7 @@ def _compile_notice(where: Path) -> None:
         return
     _noticed = True
     print(f"spinstrike: compiling the physics kernels for this machine (first run, or after an "
-          f"update: about half a minute on 2 cores); they are cached in {where.parent} for the "
+          f"update: up to a minute on 2 cores); they are cached in {where.parent} for the "
           "next runs", file=sys.stderr, flush=True)
 
 
