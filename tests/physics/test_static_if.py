@@ -106,3 +106,15 @@ def test_envs_compile_only_the_code_their_scene_can_run(env_id, holds, flat, tmp
     assert ("solvers._hold" in compiled) == holds
     assert ("impulse.resolve_flat" in compiled) == flat
     assert ("events.flat_approach" in compiled) == flat
+
+
+def test_a_call_numba_cannot_inline_is_refused_when_defined():
+    """``g(flag, *args)`` with more than 30 arguments is compiled by CPython as a ``*args`` call,
+    which numba cannot inline (the error came at the first compile, naming a closure)."""
+    params = ", ".join(f"a{i}" for i in range(30))
+    scope: dict = {}
+    exec(f"def wide({params}):\n    return a0\n", scope)  # noqa: S102
+    with pytest.raises(TypeError, match=r"static_if\(wide\): 30 parameters, at most 29"):
+        static_if(scope["wide"])
+    exec(f"def narrow({params[:-5]}):\n    return a0\n", scope)  # noqa: S102  (29 parameters)
+    static_if(scope["narrow"])
