@@ -111,10 +111,12 @@ def test_envs_compile_only_the_code_their_scene_can_run(env_id, holds, flat, tmp
 def test_a_call_numba_cannot_inline_is_refused_when_defined():
     """``g(flag, *args)`` with more than 30 arguments is compiled by CPython as a ``*args`` call,
     which numba cannot inline (the error came at the first compile, naming a closure)."""
-    params = ", ".join(f"a{i}" for i in range(30))
-    scope: dict = {}
-    exec(f"def wide({params}):\n    return a0\n", scope)  # noqa: S102
-    with pytest.raises(TypeError, match=r"static_if\(wide\): 30 parameters, at most 29"):
-        static_if(scope["wide"])
-    exec(f"def narrow({params[:-5]}):\n    return a0\n", scope)  # noqa: S102  (29 parameters)
-    static_if(scope["narrow"])
+    def taking(n):
+        scope: dict = {}
+        params = ", ".join(f"a{i}" for i in range(n))
+        exec(f"def fn({params}):\n    return a0\n", scope)  # noqa: S102
+        return scope["fn"]
+
+    with pytest.raises(TypeError, match=r"static_if\(fn\): 30 parameters, at most 29"):
+        static_if(taking(30))
+    static_if(taking(29))
