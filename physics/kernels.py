@@ -14,9 +14,9 @@ the flags and books the step.
 whether the scene's contacts can jam and whether a pair can lie flat are passed as numba
 *literal* arguments (``numba.literally`` in each batch kernel); each combination is compiled
 (and cached) once. Where a flag picks a call through :func:`~spinstrike.physics.jit.static_if`
-(the solver kind, the jam block solve, the hold, the many-body calendar, flat pairs) the call a
-flag rules out is never typed or compiled (the jam block solve alone is a quarter of the strike
-kernel's compile time). The
+(the solver kind, the jam block solve, the hold, the many-body calendar or the scan, flat
+pairs) the call a flag rules out is never typed or compiled (the jam block solve alone is a
+quarter of the strike kernel's compile time; the scan, a third of a many-body world's). The
 effects' flags are tested in ordinary ``if`` statements, which numba does not prune: an effect's
 functions are compiled into every kernel and skipped at run time (their code runs only where the
 effect is listed and its parameter is above zero, ``tests/physics/test_effects.py``).
@@ -162,7 +162,23 @@ Flags = namedtuple("Flags", FLAGS)
 
 #: one solver or the other, by the world's literal ``fixed`` flag: the other is never compiled
 _fixed_if = static_if(fixed_element)
-_exact_unless = static_if(exact_element, negate=True)
+#: the scan (``exact_element``) only below the ``jam`` level ``LEVEL_MANY_BODIES``, where the
+#: calendar steps the world instead. (A test inside the solver would not do: numba prunes a branch
+#: on a literal argument compared with a literal, not with a named constant, so a many-body world
+#: compiled the whole scan, unused: ~30 s of its first run.)
+_scan_unless = static_if(exact_element, negate=True, level=LEVEL_MANY_BODIES)
+
+
+@jit_inline
+def _scan(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
+          zeno_impacts, settle_substep, rotation, flat, contact_friction, table_friction, jam,
+          cpair, crec, stats, toi, kind, changed, rest, trace):
+    _scan_unless(jam, S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_speed,
+                 zeno_impacts, settle_substep, rotation, flat, contact_friction, table_friction,
+                 jam, cpair, crec, stats, toi, kind, changed, rest, trace)
+
+
+_exact_unless = static_if(_scan, negate=True)
 #: the exact solver's calendar, only at the ``jam`` level ``LEVEL_MANY_BODIES`` (exact worlds of
 #: ``CALENDAR_BODIES`` or more bodies): other worlds never compile it, and their exact step
 #: keeps its own argument list

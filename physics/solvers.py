@@ -1107,14 +1107,13 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
     ``toi``, ``kind`` (per pair), ``changed`` and ``rest`` (per body) are the element's scratch
     rows (``rest``: the force components cushions hold back, :func:`_rest_on_cushions`);
     ``rotation``, ``flat``, ``contact_friction``, ``table_friction`` and ``jam`` are
-    compile-time flags (``kernels.FLAGS``). At the ``jam`` level ``LEVEL_MANY_BODIES`` this
-    does nothing (the test is folded at compile time): :func:`exact_many_element` steps those
-    worlds, on the broadphase and the event calendar, with the same events bit for bit.
+    compile-time flags (``kernels.FLAGS``). Below the ``jam`` level ``LEVEL_MANY_BODIES``
+    only: :func:`exact_many_element` steps those worlds, on the broadphase and the event
+    calendar, with the same events bit for bit (``kernels.step_element`` picks one or the other
+    at compile time).
     ``trace``: the trace hook (a ``Trace``: the state after every event that resolved
     contacts), or None.
     """
-    if jam >= LEVEL_MANY_BODIES:
-        return
     sweeps = _int(MAX_SWEEPS)
     n_pairs = PA.shape[0]
     iterations = _search_all(S, Pm, F, hw, PA, PB, 0.0, dt, tol, max_iterations, rotation, flat,
@@ -1175,12 +1174,17 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
     stats[STAT_ITERATIONS] += iterations
 
 
-@jit_inline
+@jit_uncounted
 def _predict(p, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotation, flat,
              table_friction, toi, kind, near, heap, hpos, watch, watched, cnt):
     """Search pair p from now to the end of the step and file the outcome: in the calendar if
     it has an event, on the watch list if it may come within ``tol``. Returns the search's
-    iterations."""
+    iterations.
+
+    Compiled once, not inlined (as :func:`_first`): inlined at both its call sites, with the
+    search it inlines, it was a third of a many-body world's first compile (98 -> 64 CPU s
+    with the scan no longer compiled there, ``kernels.step_element``); uncounted, so the call
+    costs no reference counting, and the step rate did not move."""
     if stays_clear(p, S, Pm, F, hw, PA, PB, dt - t_now, tol, table_friction):
         tc, k, it = dt - t_now, NONE, 0
     else:
@@ -1244,10 +1248,11 @@ def _first_predictions(S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation, 
     return iterations
 
 
-@jit_inline
+@jit_uncounted
 def _first(p, S, Pm, F, hw, PA, PB, dt, tol, max_iterations, rotation, flat, table_friction, toi,
            kind, near, heap, hpos, watch, watched, cnt, n_watch):
-    """:func:`_predict` at the start of the step, the watch list appended (sorted after)."""
+    """:func:`_predict` at the start of the step, the watch list appended (sorted after).
+    Compiled once, not inlined (see :func:`_predict`)."""
     if stays_clear(p, S, Pm, F, hw, PA, PB, dt, tol, table_friction):
         tc, k, it = dt, NONE, 0
     else:
