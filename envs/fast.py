@@ -76,6 +76,7 @@ from spinstrike.physics.solvers import (
     Trace,
     rests_on,
     trace_state,
+    untraced,
 )
 
 __all__ = ["CONTROL_OBS", "CONTROL_STEP", "OBS_SIZE", "STRIKE", "STRIKE_TRACED", "StrikeTrace",
@@ -249,9 +250,10 @@ def control_body(fbuf, ibuf, tbuf, kcfg, start, stop, fixed, rotation, cf, tf, j
     v = unpack(fbuf, ibuf)
     n_stored = ibuf[H_M]
     dt = v.fcfg[CF_DT]
+    off = untraced(v.S.shape[1])
     for b in range(start, stop):
         _pre(b, v.S, v.Pm, v.F, dt, tbuf, kcfg)
-        step_element(v, b, dt, fixed, rotation, cf, tf, jam, flat)
+        step_element(v, b, dt, fixed, rotation, cf, tf, jam, flat, off)
         _post(b, v.S, v.HW, v.PA, v.PB, v.cpair, v.crec, v.stats, n_stored, tbuf, kcfg)
     return True
 
@@ -474,7 +476,7 @@ def _traced_chunk(v, b, k, n_stored, scfg, trace, fixed, rotation, cf, tf, jam, 
     states after its events, the state at the chunk's end, its contacts), the others' not."""
     chunk = scfg[SC_CHUNK]
     if b != 0:
-        step_element(v, b, chunk, fixed, rotation, cf, tf, jam, flat)
+        step_element(v, b, chunk, fixed, rotation, cf, tf, jam, flat, untraced(v.S.shape[1]))
         return
     t0 = k * chunk
     events = trace.events
@@ -491,12 +493,14 @@ def _traced_chunk(v, b, k, n_stored, scfg, trace, fixed, rotation, cf, tf, jam, 
 def strike_body(fbuf, ibuf, sbuf, scfg, trace, start, stop, fixed, rotation, cf, tf, jam, flat):
     """Simulate the strikes of elements ``start..stop-1`` to their ends (see the section
     comment); ``trace``: None, or a :data:`StrikeTrace` that records element 0 (a separate
-    specialisation: with None the tracing code is not compiled). The last five arguments are
-    the world's compile-time flags (``kernels.FLAGS``)."""
+    specialisation of this kernel; the solver under it is the same, given an empty trace by
+    unfilmed strikes, ``solvers.untraced``). The last five arguments are the world's
+    compile-time flags (``kernels.FLAGS``)."""
     literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam),
     literally(flat)
     v = unpack(fbuf, ibuf)
     n_stored = ibuf[H_M]
+    off = untraced(v.S.shape[1])  # the solver's own trace hook, empty: one solver compile
     for b in range(start, stop):
         row = sbuf[b]
         _strike_start(row)
@@ -508,7 +512,7 @@ def strike_body(fbuf, ibuf, sbuf, scfg, trace, start, stop, fixed, rotation, cf,
                 trace_state(trace.chunks, 0.0, v.S[b])
         for k in range(int(scfg[SC_CHUNKS])):
             if trace is None:
-                step_element(v, b, scfg[SC_CHUNK], fixed, rotation, cf, tf, jam, flat)
+                step_element(v, b, scfg[SC_CHUNK], fixed, rotation, cf, tf, jam, flat, off)
             else:
                 _traced_chunk(v, b, k, n_stored, scfg, trace, fixed, rotation, cf, tf, jam, flat)
             if _strike_post(b, k, v.S, v.Pm, v.cpair, v.crec, v.stats, n_stored, sbuf, scfg):

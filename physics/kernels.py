@@ -85,7 +85,12 @@ from spinstrike.physics.layout import (
     STAT_WATCH,
     STATE_COLUMNS,
 )
-from spinstrike.physics.solvers import exact_element, exact_many_element, fixed_element
+from spinstrike.physics.solvers import (
+    exact_element,
+    exact_many_element,
+    fixed_element,
+    untraced,
+)
 
 __all__ = ["BLOCK", "FLAGS", "Flags", "STEP", "BatchKernel", "Views", "element_overlap", "n_blocks",
            "step_element", "unpack"]
@@ -191,7 +196,8 @@ def step_element(v, b, dt, fixed, rotation, contact_friction, table_friction, ja
     """Advance element b of a world's views by dt seconds with the world's solver, from
     statistics zeroed here; the clock advances too. ``fixed`` to ``flat`` are the world's
     compile-time flags (:data:`FLAGS`); ``trace``: the solvers' trace hook (``solvers.Trace``),
-    passed through (None: nothing recorded, the hook compiled away). Returns the element's
+    passed through (``solvers.untraced``: nothing recorded, the same compiled solver; None:
+    nothing recorded, the hook compiled away in a solver of its own). Returns the element's
     ``fallback`` statistic (``layout.FALLBACK``), checked last for a state that is no longer
     finite (``FALLBACK_NONFINITE``: inputs beyond what float64 carries, e.g. 1e160 m/s)."""
     for k in range(STAT_COLUMNS):  # the watched pair stays
@@ -254,9 +260,10 @@ def step_body(fbuf, ibuf, start, stop, fixed, rotation, cf, tf, jam, flat):
     literally(flat)
     v = unpack(fbuf, ibuf)
     dt = v.fcfg[CF_DT]
+    off = untraced(v.S.shape[1])  # a traced step then runs the same compiled solver
     worst = 0
     for b in range(start, stop):
-        worst = max(worst, step_element(v, b, dt, fixed, rotation, cf, tf, jam, flat))
+        worst = max(worst, step_element(v, b, dt, fixed, rotation, cf, tf, jam, flat, off))
     return worst
 
 

@@ -24,9 +24,9 @@ comes to rest on it, ``_rest_on_cushions``):
 ``slop``) and approach get impulses from that (overlapped) pose, ``iterations`` sweeps, then
 overlaps are pushed apart along the normal in proportion to the inverse masses.
 
-Both take a :data:`Trace` or None (the *trace hook*, below): a renderer's record of one
-element's trajectory. With None (every step but a filmed strike's) the hook's branches are
-compiled away.
+Both take a :data:`Trace` (the *trace hook*, below): a renderer's record of one element's
+trajectory. Every step but a filmed strike's passes an empty one (:func:`untraced`), which
+records nothing, so filmed and unfilmed steps run one compiled solver.
 """
 
 from __future__ import annotations
@@ -113,6 +113,7 @@ from spinstrike.physics.layout import (
     STAT_SUBSTEPS,
     STAT_WATCH,
     STAT_WATCHED,
+    STATE_COLUMNS,
     VX,
     VY,
     Table,
@@ -123,7 +124,7 @@ from spinstrike.physics.motion import flight
 
 __all__ = ["MAX_SWEEPS", "TRACE_COUNT", "Trace", "exact_element", "exact_many_element",
            "fixed_element", "rests_on",
-           "trace_state"]
+           "trace_state", "untraced"]
 
 #: sequential-impulse sweeps over simultaneous contacts at one event
 MAX_SWEEPS = 64
@@ -145,9 +146,13 @@ FLAT_TIE = 1e-12
 # Between two entries every body is in closed-form free flight (``motion.flight``, what
 # ``_advance`` computes), so the state at any time t is the last entry at or before t flown by
 # the remaining time: frames sampled that way lie on the very trajectory the solver computed.
-# With ``trace`` None, numba prunes the hook's branches (an ``is None`` test of an argument),
-# so the physics and its cost are unchanged. Carried over by any rewrite of the event loop:
-# call ``trace_state`` wherever the state has just changed other than by free flight.
+# Untraced steps pass an empty trace (:func:`untraced`, room for no entry), not None: traced
+# and untraced steps then have the same argument types, so the solver is compiled once for
+# both (None was a second specialisation of every solver function that takes the trace: ~20 s
+# of the first video after a first training run). An empty trace's hook returns at once and
+# the physics is bit for bit the same. (``None`` is still accepted: numba prunes the hook's
+# ``is None`` branches.) Carried over by any rewrite of the event loop: call ``trace_state``
+# wherever the state has just changed other than by free flight.
 # ---------------------------------------------------------------------------------------------
 
 #: a trajectory trace: ``time [K]`` (s, from the start of the step), ``state [K, N, 6]`` (the
@@ -157,11 +162,23 @@ Trace = namedtuple("Trace", ["time", "state", "count"])
 #: a trace's counters: entries written, entries that did not fit (the trace is full)
 TRACE_COUNT = Table("solver trace count", "entries", "dropped", prefix="TRACE_")
 TRACE_ENTRIES, TRACE_DROPPED = TRACE_COUNT
+_TRACE_COUNTERS = len(TRACE_COUNT)
+
+
+@jit_inline
+def untraced(n_bodies):
+    """The trace of an untraced step: room for no entry, nothing counted (see the section
+    comment)."""
+    return Trace(np.empty(0), np.empty((0, n_bodies, STATE_COLUMNS)),
+                 np.zeros(_TRACE_COUNTERS, dtype=np.int64))
 
 
 @jit_inline
 def trace_state(trace, t, S):
-    """Append the time ``t`` (s) and the element's state ``S [N, 6]`` to ``trace``."""
+    """Append the time ``t`` (s) and the element's state ``S [N, 6]`` to ``trace`` (an empty
+    trace, :func:`untraced`: nothing)."""
+    if trace.time.shape[0] == 0:
+        return
     n = trace.count[TRACE_ENTRIES]
     if n < trace.time.shape[0]:
         trace.time[n] = t

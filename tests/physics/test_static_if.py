@@ -145,6 +145,48 @@ def test_a_many_body_world_compiles_the_calendar_not_the_scan(tmp_path):
     assert not {"solvers.exact_element", "solvers._search_all", "solvers._hold"} & set(compiled)
 
 
+COLD_FILMED = """
+import os, pathlib
+import gymnasium as gym
+import spinstrike
+env = gym.make("SpinStrike/RodSpin-v0", render_mode="rgb_array")
+env.reset(seed=0)
+env.action_space.seed(0)
+env.step(env.action_space.sample())  # the traced strike (what a video films)
+frames = env.render()
+vec = gym.make_vec("SpinStrike/RodSpin-v0", num_envs=2, vectorization_mode="vector_entry_point")
+vec.reset(seed=0)
+vec.step(vec.action_space.sample())  # the untraced strike
+print(len(frames), sorted(p.name.split("-")[0] for p in
+                          pathlib.Path(os.environ["SPINSTRIKE_CACHE_DIR"]).rglob("*.nbc")))
+"""
+
+
+@pytest.mark.slow
+def test_a_filmed_strike_runs_the_solver_an_unfilmed_one_compiled(tmp_path):
+    """From the user's side, a fresh process with an empty kernel cache (~50 s): an env that
+    films its strikes (``render_mode="rgb_array"``, the traced strike) and a vector env that
+    does not share one compiled solver: the solver functions that take the trace hook are
+    compiled once each (an untraced step passes an empty trace, ``solvers.untraced``; None was
+    a second specialisation of each: 68 -> 49 CPU s for the two, ~20 s of the first video
+    after a first training run)."""
+    import ast
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, SPINSTRIKE_CACHE_DIR=str(tmp_path / "cache"), SPINSTRIKE_QUIET="1")
+    out = subprocess.run([sys.executable, "-c", COLD_FILMED], env=env, capture_output=True,
+                         text=True, timeout=900, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-3000:]
+    n_frames, rest = out.stdout.strip().splitlines()[-1].split(" ", 1)
+    compiled = ast.literal_eval(rest)  # one entry per compiled signature
+    assert int(n_frames) > 1
+    assert compiled.count("fast.strike_body") == 2  # traced and untraced
+    for name in ("kernels.step_element", "solvers.exact_element", "solvers._settle"):
+        assert compiled.count(name) == 1, name
+
+
 def test_a_call_numba_cannot_inline_is_refused_when_defined():
     """``g(flag, *args)`` with more than 30 arguments is compiled by CPython as a ``*args`` call,
     which numba cannot inline (the error came at the first compile, naming a closure)."""
