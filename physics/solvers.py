@@ -1124,12 +1124,12 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
     ``toi``, ``kind`` (per pair), ``changed`` and ``rest`` (per body) are the element's scratch
     rows (``rest``: the force components cushions hold back, :func:`_rest_on_cushions`);
     ``rotation``, ``flat``, ``contact_friction``, ``table_friction`` and ``jam`` are
-    compile-time flags (``kernels.FLAGS``). Below the ``jam`` level ``LEVEL_MANY_BODIES``
-    only: :func:`exact_many_element` steps those worlds, on the broadphase and the event
-    calendar, with the same events bit for bit (``kernels.step_element`` picks one or the other
-    at compile time).
+    compile-time flags (``kernels.FLAGS``). Used below the ``jam`` level
+    ``LEVEL_MANY_BODIES`` only: at that level :func:`exact_many_element` steps the world, on the
+    broadphase and the event calendar, with the same events bit for bit
+    (``kernels.step_element`` picks one or the other at compile time).
     ``trace``: the trace hook (a ``Trace``: the state after every event that resolved
-    contacts), or None.
+    contacts; an empty one, :func:`untraced`, records nothing), or None.
     """
     sweeps = _int(MAX_SWEEPS)
     n_pairs = PA.shape[0]
@@ -1199,9 +1199,9 @@ def _predict(p, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations, rotation, 
     iterations.
 
     Compiled once, not inlined (as :func:`_first`): inlined at both its call sites, with the
-    search it inlines, it was a third of a many-body world's first compile (98 -> 64 CPU s
-    with the scan no longer compiled there, ``kernels.step_element``); uncounted, so the call
-    costs no reference counting, and the step rate did not move."""
+    search it inlines, it was a large part of a many-body world's first compile (with the scan
+    no longer compiled there, ``kernels._scan``: 98 -> 64 CPU s); uncounted, so the call costs
+    no reference counting, and the step rate did not move."""
     if stays_clear(p, S, Pm, F, hw, PA, PB, dt - t_now, tol, table_friction):
         tc, k, it = dt - t_now, NONE, 0
     else:
