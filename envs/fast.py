@@ -471,12 +471,13 @@ def _trace_contacts(b, t0, PA, PB, cpair, crec, stats, n_stored, contacts, count
 
 
 @jit
-def _traced_chunk(v, b, k, n_stored, scfg, trace, fixed, rotation, cf, tf, jam, flat):
+def _traced_chunk(v, b, k, n_stored, scfg, trace, off, fixed, rotation, cf, tf, jam, flat):
     """Chunk k of element b's strike in a traced strike: element 0's is recorded (the solver's
-    states after its events, the state at the chunk's end, its contacts), the others' not."""
+    states after its events, the state at the chunk's end, its contacts), the others' not
+    (``off``: the empty solver trace, ``solvers.untraced``)."""
     chunk = scfg[SC_CHUNK]
     if b != 0:
-        step_element(v, b, chunk, fixed, rotation, cf, tf, jam, flat, untraced(v.S.shape[1]))
+        step_element(v, b, chunk, fixed, rotation, cf, tf, jam, flat, off)
         return
     t0 = k * chunk
     events = trace.events
@@ -514,7 +515,8 @@ def strike_body(fbuf, ibuf, sbuf, scfg, trace, start, stop, fixed, rotation, cf,
             if trace is None:
                 step_element(v, b, scfg[SC_CHUNK], fixed, rotation, cf, tf, jam, flat, off)
             else:
-                _traced_chunk(v, b, k, n_stored, scfg, trace, fixed, rotation, cf, tf, jam, flat)
+                _traced_chunk(v, b, k, n_stored, scfg, trace, off, fixed, rotation, cf, tf, jam,
+                              flat)
             if _strike_post(b, k, v.S, v.Pm, v.cpair, v.crec, v.stats, n_stored, sbuf, scfg):
                 break
 

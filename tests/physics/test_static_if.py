@@ -80,6 +80,20 @@ print(sorted(p.name.split("-")[0] for p in
 """
 
 
+def _cold_run(script, tmp_path, *args):
+    """The last line ``script`` prints, run with ``args`` in a fresh process with an empty
+    kernel cache (``SPINSTRIKE_CACHE_DIR`` under ``tmp_path``)."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, SPINSTRIKE_CACHE_DIR=str(tmp_path / "cache"), SPINSTRIKE_QUIET="1")
+    out = subprocess.run([sys.executable, "-c", script, *args], env=env, capture_output=True,
+                         text=True, timeout=900, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-3000:]
+    return out.stdout.strip().splitlines()[-1]
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("env_id, holds, flat", [("SpinStrike/RodSpinControl-v0", False, True),
                                                  ("SpinStrike/RodSpin-v0", True, False),
@@ -93,15 +107,8 @@ def test_envs_compile_only_the_code_their_scene_can_run(env_id, holds, flat, tmp
     RodSpin-v0's rod meets only a disk, PuckSpeedControl-v0 has no rod. The cache's files name
     what was compiled."""
     import ast
-    import os
-    import subprocess
-    import sys
 
-    env = dict(os.environ, SPINSTRIKE_CACHE_DIR=str(tmp_path / "cache"), SPINSTRIKE_QUIET="1")
-    out = subprocess.run([sys.executable, "-c", COLD, env_id], env=env, capture_output=True,
-                         text=True, timeout=900, cwd=tmp_path)
-    assert out.returncode == 0, out.stderr[-3000:]
-    compiled = ast.literal_eval(out.stdout.strip().splitlines()[-1])
+    compiled = ast.literal_eval(_cold_run(COLD, tmp_path, env_id))
     assert "solvers.exact_element" in compiled  # the cache saw the solver compile
     assert ("solvers._hold" in compiled) == holds
     assert ("impulse.resolve_flat" in compiled) == flat
@@ -128,17 +135,10 @@ def test_a_many_body_world_compiles_the_calendar_not_the_scan(tmp_path):
     are not compiled: a test at the scan's top did not keep numba from compiling its body (a
     named constant is not pruned; 98 -> 64 CPU s of the first run)."""
     import ast
-    import os
-    import subprocess
-    import sys
 
     from spinstrike.physics.layout import LEVEL_MANY_BODIES
 
-    env = dict(os.environ, SPINSTRIKE_CACHE_DIR=str(tmp_path / "cache"), SPINSTRIKE_QUIET="1")
-    out = subprocess.run([sys.executable, "-c", COLD_WORLD], env=env, capture_output=True,
-                         text=True, timeout=900, cwd=tmp_path)
-    assert out.returncode == 0, out.stderr[-3000:]
-    jam, rest = out.stdout.strip().splitlines()[-1].split(" ", 1)
+    jam, rest = _cold_run(COLD_WORLD, tmp_path).split(" ", 1)
     compiled = ast.literal_eval(rest)
     assert int(jam) == LEVEL_MANY_BODIES
     assert {"solvers.exact_many_element", "solvers._predict", "solvers._first"} <= set(compiled)
@@ -168,18 +168,11 @@ def test_a_filmed_strike_runs_the_solver_an_unfilmed_one_compiled(tmp_path):
     films its strikes (``render_mode="rgb_array"``, the traced strike) and a vector env that
     does not share one compiled solver: the solver functions that take the trace hook are
     compiled once each (an untraced step passes an empty trace, ``solvers.untraced``; None was
-    a second specialisation of each: 68 -> 49 CPU s for the two, ~20 s of the first video
-    after a first training run)."""
+    a second specialisation of each: the filmed env alone took 68 -> 49 CPU s to its first
+    frame, ~20 s of the first video after a first training run)."""
     import ast
-    import os
-    import subprocess
-    import sys
 
-    env = dict(os.environ, SPINSTRIKE_CACHE_DIR=str(tmp_path / "cache"), SPINSTRIKE_QUIET="1")
-    out = subprocess.run([sys.executable, "-c", COLD_FILMED], env=env, capture_output=True,
-                         text=True, timeout=900, cwd=tmp_path)
-    assert out.returncode == 0, out.stderr[-3000:]
-    n_frames, rest = out.stdout.strip().splitlines()[-1].split(" ", 1)
+    n_frames, rest = _cold_run(COLD_FILMED, tmp_path).split(" ", 1)
     compiled = ast.literal_eval(rest)  # one entry per compiled signature
     assert int(n_frames) > 1
     assert compiled.count("fast.strike_body") == 2  # traced and untraced
