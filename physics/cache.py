@@ -27,6 +27,13 @@ behaviour, ``NUMBA_CACHE_DIR`` included):
 
 On a cache miss the first compilation in a process prints one line to stderr (what, why, first
 run only), so a first run that takes a minute does not look hung.
+
+**Processes take turns.** Processes started together on a cold cache (SB3's ``SubprocVecEnv``,
+RLlib's env runners, pytest-xdist workers) need the same kernels. A process about to compile a
+kernel for a signature takes a file lock beside the cached kernel (one per function and
+signature, :func:`take_turns`); one that finds it taken waits, then loads what the holder
+saved instead of compiling it again. A holder that dies releases its lock; one that holds it
+for :data:`LOCK_TIMEOUT` s is not waited for longer (the waiting process compiles, warned).
 """
 
 from __future__ import annotations
@@ -39,13 +46,18 @@ import shutil
 import sys
 import tempfile
 import time
+import warnings
 from functools import cache
 from pathlib import Path
+from typing import Any
 
+from filelock import FileLock, Timeout
+from numba.core import sigutils
 from numba.core.caching import CompileResultCacheImpl, FunctionCache, UserWideCacheLocator
+from numba.core.compiler_lock import global_compiler_lock
 
-__all__ = ["KernelCache", "cache_dir", "cache_info", "clear_cache", "module_stamp",
-           "prune_cache"]
+__all__ = ["LOCK_TIMEOUT", "KernelCache", "cache_dir", "cache_info", "clear_cache",
+           "module_stamp", "prune_cache", "take_turns"]
 
 #: environment variable overriding the cache directory
 ENV_VAR = "SPINSTRIKE_CACHE_DIR"
@@ -196,16 +208,84 @@ class KernelCache(FunctionCache):
         return data
 
     def save_overload(self, sig, data):
+        if self.claim_folder():  # else not cached: it compiles again next time
+            super().save_overload(sig, data)
+
+    def claim_folder(self) -> bool:
+        """Make this kernel's cache folder, with its ``SOURCE`` marker (what the cache commands
+        recognise and ``prune_cache`` checks); False if it cannot be written."""
         folder = Path(self._cache_path)
         try:
             folder.mkdir(parents=True, exist_ok=True)
             marker = folder / SOURCE_MARKER
-            if not marker.exists():  # what prune_cache checks
+            if not marker.exists():
                 source = Path(self._impl.locator._py_file).resolve().parent
                 marker.write_text(f"{source}\n")
         except OSError:
-            return  # not cached: it compiles again next time
-        super().save_overload(sig, data)
+            return False
+        return True
+
+
+def take_turns(dispatcher: Any) -> None:
+    """Make the processes that compile ``dispatcher`` (a kernel with a :class:`KernelCache`)
+    for the same signature take turns: the first compiles and saves, the others wait for its
+    lock, then load (the module docstring). The lock is taken inside numba's own compiler lock,
+    so the threads of one process keep numba's order (one compiles at a time), and it is not
+    taken again for a signature the process already holds (a kernel compiling its callees
+    takes theirs inside its own: no cycle, for a callee never compiles its caller)."""
+    compile_ = getattr(dispatcher, "compile", None)
+    if compile_ is None:  # a plain function (NUMBA_DISABLE_JIT): nothing compiles
+        return
+    cache = dispatcher._cache
+
+    def compile(sig):  # noqa: A001  (numba calls it by this name)
+        args, _ = sigutils.normalize_signature(sig)
+        if tuple(args) in dispatcher.overloads:  # compiled or loaded in this process
+            return compile_(sig)
+        with global_compiler_lock, _turn(cache, args):
+            return compile_(sig)
+
+    dispatcher.compile = compile
+
+
+#: the longest a process waits for another that compiles the same kernel (s): a kernel compiles
+#: in under two minutes on 2 cores; a holder past this is taken to be stuck (a stopped process)
+LOCK_TIMEOUT = 900.0
+#: the file locks this process holds or held, by path (a FileLock is reentrant per object)
+_locks: dict[Path, FileLock] = {}
+
+
+class _turn:
+    """Hold the file lock of ``cache``'s kernel for signature ``args``; nothing if the cache
+    folder cannot be written (no cache: no one to share with)."""
+
+    def __init__(self, cache: KernelCache, args: tuple) -> None:
+        key = hashlib.sha256(repr(tuple(args)).encode()).hexdigest()[:20]
+        self.cache = cache
+        self.path = Path(cache._cache_path) / f"{cache._impl.filename_base}.{key}.lock"
+        self.lock: FileLock | None = None
+
+    def __enter__(self) -> _turn:
+        lock = _locks.get(self.path)
+        if lock is None:
+            if not self.cache.claim_folder():
+                return self
+            lock = _locks[self.path] = FileLock(self.path, timeout=LOCK_TIMEOUT)
+        try:
+            lock.acquire()
+        except Timeout:
+            warnings.warn(f"spinstrike: another process has held {self.path} for "
+                          f"{LOCK_TIMEOUT:g} s; compiling this kernel here too",
+                          RuntimeWarning, stacklevel=2)
+            return self
+        except OSError:  # a lock file that cannot be written (read-only cache): no turns
+            return self
+        self.lock = lock
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        if self.lock is not None:
+            self.lock.release()
 
 
 _noticed = False

@@ -16,8 +16,9 @@
   is compiled with ``jit_counted`` (``jit`` with the counting set explicitly, so it keeps it).
 
 Every function compiled through them is cached by ``physics.cache`` (a per-user directory, and a
-freshness stamp that covers every module the kernel's module imports); other numba code in the
-process keeps numba's own cache behaviour.
+freshness stamp that covers every module the kernel's module imports), and processes that would
+compile it for the same signature at once take turns (``cache.take_turns``); other numba code in
+the process keeps numba's own cache behaviour.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ import numba
 from numba import types
 from numba.extending import overload
 
-from spinstrike.physics.cache import KernelCache
+from spinstrike.physics.cache import KernelCache, take_turns
 
 __all__ = ["MAX_STATIC_IF_ARGS", "jit", "jit_counted", "jit_inline", "jit_parallel",
            "jit_uncounted", "static_if"]
@@ -41,6 +42,7 @@ def _compiler(**options: Any) -> Callable[[Callable[..., Any]], Any]:
         dispatcher = numba.njit(nogil=True, error_model="numpy", **options)(fn)
         try:
             dispatcher._cache = KernelCache(fn)  # what numba's enable_caching() sets
+            take_turns(dispatcher)
         except RuntimeError as exc:  # no writable cache directory at all
             warnings.warn(f"spinstrike: kernels are not cached ({exc}); they compile in every "
                           "process", RuntimeWarning, stacklevel=2)

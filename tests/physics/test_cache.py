@@ -263,3 +263,47 @@ def test_the_stamp_follows_every_form_of_import(tmp_path):
     kernel_cache._closure.cache_clear()
     (pkg / "c.py").write_text("X = 2\n")  # the import inside a function
     assert kernel_cache.module_stamp(kern) != before
+
+
+KERNEL = """
+from spinstrike.physics.jit import jit
+
+
+@jit
+def plus_one(x):
+    return x + 1
+"""
+
+
+def test_a_process_stuck_holding_a_kernels_lock_is_waited_for_a_while_only(tmp_path, monkeypatch):
+    """Processes on a cold cache take turns compiling (``cache.take_turns``): a process finding a
+    kernel's lock held waits, and loads what the holder saved. One stuck holding it (stopped,
+    say) is not waited for past ``LOCK_TIMEOUT``: the kernel compiles here too, with a warning
+    naming the lock, and runs."""
+    from filelock import FileLock
+    from numba import types
+
+    from spinstrike.physics import cache
+
+    monkeypatch.setenv("SPINSTRIKE_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(cache, "LOCK_TIMEOUT", 0.3)
+    (tmp_path / "kern_locked.py").write_text(KERNEL)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    kernel = importlib.import_module("kern_locked").plus_one
+    turn = cache._turn(kernel._cache, (types.int64,))
+    assert turn.path.parent == Path(kernel.stats.cache_path)
+    turn.path.parent.mkdir(parents=True)
+    holder = subprocess.Popen([sys.executable, "-c", (
+        f"import sys, time; from filelock import FileLock; lock = FileLock({str(turn.path)!r}); "
+        "lock.acquire(); print('held', flush=True); time.sleep(60)")],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.warns(RuntimeWarning, match=r"another process has held .*\.lock for 0.3 s"):
+            assert kernel(1) == 2
+        assert sum(kernel.stats.cache_misses.values()) == 1
+    finally:
+        holder.kill()
+        holder.wait()
+    with FileLock(turn.path, timeout=0):  # this process let go of it
+        pass
