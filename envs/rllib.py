@@ -28,8 +28,10 @@ What it takes care of (each a way the plain ``register_env`` line goes wrong):
   brings its own (``default_encoders=False``).
 
 The RLlib names are the Gymnasium ids (``"SpinStrike/RodSpin-v0"``, ...); ``configure`` also takes
-the ``"spinstrike:SpinStrike/RodSpin-v0"`` form and drops the prefix. Importing this module does
-not import Ray; :func:`register_envs` and :func:`configure` do.
+the ``"spinstrike:SpinStrike/RodSpin-v0"`` form and drops the prefix, and a variant a user
+registered with ``gym.register`` (``"module:Namespace/Name-vN"``, the shipped env class with
+other arguments), which runs as the shipped id with its arguments (:func:`resolve`). Importing
+this module does not import Ray; :func:`register_envs` and :func:`configure` do.
 """
 
 from __future__ import annotations
@@ -52,7 +54,8 @@ from spinstrike.envs.config import (
     resolve_scene,
 )
 
-__all__ = ["RunnerSeeds", "check_env_config", "configure", "make_env", "register_envs"]
+__all__ = ["RunnerSeeds", "check_env_config", "configure", "make_env", "register_envs",
+           "resolve"]
 
 #: the prefix of Gymnasium's module-qualified ids (``"spinstrike:SpinStrike/RodSpin-v0"``)
 PREFIX = "spinstrike:"
@@ -67,9 +70,11 @@ def _split(env_config: Any) -> tuple[dict, dict]:
 
 def make_env(env_id: str, env_config: Any = None) -> gym.Env | gym.vector.VectorEnv:
     """The env RLlib's creator returns: a single env, or (``num_envs`` in ``env_config``) the
-    native vector env in ``NEXT_STEP`` autoreset mode."""
+    native vector env in ``NEXT_STEP`` autoreset mode. ``env_id``: as :func:`resolve` takes it
+    (the runners get a shipped id: a variant is resolved in the driver)."""
     import spinstrike.envs  # noqa: F401  (a runner process: registers the ids there)
 
+    env_id, env_config = resolve(env_id, env_config)
     cfg, args = _split(env_config)
     num_envs = args.pop("num_envs", None)
     if num_envs is None:
@@ -110,6 +115,49 @@ def _bare_id(env_id: str) -> str:
     return bare
 
 
+def resolve(env_id: str, env_config: Any = None) -> tuple[str, dict]:
+    """The RLlib name and ``env_config`` that make ``env_id``'s env on the runners.
+
+    A shipped id (with or without the ``spinstrike:`` prefix): itself, ``env_config`` as given.
+    A variant registered with ``gym.register`` whose entry points are a shipped env's own
+    classes (other arguments, another episode limit), given as gym.make takes it
+    (``"module:Namespace/Name-vN"``): the shipped id, with the variant's registered arguments
+    and ``max_episode_steps`` under ``env_config``'s keys (which win, as ``gym.make``'s
+    arguments win over registered ones). The runner processes then need nothing from the
+    variant's module, which they could not import (Ray starts them bare).
+
+    Raises:
+        ConfigError: an unknown id or one that is not a SpinStrike env (``envs.base_id``), or a
+            subclass of a shipped env: its class lives in the user's module.
+    """
+    from spinstrike.envs import base_id, variant_kwargs
+
+    config = dict(env_config or {})
+    if isinstance(env_id, str) and env_id.removeprefix(PREFIX) in ENV_IDS:
+        return env_id.removeprefix(PREFIX), config
+    try:
+        base = base_id(env_id)
+    except ConfigError as exc:
+        raise ConfigError(f"env: {exc}") from None
+    spec, shipped = gym.registry[env_id.rpartition(":")[2]], gym.registry[base]
+    if (_entry(spec.entry_point) is not _entry(shipped.entry_point)
+            or _entry(spec.vector_entry_point or shipped.vector_entry_point)
+            is not _entry(shipped.vector_entry_point)):
+        raise ConfigError(f"env: {env_id!r} registers a subclass of {base}'s env; RLlib's "
+                          "runners would have to import it from your module, and Ray starts "
+                          "them without it. Register the variant with the shipped env's "
+                          f"classes and keyword arguments (entry_point={shipped.entry_point!r}, "
+                          "kwargs={...}), or train it with the SB3 backend")
+    return base, {**variant_kwargs(env_id), **config}
+
+
+def _entry(entry_point: Any) -> Any:
+    """The class an entry point names (a ``"module:Class"`` string or the class)."""
+    from gymnasium.envs.registration import load_env_creator
+
+    return load_env_creator(entry_point) if isinstance(entry_point, str) else entry_point
+
+
 def _env_class(env_id: str, vector: bool = False) -> type:
     spec = gym.spec(_bare_id(env_id))
     module, name = (spec.vector_entry_point if vector else spec.entry_point).split(":")
@@ -120,7 +168,8 @@ def check_env_config(env_id: str, env_config: Any = None, *, vector: bool = Fals
     """Parse ``env_config`` as the env ``env_id`` would (in this process): raises the env's
     ``ConfigError`` naming a bad key or value. ``vector``: for the native vector env (also when
     ``env_config`` holds ``num_envs``), whose ``render_mode`` can only be ``"rgb_array"``.
-    Returns the parsed config."""
+    ``env_id``: as :func:`resolve` takes it. Returns the parsed config."""
+    env_id, env_config = resolve(env_id, env_config)
     cfg, args = _split(env_config)
     value = args.get("num_envs")
     if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
@@ -221,12 +270,12 @@ def configure(config, env_id: str, env_config: dict | None = None, *,
     key raises ``ConfigError`` now, not in the runners), registers the ids, and sets
     ``environment(env_id, env_config)`` and the runners' vectorisation (``vectorize``: the
     native vector env, one batched world per runner; else Gymnasium's ``SyncVectorEnv`` of
-    single envs). ``env_id`` may carry the ``spinstrike:`` prefix (dropped).
+    single envs). ``env_id`` may carry the ``spinstrike:`` prefix (dropped), or name a variant
+    registered with ``gym.register`` (``"module:Namespace/Name-vN"``; :func:`resolve`).
     ``default_encoders``: the config uses RLlib's default model, so an ``obs_mode`` it cannot
     encode (``"dict"``, ``"pixels"``) is refused here; pass False with your own RLModule, or a
     connector that turns the observations into what it takes. Returns ``config``."""
-    env_id = _bare_id(env_id)
-    env_config = dict(env_config or {})
+    env_id, env_config = resolve(env_id, env_config)
     if "scene" in env_config:
         # the scene itself, read now: the config (its pickles, the runners, a checkpoint) held
         # the path, which another folder could not open and a later edit changed

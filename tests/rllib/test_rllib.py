@@ -24,7 +24,7 @@ from ray.rllib.algorithms.ppo import PPOConfig  # noqa: E402
 
 import spinstrike  # noqa: E402, F401  (registers the ids)
 from spinstrike.envs import ConfigError  # noqa: E402
-from spinstrike.envs.rllib import configure, make_env, register_envs  # noqa: E402
+from spinstrike.envs.rllib import configure, make_env, register_envs, resolve  # noqa: E402
 
 pytestmark = pytest.mark.rllib
 
@@ -114,7 +114,8 @@ def test_bad_env_config_raises_in_the_driver_before_runners_start():
         for vectorize in (True, False):
             with pytest.raises(ConfigError, match=words):
                 configure(PPOConfig(), CONTROL, {"scene": bad}, vectorize=vectorize)
-    with pytest.raises(ValueError, match="env: must be one of"):
+    with pytest.raises(ConfigError, match=r"env: unknown id 'SpinStrike/Nope-v0'; allowed: "
+                                          r"\['SpinStrike/RodSpin-v0'"):
         configure(PPOConfig(), "SpinStrike/Nope-v0")
     # RLlib replaces num_envs with num_envs_per_env_runner: given alone it was ignored
     with pytest.raises(ConfigError, match=r"env_config\['num_envs'\].*num_envs_per_env_runner"):
@@ -475,8 +476,11 @@ def test_configure_takes_the_spinstrike_prefixed_id():
     finally:
         runner.stop()
     assert [len(e) for e in episodes if e.is_done] == [5, 5]
-    with pytest.raises(ConfigError, match="with or without the 'spinstrike:' prefix"):
-        configure(PPOConfig(), "gymnasium:" + CONTROL)
+    # any module prefix gym.make takes (here one that registers nothing) names the same env
+    assert configure(PPOConfig(), "gymnasium:" + CONTROL).env == CONTROL
+    with pytest.raises(ConfigError, match=r"'CartPole-v1': its entry point .* is not a "
+                                          r"SpinStrike env class"):
+        configure(PPOConfig(), "CartPole-v1")
 
 
 @pytest.mark.parametrize("env_config,words", [
@@ -572,3 +576,84 @@ def test_runners_import_the_drivers_spinstrike_from_a_checkouts_root(local_ray, 
     finally:
         algo.stop()
     assert where == (str(fake), sys.modules["spinstrike.envs"].__file__)
+
+
+LAB = "spinstrike_rllib_lab"
+LAB_SOURCE = """
+import gymnasium as gym
+from spinstrike.envs.strike import RodSpinEnv, RodSpinVectorEnv
+
+class LoudRod(RodSpinEnv):
+    pass
+
+class LoudRodVector(RodSpinVectorEnv):
+    pass
+
+gym.register("RLlibLab/BouncyRod-v0", entry_point="spinstrike.envs.strike:RodSpinEnv",
+             kwargs={"restitution": 0.95}, max_episode_steps=3)
+gym.register("RLlibLab/LoudRod-v0", entry_point=LoudRod, vector_entry_point=LoudRodVector)
+"""
+
+
+@pytest.fixture
+def rllib_lab(tmp_path, monkeypatch):
+    """A user's module registering a variant (the shipped class, other arguments) and a
+    subclass, in the working directory; the registry and sys.modules are left as they were."""
+    (tmp_path / f"{LAB}.py").write_text(LAB_SOURCE)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    yield tmp_path
+    for env_id in ("RLlibLab/BouncyRod-v0", "RLlibLab/LoudRod-v0"):
+        gym.registry.pop(env_id, None)
+    sys.modules.pop(LAB, None)
+
+
+def test_a_registered_variant_trains_on_rllib_runners_with_its_arguments(local_ray, rllib_lab):
+    """``configure`` refused every id but the shipped ones. A variant registered with
+    ``gym.register`` (a shipped env class, other arguments), given as
+    ``"module:Namespace/Name-vN"``, runs on the runners as the shipped id with the variant's
+    arguments (an env_config key wins over them, as a ``gym.make`` argument does), so the
+    runner processes need nothing from the user's module. A subclass is refused, saying why."""
+    variant = f"{LAB}:RLlibLab/BouncyRod-v0"
+    config = tiny(configure(PPOConfig(), variant, {"striker_mass": 0.25}), envs=2, fragment=8)
+    assert config.env == STRIKE
+    assert config.env_config == {"restitution": 0.95, "max_episode_steps": 3,
+                                 "striker_mass": 0.25}
+    assert resolve(variant, {"restitution": 0.5}) == (STRIKE, {"restitution": 0.5,
+                                                               "max_episode_steps": 3})
+    algo = config.build_algo()
+    try:
+        algo.train()
+        seen = algo.env_runner_group.foreach_env_runner(
+            lambda r: (r.env.unwrapped.world.restitution("rod", "striker").tolist(),
+                       LAB in sys.modules), local_env_runner=False)
+    finally:
+        algo.stop()
+    assert seen == [([0.95, 0.95], False)] * 2
+    with pytest.raises(ConfigError, match=r"RLlibLab/LoudRod-v0.*subclass.*runners"):
+        configure(PPOConfig(), f"{LAB}:RLlibLab/LoudRod-v0")
+    with pytest.raises(ConfigError, match=r"unknown id 'RLlibLab/Nothing-v0'"):
+        configure(PPOConfig(), "RLlibLab/Nothing-v0")
+
+
+def test_cli_backend_rllib_trains_and_evaluates_a_variant(rllib_lab):
+    """``spinstrike train --backend rllib --env module:Namespace/Name-vN`` (``spinstrike
+    train`` took variants with SB3 only): the run's record names the variant, and
+    ``spinstrike evaluate RUN`` finds it again through its module."""
+    out = rllib_lab / "run"
+    env = dict(os.environ, SDL_VIDEODRIVER="dummy", SDL_AUDIODRIVER="dummy", MPLBACKEND="Agg")
+    variant = f"{LAB}:RLlibLab/BouncyRod-v0"
+    cmd = [sys.executable, "-m", "spinstrike.agents.cli", "train", "--backend", "rllib",
+           "--env", variant, "--num-env-runners", "1", "--timesteps", "64", "--n-envs", "4",
+           "--eval-episodes", "3", "--no-video", "--out", str(out)]
+    done = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=900,
+                          cwd=rllib_lab)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert yaml.safe_load((out / "config.yml").read_text())["env"] == variant
+    assert "RLlibLab/BouncyRod-v0" in (out / "summary.md").read_text()
+    evaluated = subprocess.run([sys.executable, "-m", "spinstrike.agents.cli", "evaluate",
+                                str(out), "--episodes", "3", "--no-save"],
+                               capture_output=True, text=True, env=env, timeout=300,
+                               cwd=rllib_lab)
+    assert evaluated.returncode == 0, evaluated.stderr[-3000:]
+    assert "agent" in evaluated.stdout
