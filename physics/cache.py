@@ -302,6 +302,12 @@ def _compile_notice(where: Path) -> None:
           "next runs", file=sys.stderr, flush=True)
 
 
+def _kernel_file(path: Path) -> bool:
+    """A file of compiled kernels (numba's index and data, the ``SOURCE`` marker), not one of
+    the empty lock files processes take turns with (:func:`take_turns`)."""
+    return path.is_file() and path.suffix != ".lock"
+
+
 def _kernel_dirs() -> list[Path]:
     roots = [cache_dir(), _fallback_dir()]
     return [r for r in roots if r.is_dir()]
@@ -332,7 +338,7 @@ def cache_info() -> dict:
     kernel cache (``folders``: one per source directory that compiled kernels; ``stale``: those
     whose source directory is gone, what :func:`prune_cache` removes)."""
     folders = [f for root in _kernel_dirs() for f in _kernel_folders(root)]
-    files = [f for d in folders for f in d.rglob("*") if f.is_file()]
+    files = [f for d in folders for f in d.rglob("*") if _kernel_file(f)]
     stale = _stale_folders()
     return {"path": str(cache_dir()), "files": len(files),
             "bytes": sum(f.stat().st_size for f in files),
@@ -359,7 +365,7 @@ def clear_cache() -> int:
     removed = 0
     for root in _kernel_dirs():
         for folder in _kernel_folders(root):
-            removed += sum(1 for f in folder.rglob("*") if f.is_file())
+            removed += sum(1 for f in folder.rglob("*") if _kernel_file(f))
             for _ in range(3):  # another process may be writing a file meanwhile
                 shutil.rmtree(folder, ignore_errors=True)
                 if not folder.exists():

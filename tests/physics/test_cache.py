@@ -85,6 +85,7 @@ def test_cache_command_reports_and_clears(tmp_path):
     cache = tmp_path / "cache"
     (cache / "physics_x").mkdir(parents=True)
     (cache / "physics_x" / "k.nbi").write_bytes(b"x" * 10)
+    (cache / "physics_x" / "k.py311.0123abcd.lock").touch()  # processes' turns: not a kernel
     env = dict(os.environ, SPINSTRIKE_CACHE_DIR=str(cache))
     script = Path(sys.executable).with_name("spinstrike")
     out = subprocess.run([str(script), "cache"], env=env, capture_output=True, text=True,
