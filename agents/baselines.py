@@ -245,7 +245,10 @@ DEFAULT_ENVS = [e for e in envs.ENV_IDS if e != "SpinStrike/PuckSpeed-v0"]
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="spinstrike baselines",
                                 description=" ".join(__doc__.split("\n\n")[0].split()))
-    p.add_argument("--envs", nargs="+", default=DEFAULT_ENVS, choices=list(envs.ENV_IDS))
+    p.add_argument("--envs", nargs="+", default=DEFAULT_ENVS, metavar="ID",
+                   help=f"shipped ids ({', '.join(envs.ENV_IDS)}) or variants registered with "
+                        "gym.register in a module of your own, as 'module:Namespace/Name-vN' "
+                        "(default: the shipped ids but PuckSpeed-v0)")
     p.add_argument("--algos", nargs="+", default=list(ALGOS), choices=ALGOS)
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4])
     p.add_argument("--quick", action="store_true",
@@ -271,7 +274,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--planner-episodes", type=int, default=20,
                    help="episodes of the CEM planner on each control env (0: none)")
     args = p.parse_args(argv)
-    from spinstrike.agents.config import AgentConfigError
+    from spinstrike.agents.config import AgentConfigError, check_env_id
     from spinstrike.agents.evaluate import evaluate
     from spinstrike.agents.stats import _rliable
 
@@ -280,11 +283,13 @@ def main(argv: list[str] | None = None) -> int:
     except ImportError as exc:
         raise AgentConfigError(str(exc)) from None
 
+    # each id checked before anything trains; a variant is a control env if its class is one
+    control = {e: "Control" in check_env_id(e, "--envs") for e in args.envs}
     if args.imitate is not None:
         from spinstrike.agents.imitate import check_teacher
 
         check_teacher(args.imitate)
-        if not any("Control" in e for e in args.envs):
+        if not any(control.values()):
             raise AgentConfigError(f"--imitate: adds a row on the control envs only, and none "
                                    f"is among --envs {' '.join(args.envs)}")
 
@@ -318,19 +323,19 @@ def main(argv: list[str] | None = None) -> int:
         for algo in args.algos:
             rows.append(_seeds_row(algo.upper(), algo, env_id, args, root, scale, seeds,
                                    reference))
-        if args.imitate is not None and "Control" in env_id:
+        if args.imitate is not None and control[env_id]:
             rows.append(_seeds_row(f"PPO from the {args.imitate} (DAgger)", "ppo", env_id, args,
                                    root, scale, seeds, reference, imitate=args.imitate))
-        oracle = "scripted chase-and-hit" if "Control" in env_id else "oracle (closed form)"
+        oracle = "scripted chase-and-hit" if control[env_id] else "oracle (closed form)"
         for label, key in (("random", "random"), (oracle, "oracle")):
             r = base[key]
             frac = f"{r.mean / reference:.3f}" if reference > 0 else "-"
             rows.append(f"| {label} | - | {r.mean:.3f} +/- {r.std:.3f} | {frac} | - | - | - |")
-        if "Control" in env_id and args.planner_episodes > 0:
+        if control[env_id] and args.planner_episodes > 0:
             rows.append(_planner_row(env_id, args.planner_episodes, reference))
         plot = _curves(env_id, root, args.algos, seeds,
                        doc.parent / "baselines" / f"{env_id.split('/')[-1]}.png",
-                       args.imitate if "Control" in env_id else None)
+                       args.imitate if control[env_id] else None)
         table[env_id] = rows
         lines += [f"## {env_id}", "",
                   "| policy | IQM [95% CI] | mean +/- std | IQM / reference | seeds | "

@@ -125,3 +125,35 @@ def test_ids_that_are_not_spinstrike_envs_are_refused(lab, env_id, message, caps
     assert not (lab / "run").exists()
     with pytest.raises(AgentConfigError, match=message):
         load_agent_config("ppo", env_id)
+
+
+def test_baselines_train_and_report_a_variant(tmp_path, monkeypatch, capsys):
+    """``spinstrike baselines --envs`` took the shipped ids only (argparse's choices): a variant
+    given as ``module:Namespace/Name-vN`` is trained, scored against its own random policy and
+    oracle, and reported under its id; an id that is no SpinStrike env is refused naming
+    ``--envs`` before anything trains."""
+    pytest.importorskip("rliable")
+    (tmp_path / "spinstrike_baselines_lab.py").write_text(
+        "import gymnasium as gym\n"
+        "gym.register('BaseLab/SoftPuck-v1', entry_point='spinstrike.envs.strike:PuckSpeedV1Env',"
+        " kwargs={'restitution': 0.6})\n")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    variant = "spinstrike_baselines_lab:BaseLab/SoftPuck-v1"
+    root, doc = tmp_path / "runs", tmp_path / "report" / "baselines.md"
+    try:
+        assert main(["baselines", "--quick", "--envs", variant, "--algos", "ppo", "--seeds",
+                     "0", "--no-transfer", "--root", str(root), "--doc", str(doc)]) == 0
+        text = doc.read_text()
+        assert f"## {variant}" in text and "| oracle (closed form) | - | 1.000 +/- 0.000 |" in text
+        run = root / "ppo-SoftPuck-v1-s0"
+        assert yaml.safe_load((run / "config.yml").read_text())["env"] == variant
+        assert (doc.parent / "baselines" / "SoftPuck-v1.png").is_file()
+        capsys.readouterr()
+        assert main(["baselines", "--quick", "--envs", "CartPole-v1", "--root", str(root),
+                     "--doc", str(doc)]) == 2
+        assert "--envs: 'CartPole-v1'" in capsys.readouterr().err
+        assert sorted(p.name for p in root.iterdir()) == [run.name]
+    finally:
+        gym.registry.pop("BaseLab/SoftPuck-v1", None)
+        sys.modules.pop("spinstrike_baselines_lab", None)
