@@ -130,7 +130,7 @@ def resolve(env_id: str, env_config: Any = None) -> tuple[str, dict]:
         ConfigError: an unknown id or one that is not a SpinStrike env (``envs.base_id``), or a
             subclass of a shipped env: its class lives in the user's module.
     """
-    from spinstrike.envs import base_id, variant_kwargs
+    from spinstrike.envs import _entry_class, base_id, variant_kwargs
 
     config = dict(env_config or {})
     if isinstance(env_id, str) and env_id.removeprefix(PREFIX) in ENV_IDS:
@@ -140,22 +140,15 @@ def resolve(env_id: str, env_config: Any = None) -> tuple[str, dict]:
     except ConfigError as exc:
         raise ConfigError(f"env: {exc}") from None
     spec, shipped = gym.registry[env_id.rpartition(":")[2]], gym.registry[base]
-    if (_entry(spec.entry_point) is not _entry(shipped.entry_point)
-            or _entry(spec.vector_entry_point or shipped.vector_entry_point)
-            is not _entry(shipped.vector_entry_point)):
+    if (_entry_class(spec.entry_point) is not _entry_class(shipped.entry_point)
+            or _entry_class(spec.vector_entry_point or shipped.vector_entry_point)
+            is not _entry_class(shipped.vector_entry_point)):
         raise ConfigError(f"env: {env_id!r} registers a subclass of {base}'s env; RLlib's "
                           "runners would have to import it from your module, and Ray starts "
                           "them without it. Register the variant with the shipped env's "
                           f"classes and keyword arguments (entry_point={shipped.entry_point!r}, "
                           "kwargs={...}), or train it with the SB3 backend")
     return base, {**variant_kwargs(env_id), **config}
-
-
-def _entry(entry_point: Any) -> Any:
-    """The class an entry point names (a ``"module:Class"`` string or the class)."""
-    from gymnasium.envs.registration import load_env_creator
-
-    return load_env_creator(entry_point) if isinstance(entry_point, str) else entry_point
 
 
 def _env_class(env_id: str, vector: bool = False) -> type:
