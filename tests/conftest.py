@@ -1,6 +1,8 @@
-"""Shared test set-up: headless rendering, and hypothesis profiles (``--hypothesis-profile``)."""
+"""Shared test set-up: headless rendering, hypothesis profiles (``--hypothesis-profile``), and a
+user's own module in the working directory (``user_module``)."""
 
 import os
+import sys
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
@@ -43,6 +45,31 @@ def _sb3_logs_in_pytest_tmp(tmp_path_factory):
     """SB3 models built without a logger make an empty ``SB3-<date>`` folder in ``/tmp`` on every
     ``learn()`` (hundreds a run); ``SB3_LOGDIR`` sends them into pytest's own, pruned, temp dir."""
     os.environ.setdefault("SB3_LOGDIR", str(tmp_path_factory.mktemp("sb3-logs")))
+
+
+@pytest.fixture
+def user_module(tmp_path, monkeypatch):
+    """``write(name, source)``: a module of the user's own (one registering env variants with
+    ``gym.register``, say) written into the working directory, ``tmp_path``, which it returns,
+    and importable from there, as a user would have it. Afterwards the ids registered meanwhile
+    and the modules written are gone from Gymnasium's registry and ``sys.modules``."""
+    import gymnasium as gym
+
+    before = set(gym.registry)
+    written = []
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+
+    def write(name: str, source: str):
+        (tmp_path / f"{name}.py").write_text(source)
+        written.append(name)
+        return tmp_path
+
+    yield write
+    for env_id in set(gym.registry) - before:
+        del gym.registry[env_id]
+    for name in written:
+        sys.modules.pop(name, None)
 
 
 def pytest_collection_modifyitems(config, items):

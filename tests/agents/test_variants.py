@@ -37,20 +37,10 @@ LAB = textwrap.dedent(f"""
                  vector_entry_point="spinstrike.envs.strike:RodSpinVectorEnv")
     gym.register("TestLab/Cart-v0", entry_point="gymnasium.envs.classic_control:CartPoleEnv")
 """)
-IDS = [VARIANT, "TestLab/LoudRod-v0", "TestLab/LoudRodVec-v0", "TestLab/Cart-v0"]
-
-
 @pytest.fixture
-def lab(tmp_path, monkeypatch):
-    """The user's registering module in the working directory, as a user would have it; the
-    registry and sys.modules are left as they were."""
-    (tmp_path / f"{MODULE}.py").write_text(LAB)
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.syspath_prepend(str(tmp_path))
-    yield tmp_path
-    for env_id in IDS:
-        gym.registry.pop(env_id, None)
-    sys.modules.pop(MODULE, None)
+def lab(user_module):
+    """The user's registering module in the working directory (``user_module``)."""
+    return user_module(MODULE, LAB)
 
 
 def test_a_variant_trains_evaluates_and_films_through_the_cli(lab, capsys):
@@ -127,33 +117,27 @@ def test_ids_that_are_not_spinstrike_envs_are_refused(lab, env_id, message, caps
         load_agent_config("ppo", env_id)
 
 
-def test_baselines_train_and_report_a_variant(tmp_path, monkeypatch, capsys):
+def test_baselines_train_and_report_a_variant(user_module, capsys):
     """``spinstrike baselines --envs`` took the shipped ids only (argparse's choices): a variant
     given as ``module:Namespace/Name-vN`` is trained, scored against its own random policy and
     oracle, and reported under its id; an id that is no SpinStrike env is refused naming
     ``--envs`` before anything trains."""
     pytest.importorskip("rliable")
-    (tmp_path / "spinstrike_baselines_lab.py").write_text(
+    here = user_module("spinstrike_baselines_lab", (
         "import gymnasium as gym\n"
         "gym.register('BaseLab/SoftPuck-v1', entry_point='spinstrike.envs.strike:PuckSpeedV1Env',"
-        " kwargs={'restitution': 0.6})\n")
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.syspath_prepend(str(tmp_path))
+        " kwargs={'restitution': 0.6})\n"))
     variant = "spinstrike_baselines_lab:BaseLab/SoftPuck-v1"
-    root, doc = tmp_path / "runs", tmp_path / "report" / "baselines.md"
-    try:
-        assert main(["baselines", "--quick", "--envs", variant, "--algos", "ppo", "--seeds",
-                     "0", "--no-transfer", "--root", str(root), "--doc", str(doc)]) == 0
-        text = doc.read_text()
-        assert f"## {variant}" in text and "| oracle (closed form) | - | 1.000 +/- 0.000 |" in text
-        run = root / "ppo-SoftPuck-v1-s0"
-        assert yaml.safe_load((run / "config.yml").read_text())["env"] == variant
-        assert (doc.parent / "baselines" / "SoftPuck-v1.png").is_file()
-        capsys.readouterr()
-        assert main(["baselines", "--quick", "--envs", "CartPole-v1", "--root", str(root),
-                     "--doc", str(doc)]) == 2
-        assert "--envs: 'CartPole-v1'" in capsys.readouterr().err
-        assert sorted(p.name for p in root.iterdir()) == [run.name]
-    finally:
-        gym.registry.pop("BaseLab/SoftPuck-v1", None)
-        sys.modules.pop("spinstrike_baselines_lab", None)
+    root, doc = here / "runs", here / "report" / "baselines.md"
+    assert main(["baselines", "--quick", "--envs", variant, "--algos", "ppo", "--seeds", "0",
+                 "--no-transfer", "--root", str(root), "--doc", str(doc)]) == 0
+    text = doc.read_text()
+    assert f"## {variant}" in text and "| oracle (closed form) | - | 1.000 +/- 0.000 |" in text
+    run = root / "ppo-SoftPuck-v1-s0"
+    assert yaml.safe_load((run / "config.yml").read_text())["env"] == variant
+    assert (doc.parent / "baselines" / "SoftPuck-v1.png").is_file()
+    capsys.readouterr()
+    assert main(["baselines", "--quick", "--envs", "CartPole-v1", "--root", str(root),
+                 "--doc", str(doc)]) == 2
+    assert "--envs: 'CartPole-v1'" in capsys.readouterr().err
+    assert sorted(p.name for p in root.iterdir()) == [run.name]

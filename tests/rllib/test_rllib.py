@@ -596,16 +596,10 @@ gym.register("RLlibLab/LoudRod-v0", entry_point=LoudRod, vector_entry_point=Loud
 
 
 @pytest.fixture
-def rllib_lab(tmp_path, monkeypatch):
+def rllib_lab(user_module):
     """A user's module registering a variant (the shipped class, other arguments) and a
-    subclass, in the working directory; the registry and sys.modules are left as they were."""
-    (tmp_path / f"{LAB}.py").write_text(LAB_SOURCE)
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.syspath_prepend(str(tmp_path))
-    yield tmp_path
-    for env_id in ("RLlibLab/BouncyRod-v0", "RLlibLab/LoudRod-v0"):
-        gym.registry.pop(env_id, None)
-    sys.modules.pop(LAB, None)
+    subclass, in the working directory (``user_module``)."""
+    return user_module(LAB, LAB_SOURCE)
 
 
 def test_a_registered_variant_trains_on_rllib_runners_with_its_arguments(local_ray, rllib_lab):
