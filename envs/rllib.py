@@ -17,7 +17,10 @@ What it takes care of (each a way the plain ``register_env`` line goes wrong):
 * **env_config**: passed to the env as its config; :func:`configure` (and :func:`check_env_config`)
   parses it in the driver first, so a bad key raises the env's ``ConfigError`` before any runner
   starts. Gymnasium's own arguments are taken out and given to ``gym.make``:
-  ``max_episode_steps``, and ``render_mode`` (what RLlib's video callbacks set).
+  ``max_episode_steps``, and ``render_mode`` (what RLlib's video callbacks set). The evaluation
+  runners' ``env_config`` (RLlib merges ``.evaluation(evaluation_config={"env_config": ...})``
+  over the main one) is checked by :func:`configure` when set before it, else by
+  :func:`check_config` (RLlib's driver says only ``IndexError`` when every runner failed).
 * **Vector envs**: with ``gym_env_vectorize_mode="vector_entry_point"`` (what :func:`configure`
   sets unless ``vectorize=False``) RLlib calls the creator with ``env_config | {"num_envs": N}``;
   the creator then returns the native vector env (one batched world) in ``NEXT_STEP`` autoreset
@@ -54,8 +57,8 @@ from spinstrike.envs.config import (
     resolve_scene,
 )
 
-__all__ = ["RunnerSeeds", "check_env_config", "configure", "make_env", "register_envs",
-           "resolve"]
+__all__ = ["RunnerSeeds", "check_config", "check_env_config", "configure", "make_env",
+           "register_envs", "resolve"]
 
 #: the prefix of Gymnasium's module-qualified ids (``"spinstrike:SpinStrike/RodSpin-v0"``)
 PREFIX = "spinstrike:"
@@ -256,6 +259,56 @@ def _check_default_encoders(cfg: EnvConfig) -> None:
                           f"{sizes} pixels only; " + hint.format(what="converts them"))
 
 
+def _check_algorithm_env(config, where: str) -> bool:
+    """Check one ``AlgorithmConfig``'s env and ``env_config`` as its runners will make them;
+    ``where`` names it in the message. False: the env is not a SpinStrike env (not checked)."""
+    env = config.env
+    if not isinstance(env, str):
+        return False
+    if env not in ENV_IDS:
+        try:
+            shipped, env_config = resolve(env, config.env_config)
+        except ConfigError:
+            return False  # another library's env
+        raise ConfigError(f"{where}: env {env!r}: RLlib's runners make only the shipped ids "
+                          f"(registered by register_envs); use {shipped!r} with env_config "
+                          f"{env_config!r} (what spinstrike.envs.rllib.resolve gives)")
+    vector = str(getattr(config.gym_env_vectorize_mode, "value", config.gym_env_vectorize_mode))
+    try:
+        check_env_config(env, config.env_config, vector=vector == "vector_entry_point")
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: {exc}") from None
+    return True
+
+
+def _check_evaluation(config) -> bool:
+    """Check the env of ``config``'s evaluation runners, when ``.evaluation(evaluation_config=
+    ...)`` changes it (RLlib merges that env_config over the main one)."""
+    override = config.evaluation_config  # a dict of overrides or a whole AlgorithmConfig
+    if not override or isinstance(override, dict) and not {"env", "env_config"} & set(override):
+        return False
+    return _check_algorithm_env(config.get_evaluation_config_object(), "evaluation_config")
+
+
+def check_config(config) -> None:
+    """Check, here in the driver, the envs an RLlib ``AlgorithmConfig`` will make in its runners:
+    its own env and ``env_config`` (as :func:`check_env_config`) and, when
+    ``.evaluation(evaluation_config=...)`` changes them, the evaluation runners' (RLlib merges
+    that ``env_config`` over the main one); registers the ids with RLlib when either env is a
+    SpinStrike id. :func:`configure` does this for what is set when it is called; call this
+    after setting the evaluation afterwards. Without it a bad key fails in the runners, and
+    ``build_algo()`` reports only ``IndexError: list index out of range``.
+
+    Raises:
+        ConfigError: naming ``env_config`` or ``evaluation_config``, the key and what is
+            allowed; or a variant id (``"module:Namespace/Name-vN"``) set directly, which the
+            runners cannot make.
+    """
+    ours = _check_algorithm_env(config, "env_config")
+    if _check_evaluation(config) or ours:
+        register_envs()
+
+
 def configure(config, env_id: str, env_config: dict | None = None, *,
               num_envs_per_env_runner: int | None = None, vectorize: bool = True,
               default_encoders: bool = True):
@@ -288,4 +341,5 @@ def configure(config, env_id: str, env_config: dict | None = None, *,
     if num_envs_per_env_runner is not None:
         runners["num_envs_per_env_runner"] = int(num_envs_per_env_runner)
     config.env_runners(**runners)
+    _check_evaluation(config)  # set before this call: RLlib merges its env_config over this one
     return config

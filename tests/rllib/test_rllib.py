@@ -24,7 +24,13 @@ from ray.rllib.algorithms.ppo import PPOConfig  # noqa: E402
 
 import spinstrike  # noqa: E402, F401  (registers the ids)
 from spinstrike.envs import ConfigError  # noqa: E402
-from spinstrike.envs.rllib import configure, make_env, register_envs, resolve  # noqa: E402
+from spinstrike.envs.rllib import (  # noqa: E402
+    check_config,
+    configure,
+    make_env,
+    register_envs,
+    resolve,
+)
 
 pytestmark = pytest.mark.rllib
 
@@ -121,6 +127,55 @@ def test_bad_env_config_raises_in_the_driver_before_runners_start():
     with pytest.raises(ConfigError, match=r"env_config\['num_envs'\].*num_envs_per_env_runner"):
         configure(PPOConfig(), CONTROL, {"num_envs": 4})
     assert not ray.is_initialized()  # nothing started
+
+
+def test_the_evaluation_runners_env_config_is_checked_in_the_driver(local_ray):
+    """An ``env_config`` set by ``.evaluation(evaluation_config=...)`` (RLlib merges it over the
+    main one for the evaluation runners) was checked nowhere: a bad key failed in the
+    evaluation runners, and ``build_algo()`` raised ``IndexError: list index out of range``.
+    ``check_config`` (and ``configure``, for an evaluation set before it) raise the env's
+    ``ConfigError`` in the driver, naming ``evaluation_config``; a good override reaches the
+    evaluation runners' worlds, merged over the main env_config."""
+    def evaluating(config, env_config):
+        return config.evaluation(evaluation_interval=1, evaluation_num_env_runners=1,
+                                 evaluation_duration=2, evaluation_config=PPOConfig.overrides(
+                                     env_config=env_config))
+
+    bad = evaluating(tiny(configure(PPOConfig(), STRIKE, {"restitution": 0.5}), runners=1),
+                     {"restitutoin": 0.9})
+    with pytest.raises(ConfigError, match=r"^evaluation_config: restitutoin: unknown argument"):
+        check_config(bad)
+    with pytest.raises(ConfigError, match=r"^evaluation_config: restitution: .*less than or"):
+        configure(evaluating(PPOConfig(), {"restitution": 1.5}), STRIKE)
+    with pytest.raises(ConfigError, match=r"^evaluation_config: env_config\['render_mode'\]"):
+        check_config(PPOConfig().environment(STRIKE).evaluation(
+            evaluation_config={"env_config": {"render_mode": "human"}}).env_runners(
+                gym_env_vectorize_mode="vector_entry_point"))
+    with pytest.raises(ConfigError, match=r"^env_config: restitution"):
+        check_config(PPOConfig().environment(STRIKE, env_config={"restitution": -1}))
+    with pytest.raises(ConfigError, match=r"evaluation_config: env 'spinstrike:.*use "
+                                          r"'SpinStrike/RodSpin-v0'"):
+        check_config(configure(PPOConfig(), STRIKE).evaluation(
+            evaluation_config={"env": "spinstrike:" + STRIKE}))
+    check_config(PPOConfig().environment("CartPole-v1"))  # not ours: left to RLlib
+
+    good = evaluating(tiny(configure(PPOConfig(), STRIKE, {"restitution": 0.5,
+                                                            "striker_mass": 0.25}),
+                           runners=1, envs=2, fragment=16), {"restitution": 0.9})
+    check_config(good)
+    algo = good.build_algo()
+    try:
+        def worlds(group):
+            return group.foreach_env_runner(
+                lambda r: (r.env.unwrapped.world.restitution("rod", "striker").tolist(),
+                           r.env.unwrapped.cfg.striker_mass),
+                local_env_runner=False)
+
+        assert worlds(algo.env_runner_group) == [([0.5, 0.5], 0.25)]
+        assert worlds(algo.eval_env_runner_group) == [([0.9, 0.9], 0.25)]
+        assert "evaluation" in algo.train()
+    finally:
+        algo.stop()
 
 
 def test_configure_holds_the_scene_a_path_names_not_the_path(tmp_path, monkeypatch):
