@@ -15,6 +15,8 @@ import os
 import shutil
 import subprocess
 import sys
+import time
+import warnings
 from pathlib import Path
 
 import pytest
@@ -308,3 +310,38 @@ def test_a_process_stuck_holding_a_kernels_lock_is_waited_for_a_while_only(tmp_p
         holder.wait()
     with FileLock(turn.path, timeout=0):  # this process let go of it
         pass
+
+
+def test_a_soft_lock_left_by_a_killed_process_is_taken_over_at_once(tmp_path, monkeypatch):
+    """On a filesystem without ``flock`` filelock falls back to a soft lock: a lock file whose
+    presence is the lock, which a killed holder leaves behind. filelock >= 4.2.1 (the floor in
+    pyproject.toml) records the holder and breaks a dead one's lock; with 3.x the next process
+    waited ``LOCK_TIMEOUT`` (900 s) for it. Here the soft lock stands in for the fallback."""
+    from filelock import SoftFileLock
+
+    from spinstrike.physics import cache
+
+    monkeypatch.setenv("SPINSTRIKE_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(cache, "FileLock", SoftFileLock)
+    monkeypatch.setattr(cache, "LOCK_TIMEOUT", 120.0)
+    (tmp_path / "kern_soft.py").write_text(KERNEL)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    kernel = importlib.import_module("kern_soft").plus_one
+    from numba import types
+
+    path = cache._turn(kernel._cache, (types.int64,)).path
+    path.parent.mkdir(parents=True)
+    holder = subprocess.Popen([sys.executable, "-c", (
+        f"import time; from filelock import SoftFileLock; lock = SoftFileLock({str(path)!r}); "
+        "lock.acquire(); "
+        "print('held', flush=True); time.sleep(60)")], stdout=subprocess.PIPE, text=True)
+    assert holder.stdout.readline().strip() == "held"
+    holder.kill()
+    holder.wait()
+    assert path.exists()  # left behind
+    start = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # no "held for 120 s; compiling here too"
+        assert kernel(1) == 2
+    assert time.perf_counter() - start < 60
+    assert sum(kernel.stats.cache_misses.values()) == 1
