@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import numbers
 from abc import ABC, abstractmethod
 from typing import Any, ClassVar
 
@@ -595,7 +596,13 @@ class SpinStrikeVectorEnv(_SpecOfScene, VectorEnv):
             raise gym.error.ResetNeeded("options['reset_mask']: call reset() on every element "
                                         "first")
         if seed is not None:
-            seeds = [seed + i for i in range(n)] if isinstance(seed, int) else list(seed)
+            if isinstance(seed, numbers.Integral):
+                seeds = [int(seed) + i for i in range(n)]
+            elif isinstance(seed, (list, tuple, np.ndarray)):
+                seeds = list(seed)
+            else:
+                raise gym.error.Error(f"Seed must be a python integer or a list of {n} "
+                                      f"(integers or None), actual type: {type(seed)}")
             if len(seeds) != n:
                 raise ValueError(f"seed: expected {n} seeds, got {len(seeds)}")
             chosen = [i for i in range(n) if seeds[i] is not None
@@ -674,11 +681,15 @@ class SpinStrikeVectorEnv(_SpecOfScene, VectorEnv):
             # the batch steps every element: the ones being reset step from their new first
             # state (an action of zeros), then are put back to it (the same uniforms)
             env = np.flatnonzero(pending)
+            a = np.array(actions)  # a copy
+            if a.shape == self.task.action_shape and a.dtype.kind in "iuf":
+                a[env] = 0  # (their actions are not used, as SyncVectorEnv's resetting envs')
+            try:  # checked before the draw: a refused step leaves the random streams as they were
+                a = check_actions(a, self.task.action_shape)
+            except ValueError:
+                check_actions(actions, self.task.action_shape)  # the message shows them as given
+                raise
             u = self._stream.draw(env)
-            a = np.asarray(actions)
-            if a.shape == self.task.action_shape:
-                a = a.copy()
-                a[env] = 0
             self.task.reset(env, u)
             reward, terminated, truncated, info = self._physics_step(a)
             reset_info = self.task.reset(env, u)

@@ -10,6 +10,8 @@ same numbers: a block is the rows drawn one after another).
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 from gymnasium.utils import seeding
 
@@ -37,7 +39,11 @@ class UniformStream:
         """Reseed elements (all, or ``env``) with the given seeds (one per element, or None)."""
         idx = np.arange(self.batch_size) if env is None else np.asarray(env)
         for i, s in zip(idx, seeds, strict=True):
-            self.generators[i], seed = seeding.np_random(None if s is None else int(s))
+            # numpy's integers too (exact); anything else (1.5 was truncated to 1) raises
+            # Gymnasium's own error, as a single env's and SyncVectorEnv's reset does
+            if isinstance(s, numbers.Integral):
+                s = int(s)
+            self.generators[i], seed = seeding.np_random(s)
             self.seeds[i] = int(seed)
             self._next[i] = BLOCK
 

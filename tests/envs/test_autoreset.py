@@ -121,6 +121,77 @@ def test_next_step_after_a_partial_reset_matches_sync_vector_env(env_id):
             assert_same(got[1], want[1], "masked reset info")
 
 
+def _same_step(got, want, where: str) -> None:
+    for part, g, w in zip(("obs", "reward", "terminated", "truncated", "info"), got, want,
+                          strict=True):
+        assert_same(g, w, f"{where} {part}")
+
+
+@pytest.mark.parametrize("bad", ["nan", "shape"])
+def test_a_refused_action_while_some_elements_autoreset_leaves_no_trace(bad):
+    """NEXT_STEP with one element due for its autoreset and one not: a step refused for its
+    action (NaN in the running element, a wrong shape) had already drawn the resetting
+    element's next task, so the retried step started it from the draw after, and the seeded
+    run left its reference. Now the action is checked first; the message shows the actions as
+    given (the resetting element's were shown zeroed)."""
+    env_id = "SpinStrike/RodSpinControl-v0"
+
+    def out_of_step():
+        env = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point",
+                           max_episode_steps=2)
+        env.reset(seed=0)
+        env.step(np.zeros((2, 2)))
+        env.reset(options={"reset_mask": np.array([True, False])})
+        env.step(np.zeros((2, 2)))  # element 1 truncates; element 0 runs on
+        return env
+
+    reference, env = out_of_step(), out_of_step()
+    if bad == "nan":
+        with pytest.raises(ValueError, match=r"\[\[nan, 0.0\], \[0.3, 0.7\]\]"):
+            env.step(np.array([[np.nan, 0.0], [0.3, 0.7]]))
+    else:
+        with pytest.raises(ValueError, match=r"expected shape \(2, 2\), got \(3, 2\)"):
+            env.step(np.zeros((3, 2)))
+    rng = np.random.default_rng(3)
+    for k in range(6):  # the resetting element's new task, and the steps after
+        a = rng.uniform(-1, 1, (2, 2))
+        _same_step(env.step(a), reference.step(a), f"step {k}")
+    # a NaN in the resetting element's row is not used (as SyncVectorEnv ignores it)
+    _, sync = _pair(env_id, 2, AutoresetMode.NEXT_STEP, max_episode_steps=2)
+    native = out_of_step()
+    sync.reset(seed=0)
+    sync.step(np.zeros((2, 2)))
+    sync.reset(options={"reset_mask": np.array([True, False])})
+    sync.step(np.zeros((2, 2)))
+    ignored = np.array([[0.2, -0.1], [np.nan, np.nan]])
+    _same_step(native.step(ignored), sync.step(ignored), "NaN in the resetting element")
+
+
+@pytest.mark.parametrize("mode", ["vector_entry_point", "sync"])
+def test_seeds_that_are_not_integers_are_refused_as_gymnasium_refuses_them(mode):
+    """The native vector env truncated float seeds (1.5 and 2.7 seeded 1 and 2, silently) and
+    said ``'float' object is not iterable`` for a float given alone; now both raise
+    Gymnasium's ``Error`` as a single env and SyncVectorEnv do. numpy integers are exact and
+    kept."""
+    env = gym.make_vec("SpinStrike/RodSpin-v0", num_envs=2, vectorization_mode=mode)
+    with pytest.raises(gym.error.Error, match="Seed must be a python integer"):
+        env.reset(seed=[1.5, 2.7])
+    with pytest.raises(gym.error.Error, match="Seed must be a python integer"):
+        gym.make("SpinStrike/RodSpin-v0").reset(seed=1.5)
+    if mode == "vector_entry_point":
+        with pytest.raises(gym.error.Error, match=r"Seed must be a python integer or a list of 2"
+                                                  r" \(integers or None\), actual type: "
+                                                  r"<class 'float'>"):
+            env.reset(seed=1.5)
+        with pytest.raises(gym.error.Error, match="Seed must be a python integer"):
+            env.reset(seed=["a", "b"])
+        ints = env.reset(seed=[1, 2])[0]
+        np.testing.assert_array_equal(env.reset(seed=np.array([1, 2]))[0], ints)
+        np.testing.assert_array_equal(env.reset(seed=np.int64(1))[0], ints)
+        assert env.unwrapped.np_random_seed == (1, 2)
+        assert not np.array_equal(env.reset(seed=[3, 4])[0], ints)
+
+
 def test_one_strike_next_step_alternates_strikes_and_resets():
     vec = gym.make_vec("SpinStrike/RodSpin-v0", num_envs=4)
     assert vec.metadata["autoreset_mode"] is AutoresetMode.NEXT_STEP  # the default
