@@ -57,7 +57,9 @@ class EnvConfig(BaseModel):
     Attributes:
         scene: a scene (path, YAML string or dict) replacing the packaged one; its body names must
             match (``striker``/``mallet`` and ``rod``/``puck``).
-        solver: solver block overriding the scene's, e.g. ``{"mode": "fixed", "substeps": 8}``.
+        solver: solver block, e.g. ``{"mode": "fixed", "substeps": 8}`` or ``"pymunk"``: of the
+            scene's mode, its keys override the scene's and the scene's others stay (RodSpin's
+            ``settle_substep``); of another mode, it replaces the scene's block.
         effects: effect list replacing the scene's.
         restitution: e in [0, 1] of the target's pair with the striker or mallet (the one the
             observation shows; a scene's own value for that pair too), and of every pair the
@@ -375,6 +377,16 @@ def _scene_data(source: str | dict) -> dict:
     return data
 
 
+def _solver_block(scene: Any, given: dict | str) -> dict:
+    """The ``solver`` argument over the scene's block: of the scene's mode, it keeps the scene's
+    values it leaves out (RodSpin's ``settle_substep`` of 1e-5 s was lost to the 1 ms default
+    when ``solver={"mode": "exact", "tolerance": 1e-10}`` changed the tolerance only); of
+    another mode, it replaces the block (the scene's keys belong to its own mode)."""
+    given = {"mode": given} if isinstance(given, str) else dict(given)
+    scene = {"mode": scene} if isinstance(scene, str) else dict(scene or {"mode": "exact"})
+    return {**scene, **given} if given.get("mode") == scene.get("mode") else given
+
+
 def _drop_parameters_of_dropped_effects(data: dict, effects: list[str]) -> None:
     """``effects=`` turns effects off: the scene's values for them (the packaged control scenes'
     cloth friction, say) go too, instead of being refused as set for an unlisted effect. The
@@ -459,7 +471,7 @@ def build_scene(default: str, cfg: EnvConfig, body_overrides: dict[str, dict],
     if cfg.effects is not None:
         _drop_parameters_of_dropped_effects(data, effects)
     if cfg.solver is not None:
-        data["solver"] = {"mode": cfg.solver} if isinstance(cfg.solver, str) else dict(cfg.solver)
+        data["solver"] = _solver_block(data.get("solver"), cfg.solver)
     mats = dict(data.get("materials", {}))
     if cfg.restitution is not None:
         mats["restitution"] = cfg.restitution

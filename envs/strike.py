@@ -839,7 +839,8 @@ class RodSpinEnv(_StrikeEnv):
     second-order bound (``physics.events.curved_step``) and none of those settle. A strike it
     still settles (events run out) uses the scene's ``settle_substep`` of 1e-5 s (the
     1 ms default of other scenes was 25 % off there, and a search over actions found that
-    error). A ``solver`` argument replaces the scene's block: give it a ``settle_substep`` too.
+    error). A ``solver`` argument in exact mode keeps it (its keys override the scene's, the
+    others stay); one of another mode replaces the block.
 
     ## Starting State
     Rod at rest, angle uniform, centre's x and y each uniform in [-0.1, 0.1] m; striker

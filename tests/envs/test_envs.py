@@ -428,6 +428,31 @@ def test_envs_run_on_other_solvers(solver):
                 env.reset()
 
 
+def test_a_solver_argument_in_the_scenes_mode_keeps_the_scenes_other_settings():
+    """``solver={"mode": "exact", "tolerance": 1e-10}`` replaced RodSpin's whole solver block:
+    its ``settle_substep`` of 1e-5 s (the 1 ms default is 25 % off there) fell back to 1 ms
+    silently. In the scene's mode the argument's keys override and the others stay; a block
+    of another mode replaces it (its keys belong to that mode), as a bare mode name does."""
+    def solver(**kwargs):
+        return gym.make("SpinStrike/RodSpin-v0", **kwargs).unwrapped.world.solver
+
+    assert solver().settle_substep == 1e-5 and solver().tolerance == 1e-9
+    tight = solver(solver={"mode": "exact", "tolerance": 1e-10})
+    assert (tight.tolerance, tight.settle_substep) == (1e-10, 1e-5)
+    assert solver(solver="exact").settle_substep == 1e-5
+    assert solver(solver={"mode": "exact", "settle_substep": 1e-4}).settle_substep == 1e-4
+    fixed = solver(solver={"mode": "fixed", "substeps": 4})
+    assert (fixed.mode, fixed.substeps) == ("fixed", 4)
+    assert solver(solver="pymunk").mode == "pymunk"
+    # a scene without a solver block is in the exact solver's defaults
+    from spinstrike.envs.config import load_packaged_scene
+
+    scene = load_packaged_scene("puck_speed")
+    del scene["solver"]
+    assert gym.make("SpinStrike/PuckSpeed-v1", scene=scene, solver={
+        "mode": "exact", "max_events": 50}).unwrapped.world.solver.max_events == 50
+
+
 def test_randomized_parameters_are_drawn_per_episode_and_observed():
     env = gym.make("SpinStrike/RodSpin-v0", randomize={"striker_mass": [0.01, 1.0],
                                                        "restitution": [0.5, 1.0]})
