@@ -13,9 +13,20 @@ non-negative impulses, which leaves no pair approaching. Restitution follows Poi
 hypothesis with the smallest ``e`` of the touching pairs: the impulses are ``(1 + e) lam``, which
 change the kinetic energy by ``-(1 - e^2)/2 lam.A.lam <= 0`` (0 for e = 1). Friction is not part
 of the block (the sweeps before it applied it).
+
+Accuracy at extreme mass ratios: ``A`` is never formed. A light body jammed between heavy ones
+makes it nearly singular (its entries ``1/m_light + 1/m_heavy`` lose the heavy bodies' terms to
+rounding, and the squeeze the heavy bodies feel is exactly that part), so a solve of ``A`` got
+``lam`` to ~1e-4 at a mass ratio of 1e12 and lost that much of the energy at e = 1. Instead
+``A = B^T B`` with ``B`` the mass-weighted Jacobian (a row per coordinate of each body: the
+mass-weighted normal and lever terms); a Householder QR of ``B`` gives ``A = R^T R`` without
+rounding ``A``, and two steps of refinement with the residual computed from the bodies'
+impulse sums (``A lam``, never ``A``) bring ``lam`` to round-off at ratios up to 1e18.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -77,32 +88,9 @@ def _side(PA, PB, idx, geo, i, side):
 
 
 @jit
-def _delassus(Pm, PA, PB, n, idx, geo, m, rotation):
-    """``A[i, k]``: change of pair i's normal velocity per unit impulse on pair k."""
-    A = np.zeros((m, m))
-    for i in range(m):
-        for k in range(m):
-            acc = 0.0
-            for si in range(2):
-                x, sgn_i, ci = _side(PA, PB, idx, geo, i, si)
-                if x >= n:
-                    continue
-                for sk in range(2):
-                    y, sgn_k, ck = _side(PA, PB, idx, geo, k, sk)
-                    if y != x:
-                        continue
-                    term = Pm[x, INV_MASS] * (geo[i, JAM_NX] * geo[k, JAM_NX]
-                                              + geo[i, JAM_NY] * geo[k, JAM_NY])
-                    if rotation:
-                        term += Pm[x, INV_INERTIA] * ci * ck
-                    acc += sgn_i * sgn_k * term
-            A[i, k] = acc
-    return A
-
-
-@jit
 def _solve_small(M, rhs, k):
-    """Solve the k x k system ``M x = rhs`` in place (partial pivoting); False if singular."""
+    """Solve the k x k system ``M x = rhs`` in place (partial pivoting); False if singular.
+    (``solvers._hold``'s constraint solve; the block solve here goes through QR.)"""
     scale = 0.0
     for i in range(k):
         scale = max(scale, abs(M[i, i]))
@@ -131,58 +119,187 @@ def _solve_small(M, rhs, k):
 
 
 @jit
-def _try_active_set(A, vn, mask, m, lam, eps):
-    """Solve ``A_SS lam_S = -vn_S`` for the set S in ``mask``; True if lam >= 0 and w >= -eps."""
+def _weighted_jacobian(Pm, PA, PB, n, idx, geo, m, rotation):
+    """``B`` with ``B^T B = A`` (the Delassus matrix: ``A[i, k]``, the change of pair i's normal
+    velocity per unit impulse on pair k): a column per pair row, three rows per body the rows
+    touch (its x, y and turn, weighted by the square roots of its inverse mass and inertia).
+    Also ``side[i, s]``, the local index of side s's body of row i (-1: a cushion), and the
+    bodies' global indices."""
+    side = np.full((m, 2), -1, np.int64)
+    ids = np.empty(2 * m, np.int64)
+    B = np.zeros((6 * m, m))
+    nb = 0
+    for i in range(m):
+        for s in range(2):
+            x, sgn, c = _side(PA, PB, idx, geo, i, s)
+            if x >= n:
+                continue
+            j = 0
+            while j < nb and ids[j] != x:
+                j += 1
+            if j == nb:
+                ids[nb] = x
+                nb += 1
+            side[i, s] = j
+            wm = math.sqrt(Pm[x, INV_MASS])
+            B[3 * j, i] += sgn * wm * geo[i, JAM_NX]
+            B[3 * j + 1, i] += sgn * wm * geo[i, JAM_NY]
+            if rotation:
+                B[3 * j + 2, i] += sgn * math.sqrt(Pm[x, INV_INERTIA]) * c
+    return B[:3 * nb], side, ids[:nb]
+
+
+@jit
+def _impulse_sums(PA, PB, idx, geo, m, side, nb, lam):
+    """Each body's net impulse (x, y) and angular impulse from impulses ``lam`` on the rows, in
+    ``P[nb, 3]``, with ``Pabs``, the same sums of magnitudes (the scale of their round-off)."""
+    P = np.zeros((nb, 3))
+    Pabs = np.zeros((nb, 3))
+    for i in range(m):
+        for s in range(2):
+            j = side[i, s]
+            if j < 0:
+                continue
+            _, sgn, c = _side(PA, PB, idx, geo, i, s)
+            P[j, 0] += sgn * lam[i] * geo[i, JAM_NX]
+            P[j, 1] += sgn * lam[i] * geo[i, JAM_NY]
+            P[j, 2] += sgn * lam[i] * c
+            Pabs[j, 0] += abs(lam[i] * geo[i, JAM_NX])
+            Pabs[j, 1] += abs(lam[i] * geo[i, JAM_NY])
+            Pabs[j, 2] += abs(lam[i] * c)
+    return P, Pabs
+
+
+@jit
+def _apply_delassus(Pm, PA, PB, idx, geo, m, side, ids, lam, rotation, out, scale):
+    """``out = A lam``, from the bodies' impulse sums (``A`` itself would round a light body's
+    terms into a heavy one's), and ``scale``, the size of the terms summed into each entry.
+    Returns ``lam.A.lam`` as the kinetic-energy norm of those sums (never negative)."""
+    nb = ids.shape[0]
+    P, Pabs = _impulse_sums(PA, PB, idx, geo, m, side, nb, lam)
+    for i in range(m):
+        acc = 0.0
+        mag = 0.0
+        for s in range(2):
+            j = side[i, s]
+            if j < 0:
+                continue
+            x = ids[j]
+            _, sgn, c = _side(PA, PB, idx, geo, i, s)
+            ima = Pm[x, INV_MASS]
+            acc += sgn * ima * (geo[i, JAM_NX] * P[j, 0] + geo[i, JAM_NY] * P[j, 1])
+            mag += ima * (abs(geo[i, JAM_NX]) * Pabs[j, 0] + abs(geo[i, JAM_NY]) * Pabs[j, 1])
+            if rotation:
+                acc += sgn * Pm[x, INV_INERTIA] * c * P[j, 2]
+                mag += Pm[x, INV_INERTIA] * abs(c) * Pabs[j, 2]
+        out[i] = acc
+        scale[i] = mag
+    total = 0.0
+    for j in range(nb):
+        x = ids[j]
+        total += Pm[x, INV_MASS] * (P[j, 0] * P[j, 0] + P[j, 1] * P[j, 1])
+        if rotation:
+            total += Pm[x, INV_INERTIA] * P[j, 2] * P[j, 2]
+    return total
+
+
+@jit
+def _householder(M, k):
+    """QR of ``M`` (rows x k, rows >= k) in place: ``R`` in its upper k x k triangle. False if
+    a column is (to round-off) a combination of the ones before it: no unique solution."""
+    rows = M.shape[0]
+    if rows < k:
+        return False
+    for c in range(k):
+        norm2 = 0.0
+        for r in range(rows):
+            norm2 += M[r, c] * M[r, c]
+        rest2 = 0.0  # below the diagonal (summed apart: x_c^2 may dwarf it)
+        for r in range(c + 1, rows):
+            rest2 += M[r, c] * M[r, c]
+        below = math.sqrt(M[c, c] * M[c, c] + rest2)
+        if below <= 1e-13 * math.sqrt(norm2) or below == 0.0:
+            return False
+        alpha = -below if M[c, c] >= 0.0 else below
+        # the reflector v = x - alpha e_c, kept in column c below the diagonal (and v_c apart)
+        vc = M[c, c] - alpha
+        vnorm2 = vc * vc + rest2
+        for q in range(c + 1, k):
+            dot = vc * M[c, q]
+            for r in range(c + 1, rows):
+                dot += M[r, c] * M[r, q]
+            f = 2.0 * dot / vnorm2
+            M[c, q] -= f * vc
+            for r in range(c + 1, rows):
+                M[r, q] -= f * M[r, c]
+        M[c, c] = alpha
+    return True
+
+
+@jit
+def _rtr_solve(M, k, rhs):
+    """Solve ``R^T R x = rhs`` in place, ``R`` the upper triangle of ``M``
+    (:func:`_householder`)."""
+    for c in range(k):  # R^T z = rhs
+        acc = rhs[c]
+        for q in range(c):
+            acc -= M[q, c] * rhs[q]
+        rhs[c] = acc / M[c, c]
+    for c in range(k - 1, -1, -1):  # R x = z
+        acc = rhs[c]
+        for q in range(c + 1, k):
+            acc -= M[c, q] * rhs[q]
+        rhs[c] = acc / M[c, c]
+
+
+#: refinement steps of an active set's solution (each: the residual from the impulse sums, one
+#: more pair of triangular solves)
+_REFINEMENTS = 2
+
+
+@jit
+def _try_active_set(Pm, PA, PB, idx, geo, m, B, side, ids, vn, mask, lam, eps, rotation):
+    """Solve ``A_SS lam_S = -vn_S`` for the set S in ``mask``; True if lam >= 0 and every pair's
+    ``w = vn + A lam >= -eps`` (allowing for the round-off of the terms ``A lam`` sums)."""
     sel = np.empty(m, np.int64)
     k = 0
     for i in range(m):
         if mask >> i & 1:
             sel[k] = i
             k += 1
-    M = np.empty((k, k))
-    rhs = np.empty(k)
-    for r in range(k):
-        rhs[r] = -vn[sel[r]]
-        for q in range(k):
-            M[r, q] = A[sel[r], sel[q]]
-    # (k's size passed as len(rhs): k itself, a literal 0 at the first pass of numba's type
-    # inference, compiled _solve_small twice)
-    if not _solve_small(M, rhs, len(rhs)):
+    M = np.empty((B.shape[0], k))
+    for q in range(k):
+        M[:, q] = B[:, sel[q]]
+    if not _householder(M, k):
         return False
+    x = np.empty(k)
     for r in range(k):
-        if rhs[r] < 0.0:
+        x[r] = -vn[sel[r]]
+    _rtr_solve(M, k, x)
+    w = np.empty(m)
+    scale = np.empty(m)
+    for _ in range(_REFINEMENTS):
+        lam[:] = 0.0
+        for r in range(k):
+            lam[sel[r]] = x[r]
+        _apply_delassus(Pm, PA, PB, idx, geo, m, side, ids, lam, rotation, w, scale)
+        d = np.empty(k)
+        for r in range(k):
+            d[r] = -vn[sel[r]] - w[sel[r]]
+        _rtr_solve(M, k, d)
+        for r in range(k):
+            x[r] += d[r]
+    for r in range(k):
+        if x[r] < 0.0:
             return False
     lam[:] = 0.0
     for r in range(k):
-        lam[sel[r]] = rhs[r]
+        lam[sel[r]] = x[r]
+    _apply_delassus(Pm, PA, PB, idx, geo, m, side, ids, lam, rotation, w, scale)
     for i in range(m):
-        w = vn[i]
-        for q in range(m):
-            w += A[i, q] * lam[q]
-        if w < -eps:
+        if vn[i] + w[i] < -(eps + 1e-14 * scale[i]):
             return False
     return True
-
-
-@jit
-def _energy_norm(Pm, PA, PB, n, idx, geo, m, lam, rotation):
-    """``lam.A.lam`` summed per body as ``invm |dp|^2 + invI dL^2`` (never negative)."""
-    total = 0.0
-    for x in range(n):
-        px = 0.0
-        py = 0.0
-        lx = 0.0
-        for i in range(m):
-            for side in range(2):
-                y, sgn, c = _side(PA, PB, idx, geo, i, side)
-                if y == x:
-                    px += sgn * lam[i] * geo[i, JAM_NX]
-                    py += sgn * lam[i] * geo[i, JAM_NY]
-                    lx += sgn * lam[i] * c
-        total += Pm[x, INV_MASS] * (px * px + py * py)
-        if rotation:
-            total += Pm[x, INV_INERTIA] * lx * lx
-    return total
 
 
 @jit
@@ -208,23 +325,25 @@ def jam_impulses(S, Pm, hw, PA, PB, MAT, slop, rotation, idx, geo, lam):
     e = 1.0
     for i in range(m):
         e = min(e, MAT[idx[i], RESTITUTION])
-    A = _delassus(Pm, PA, PB, n, idx, geo, m, rotation)
+    B, side, ids = _weighted_jacobian(Pm, PA, PB, n, idx, geo, m, rotation)
     sol = np.zeros(m)
     found = False
     for mask in range(1, 1 << m):
-        if _try_active_set(A, vn, mask, m, sol, 1e-12 * vmax):
+        if _try_active_set(Pm, PA, PB, idx, geo, m, B, side, ids, vn, mask, sol, 1e-12 * vmax,
+                           rotation):
             found = True
             break
     if not found:
         return 0
     # Energy guard. With exact arithmetic lam.vn = -lam.A.lam, and k lam (k = 1 + e) changes
-    # the kinetic energy by k lam.vn + k^2/2 lam.A.lam <= 0. An ill-conditioned A (mass ratios
-    # of 1e11) solves lam only to ~1e-5, which at e = 1 added that much energy, so k is capped
-    # where the change computed from this lam is zero, -2 lam.vn / lam.A.lam.
+    # the kinetic energy by k lam.vn + k^2/2 lam.A.lam <= 0. What round-off is left in lam
+    # could add energy at e = 1, so k is capped where the change computed from this lam is
+    # zero, -2 lam.vn / lam.A.lam (the cap loses what the round-off would have added).
     lv = 0.0
     for i in range(m):
         lv += sol[i] * vn[i]
-    lal = _energy_norm(Pm, PA, PB, n, idx, geo, m, sol, rotation)
+    w = np.empty(m)
+    lal = _apply_delassus(Pm, PA, PB, idx, geo, m, side, ids, sol, rotation, w, np.empty(m))
     if not (lv < 0.0 and lal > 0.0):
         return 0
     k = min(1.0 + e, -2.0 * lv / lal)
