@@ -377,7 +377,9 @@ class World:
     # ------------------------------------------------------------------------------------------
 
     def _pair_list(self) -> tuple[list[int], list[int]]:
-        """Every pair that can touch: body pairs (not two static bodies), then body-cushion."""
+        """Every pair that can touch: body pairs (not two static bodies), then body-cushion. In
+        a pair with a static body, as with a cushion, the static body is b (the README's
+        convention), wherever the scene lists it."""
         bodies = self.scene.bodies
         N = self.n_bodies
         pa, pb = [], []
@@ -385,8 +387,9 @@ class World:
             for j in range(i + 1, N):
                 if bodies[i].static and bodies[j].static:
                     continue
-                pa.append(i)
-                pb.append(j)
+                a, b = (j, i) if bodies[i].static else (i, j)
+                pa.append(a)
+                pb.append(b)
         if self.walls:
             for i in range(N):
                 if not bodies[i].static:

@@ -99,6 +99,28 @@ def test_contacts_report_wall_and_static_bodies_with_sign_convention():
     assert contacts.body_b[0] == world.index("post")
 
 
+@pytest.mark.parametrize("solver", ["exact", "fixed", "pymunk"])
+def test_a_static_body_is_b_wherever_the_scene_lists_it(solver):
+    """README: "in a contact with a static body, the static body is b". A static body listed
+    before the moving one was a (pairs ran in listing order), its normal pointing from the post
+    to the puck. Now it is b either way, and the listing order changes nothing else."""
+    post = {"name": "post", "shape": "disk", "radius": 0.1, "static": True, "position": [0.5, 0.0]}
+    puck = {"name": "puck", "shape": "disk", "radius": 0.1, "mass": 1.0, "velocity": [1.0, 0.1]}
+    runs = []
+    for bodies in ([post, puck], [puck, post]):
+        world = physics.World({"effects": ["rotation"], "bodies": bodies,
+                               "solver": {"mode": solver, **({"substeps": 50} if solver == "fixed"
+                                                              else {})}})
+        contacts = world.step(1.0)
+        assert len(contacts) == 1
+        assert contacts.body_a[0] == world.index("puck")
+        assert contacts.body_b[0] == world.index("post")
+        assert contacts.normal[0, 0] > 0.9  # from the puck to the post (+x)
+        runs.append(world.state.velocities[0, world.index("puck")])
+    np.testing.assert_allclose(runs[0], runs[1], rtol=0, atol=1e-12)
+    assert runs[0][0] < 0  # bounced back
+
+
 def test_snapshot_restore_reset_and_pickle_reproduce_trajectories():
     world = physics.World(TABLE, batch_size=2)
     world.set_state(velocities=[[1.5, 0.3]], body="puck")
