@@ -108,6 +108,11 @@ def batch_rows(env: Any, batch_size: int) -> np.ndarray:
         ok = idx.size == 0 or (idx.min() >= 0 and idx.max() < batch_size)
     if not ok:
         raise SceneError(f"env: indices must lie in [0, {batch_size}) (got {_show(env)})")
+    # (rows an env passes are sorted, checked in O(n); two values for one element were taken
+    # silently, the last one winning)
+    if idx.size > 1 and not np.all(idx[1:] > idx[:-1]) and np.unique(idx).size != idx.size:
+        raise SceneError(f"env: element indices must not repeat (got {_show(env)}): each "
+                         f"element takes one value")
     return idx
 
 

@@ -580,6 +580,10 @@ def read_scene(source: str | Path) -> Any:
             packaged scenes), or text that is not YAML.
     """
     text = str(source)
+    if isinstance(source, str) and not text.strip():
+        # (Path("") is the working directory: "'' is not a file" named no cause)
+        raise SceneError(f"scene: an empty string; give a packaged scene's name "
+                         f"{packaged_scenes()}, a YAML file's path, YAML text or a dict")
     path = Path(text)
     from_file = False
     if isinstance(source, Path) or "\n" not in text and (

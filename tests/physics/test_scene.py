@@ -221,6 +221,11 @@ def test_packaged_scenes_load_by_name_from_any_folder(tmp_path, monkeypatch):
     # a file of that name in the current folder is still a file
     (tmp_path / "rod_control").write_text("bodies: [{name: p, shape: disk, radius: 1, mass: 1}]")
     assert load_scene("rod_control").names == ("p",)
+    # an empty string read as the working directory: "'' is not a file"
+    for empty in ("", "  "):
+        with pytest.raises(SceneError, match=r"scene: an empty string; give a packaged scene's "
+                                             r"name \['break'"):
+            physics.World(empty)
 
 
 def test_a_table_size_without_walls_is_refused_and_an_angle_without_rotation_kept():

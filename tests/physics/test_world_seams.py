@@ -150,6 +150,25 @@ def test_an_edit_sets_parameters_and_placement_at_once():
     np.testing.assert_array_equal(world.state.positions[1, 0], [-0.3, 0.0])
 
 
+def test_an_element_named_twice_is_refused_not_the_last_value_taken():
+    """``set_body("rod", mass=[5.0, 6.0], env=[0, 0])`` gave element 0 the mass 6 silently
+    (found by a new-user walk). Two values for one element are ambiguous: refused, naming
+    ``env``, and nothing changes; indices in any order, or a mask, still work."""
+    world = physics.World("rod_control", batch_size=3)
+    mass = world.mass.copy()
+    for setter in (lambda: world.set_body("rod", mass=[5.0, 6.0], env=[0, 0]),
+                   lambda: world.set_state(velocities=0.5, env=[2, 0, 2]),
+                   lambda: world.edit(env=np.array([1, 1]))):
+        with pytest.raises(SceneError, match=r"env: element indices must not repeat"):
+            setter()
+    np.testing.assert_array_equal(world.mass, mass)
+    world.set_body("rod", mass=[5.0, 6.0], env=[2, 0])
+    rod = world.index("rod")
+    np.testing.assert_array_equal(world.mass[:, rod], [6.0, mass[1, rod], 5.0])
+    world.set_body("rod", mass=7.0, env=np.array([False, True, False]))
+    assert world.mass[1, rod] == 7.0
+
+
 @pytest.mark.parametrize("value", ["0.5", True, None, [0.5, "x"], np.nan])
 def test_setters_refuse_non_numbers(value):
     world = physics.World(HEAD_ON)
