@@ -516,6 +516,10 @@ def test_scene_by_packaged_name_or_path_is_the_default_scene(tmp_path, monkeypat
         env.close()
     for run in runs[1:]:  # a pathlib.Path too, as physics.load_scene takes
         np.testing.assert_array_equal(runs[0], run)
+    # an empty string (a config's unset field) is refused naming the cause, not read as the
+    # working directory ("'' is not a file")
+    with pytest.raises(ConfigError, match=r"scene: an empty string; give a packaged scene's"):
+        gym.make("SpinStrike/RodSpinControl-v0", scene="")
 
 
 @pytest.mark.parametrize("env_id", STRIKE_IDS)
