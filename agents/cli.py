@@ -381,6 +381,42 @@ def cmd_baselines(args) -> int:
     return int(baselines_main(args.rest) or 0)
 
 
+def _seed(text: str) -> int:
+    """A seed: an integer >= 0 (a negative one was numpy's or Gymnasium's traceback)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 0 (got {text!r})")
+    return value
+
+
+def _threads(text: str) -> int:
+    """PyTorch threads: an integer >= 0 (0: torch's default)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 0, 0 for torch's default "
+                                         f"(got {text!r})")
+    return value
+
+
+def _device(text: str) -> str:
+    """A PyTorch device string, checked as torch parses it (``gpu`` was torch's traceback
+    after the run directory was made)."""
+    import torch
+
+    try:
+        torch.device(text)
+    except (RuntimeError, ValueError):
+        raise argparse.ArgumentTypeError(f"not a PyTorch device (got {text!r}); e.g. cpu, "
+                                         "cuda, cuda:1, mps") from None
+    return text
+
+
 def _step_count(text: str) -> int:
     """A number of steps: an integer, or a whole number written as a float (``2e6``, as the
     hyperparameter files' ``n_timesteps`` may be)."""
@@ -409,7 +445,7 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--algo", choices=ALGOS, help="default ppo (resuming: the run's)")
     t.add_argument("--env", help=f"default {DEFAULT_ENV} (resuming: the run's)")
     t.add_argument("--config", help="hyperparameter YAML (default: configs/agents/<algo>.yml)")
-    t.add_argument("--seed", type=int, help="default 0 (resuming: the run's)")
+    t.add_argument("--seed", type=_seed, help="default 0 (resuming: the run's)")
     t.add_argument("--timesteps", type=_step_count, help="override n_timesteps, e.g. 2e6 as "
                    "in an rl-zoo3 file (resuming: a new budget for the run, recorded in its "
                    "config.yml)")
@@ -424,8 +460,9 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--force", action="store_true",
                    help="replace an existing run directory, or an interrupted one "
                         "(<out>.partial)")
-    t.add_argument("--device", default="cpu")
-    t.add_argument("--torch-threads", type=int, default=1,
+    t.add_argument("--device", type=_device, default="cpu",
+                   help="PyTorch device (default cpu)")
+    t.add_argument("--torch-threads", type=_threads, default=1,
                    help="PyTorch CPU threads (default 1: fastest for small networks; 0 = torch's "
                         "default)")
     t.add_argument("--eval-episodes", type=int, default=None,
@@ -459,15 +496,16 @@ def build_parser() -> argparse.ArgumentParser:
         e = sub.add_parser(name, help=helptext)
         e.add_argument("run_dir", nargs="?")
         e.add_argument("--env")
-        e.add_argument("--oracle", action="store_true")
-        e.add_argument("--planner", action="store_true",
-                       help="the CEM planner (control envs; agents/planner.py)")
-        e.add_argument("--random", action="store_true", help="uniformly random actions")
+        who = e.add_mutually_exclusive_group()  # (--oracle --random filmed random silently)
+        who.add_argument("--oracle", action="store_true")
+        who.add_argument("--planner", action="store_true",
+                         help="the CEM planner (control envs; agents/planner.py)")
+        who.add_argument("--random", action="store_true", help="uniformly random actions")
         e.add_argument("--env-kwargs", help="with --oracle, --random or --planner: env "
                        "arguments as YAML, e.g. '{restitution: 0.8}' (a run uses its own)")
         if name == "evaluate":
             e.add_argument("--episodes", type=int, default=50)
-            e.add_argument("--seed", type=int, default=1000)
+            e.add_argument("--seed", type=_seed, default=1000)
             e.add_argument("--json", action="store_true")
             e.add_argument("--no-save", action="store_true")
         else:
@@ -475,7 +513,7 @@ def build_parser() -> argparse.ArgumentParser:
                            "the run directory)")
             e.add_argument("--episodes", type=int,
                            help=f"default {RECORD_POLICY['--episodes']} (not with --scene)")
-            e.add_argument("--seed", type=int,
+            e.add_argument("--seed", type=_seed,
                            help=f"default {RECORD_POLICY['--seed']} (not with --scene)")
             e.add_argument("--grid", action="store_true",
                            help="tile the episodes in one video, played side by side")

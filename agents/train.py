@@ -248,8 +248,23 @@ def plot_learning_curve(run_dir: Path, title: str) -> Path | None:
 
 
 def _work_dir(run_dir: Path, resume: bool, force: bool) -> Path:
-    """Where this invocation writes: the run itself (resume) or a fresh ``.partial`` beside it."""
+    """Where this invocation writes: the run itself (resume) or a fresh ``.partial`` beside it.
+
+    ``force`` replaces a run directory only (one with a ``config.yml``) or an empty one: it
+    deleted whatever ``--out`` named (a folder of runs, the home folder), and a file there
+    failed only after training, taking the trained model with it."""
+    if not run_dir.name or run_dir.name == "..":  # (with_name failed with a ValueError)
+        raise AgentConfigError(f"out: {str(run_dir)!r} names a folder by its place, not a run "
+                               "directory; give one, e.g. runs/my-run")
     partial = run_dir.with_name(run_dir.name + ".partial")
+    for path in (run_dir, partial):
+        if path.exists() and not path.is_dir():
+            raise AgentConfigError(f"out: {path} is a file, not a run directory; choose "
+                                   "another --out")
+    if not resume and force and run_dir.exists() and any(run_dir.iterdir()) \
+            and not (run_dir / "config.yml").is_file():
+        raise AgentConfigError(f"out: {run_dir} is not a run directory (no config.yml) and not "
+                               "empty; --force replaces a run only: choose another --out")
     if resume:
         work = run_dir if run_dir.exists() else partial
         if not (work / "config.yml").exists():

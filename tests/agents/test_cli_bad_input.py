@@ -31,6 +31,7 @@ def _config(tmp: Path, name: str, entry: dict, env_id: str = ENV) -> str:
 
 
 def _text(tmp: Path, name: str, text: str) -> str:
+    (tmp / name).parent.mkdir(parents=True, exist_ok=True)
     (tmp / name).write_text(text)
     return str(tmp / name)
 
@@ -69,9 +70,9 @@ CASES = [
     ("evaluate-run-with-env",
      lambda t: ["evaluate", _fake_run(t, "done"), "--env", "SpinStrike/PuckSpeed-v1"],
      ["--env:", "its own agent on the env it was trained on", "without a run directory"]),
-    ("evaluate-run-with-oracle-and-random",
-     lambda t: ["evaluate", _fake_run(t, "done"), "--oracle", "--random"],
-     ["--oracle, --random:", "--oracle and --random go without a run directory"]),
+    ("evaluate-run-with-oracle-and-env",  # (--oracle --random: argparse's, below)
+     lambda t: ["evaluate", _fake_run(t, "done"), "--oracle", "--env", ENV],
+     ["--env, --oracle:", "--env and --oracle go without a run directory"]),
     ("record-run-with-planner",
      lambda t: ["record", _fake_run(t, "done"), "--planner"],
      ["--planner:", "its own agent"]),
@@ -127,6 +128,19 @@ CASES = [
     ("out-exists-without-force",
      lambda t: ["train", "--out", _fake_run(t, "done")],
      ["out:", "done exists", "--force"]),
+    # --force deleted whatever --out named: a folder of a user's files (or of runs) went
+    ("force-on-a-folder-that-is-no-run",
+     lambda t: ["train", "--force", "--out", _text(t, "mine/notes.txt", "precious") and
+                str(t / "mine")],
+     ["out:", "mine is not a run directory (no config.yml) and not empty",
+      "--force replaces a run only"]),
+    # a file: failed after training, and the trained model was deleted with the .partial
+    ("force-on-a-file",
+     lambda t: ["train", "--force", "--out", _text(t, "afile", "x")],
+     ["out:", "afile is a file, not a run directory"]),
+    ("out-dot",  # was "ValueError: PosixPath('.') has an empty name"
+     lambda t: ["train", "--out", "."],
+     ["out: '.' names a folder by its place, not a run directory", "runs/my-run"]),
     ("max-episode-steps-zero",  # was gymnasium's bare AssertionError, a traceback
      lambda t: ["train", "--env-kwargs", "{max_episode_steps: 0}"],
      ["max_episode_steps: must be an int >= 1", "(got 0)"]),
@@ -346,8 +360,21 @@ def test_bad_input_is_one_error_line_and_writes_nothing(build, words, sandbox, c
     (["train", "--timesteps", "100.5"], "--timesteps", "'100.5'"),
     # --clear --prune cleared the cache and ignored --prune
     (["cache", "--clear", "--prune"], "--prune", "not allowed with argument --clear"),
+    # were tracebacks (torch's, numpy's, Gymnasium's) after the arguments were taken
+    (["train", "--device", "gpu"], "--device", "not a PyTorch device (got 'gpu')"),
+    (["train", "--torch-threads", "-2"], "--torch-threads", "must be an integer >= 0"),
+    (["train", "--seed", "-1"], "--seed", "must be an integer >= 0 (got '-1')"),
+    (["evaluate", "--oracle", "--env", ENV, "--seed", "-1"], "--seed", "(got '-1')"),
+    (["record", "--oracle", "--env", ENV, "--seed", "-3"], "--seed", "(got '-3')"),
+    # --oracle --random filmed the random policy silently
+    (["record", "--oracle", "--random", "--env", ENV], "--random",
+     "not allowed with argument --oracle"),
+    (["evaluate", "--planner", "--oracle", "--env", ENV], "--oracle",
+     "not allowed with argument --planner"),
 ], ids=["algo-not-in-list", "bench-unknown", "episodes-not-an-int", "timesteps-not-whole",
-        "cache-clear-and-prune"])
+        "cache-clear-and-prune", "device-unknown", "torch-threads-negative", "train-seed-negative",
+        "evaluate-seed-negative", "record-seed-negative", "record-oracle-and-random",
+        "evaluate-planner-and-oracle"])
 def test_argparse_rejects_choices_with_status_2(argv, argument, value, sandbox, capsys):
     with pytest.raises(SystemExit) as exc:
         main(argv)
