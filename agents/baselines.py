@@ -57,8 +57,16 @@ def _machine() -> str:
             f"torch {torch.__version__}, stable-baselines3 {stable_baselines3.__version__}")
 
 
+def _env_name(env_id: str) -> str:
+    """An env's part of file names: the shipped ids' name (``RodSpin-v0``); another namespace's
+    id keeps its namespace (``MyLab-RodSpin-v0``: a variant named like a shipped env had its
+    run and plot taken for the shipped env's)."""
+    namespace, _, name = env_id.rpartition(":")[2].rpartition("/")
+    return name if namespace in ("", "SpinStrike") else f"{namespace}-{name}"
+
+
 def _name(algo: str, env_id: str, tag: str, seed: int) -> str:
-    return f"{algo}-{env_id.split('/')[-1]}{tag}-s{seed}"
+    return f"{algo}-{_env_name(env_id)}{tag}-s{seed}"
 
 
 def _commit() -> str:
@@ -98,6 +106,9 @@ def _run(algo, env_id, seed, root: Path, scale: float, env_kwargs=None, tag="",
             raise SystemExit(f"{run}: trained with budgets scaled by {out.get('scale', 1.0)}, "
                              f"this report asks for {scale}; pass another --root (a --quick "
                              "run's default is runs/baselines-quick)")
+        if out.get("env", env_id) != env_id:
+            raise SystemExit(f"{run}: holds a run of {out['env']}, not of {env_id}; pass "
+                             "another --root")
         if re_evaluate:  # the same model, scored by the current code (e.g. after a physics fix)
             out.update(_scores(run, env_id), evaluated_at=_commit())
             result_file.write_text(json.dumps(out))
@@ -334,7 +345,7 @@ def main(argv: list[str] | None = None) -> int:
         if control[env_id] and args.planner_episodes > 0:
             rows.append(_planner_row(env_id, args.planner_episodes, reference))
         plot = _curves(env_id, root, args.algos, seeds,
-                       doc.parent / "baselines" / f"{env_id.split('/')[-1]}.png",
+                       doc.parent / "baselines" / f"{_env_name(env_id)}.png",
                        args.imitate if control[env_id] else None)
         table[env_id] = rows
         lines += [f"## {env_id}", "",

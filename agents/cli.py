@@ -112,11 +112,10 @@ def _policy(args):
                                "with --env ID")
     base = _check_env_id(args.env)
     env_kwargs = _kwargs(args.env_kwargs)
-    if env_kwargs:
-        from spinstrike.agents.train import check_env_kwargs
+    from spinstrike.agents.train import check_env_kwargs
 
-        # a bad one: a ConfigError naming it
-        check_env_kwargs(args.env, env_kwargs, "--env-kwargs", args.command)
+    # a bad one: a ConfigError naming it; a variant whose episodes would never end, refused
+    check_env_kwargs(args.env, env_kwargs, "--env-kwargs", args.command)
     if args.random:
         return RandomPolicy(args.seed), args.env, env_kwargs, "random"
     if args.oracle:

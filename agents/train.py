@@ -572,8 +572,23 @@ def check_env_kwargs(env_id: str, env_kwargs: dict, field: str = "env_kwargs",
                                f"(got {steps!r})")
     env = gym.make(env_id, **env_kwargs)
     space = env.observation_space
+    never_ends = env.spec.max_episode_steps is None and _never_terminates(env.unwrapped)
     env.close()
+    if never_ends:
+        # gym.make adds no limit to a variant registered without one: the final evaluation,
+        # `evaluate` and `record` ran for ever (training's vector env stopped at 250 steps)
+        raise AgentConfigError(f"{env_id}: a control env's episodes never end and it registers "
+                               f"no max_episode_steps, so evaluation and videos would run for "
+                               f"ever: register it with max_episode_steps (the shipped control "
+                               f"envs: 250, 5 s), or give max_episode_steps in {field}")
     return space
+
+
+def _never_terminates(env) -> bool:
+    """A control env: its episodes end only by a step limit."""
+    from spinstrike.envs.control import _ControlEnv
+
+    return isinstance(env, _ControlEnv)
 
 
 #: how a run ends when the command does not say (``train``'s evaluate, eval_episodes, video)

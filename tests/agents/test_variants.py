@@ -123,21 +123,53 @@ def test_baselines_train_and_report_a_variant(user_module, capsys):
     oracle, and reported under its id; an id that is no SpinStrike env is refused naming
     ``--envs`` before anything trains."""
     pytest.importorskip("rliable")
+    # named as a shipped env is: its run and plot were the shipped env's file names, so a
+    # report of both scored the variant with the shipped env's run
     here = user_module("spinstrike_baselines_lab", (
         "import gymnasium as gym\n"
-        "gym.register('BaseLab/SoftPuck-v1', entry_point='spinstrike.envs.strike:PuckSpeedV1Env',"
+        "gym.register('BaseLab/PuckSpeed-v1', entry_point='spinstrike.envs.strike:PuckSpeedV1Env',"
         " kwargs={'restitution': 0.6})\n"))
-    variant = "spinstrike_baselines_lab:BaseLab/SoftPuck-v1"
+    variant = "spinstrike_baselines_lab:BaseLab/PuckSpeed-v1"
     root, doc = here / "runs", here / "report" / "baselines.md"
     assert main(["baselines", "--quick", "--envs", variant, "--algos", "ppo", "--seeds", "0",
                  "--no-transfer", "--root", str(root), "--doc", str(doc)]) == 0
     text = doc.read_text()
     assert f"## {variant}" in text and "| oracle (closed form) | - | 1.000 +/- 0.000 |" in text
-    run = root / "ppo-SoftPuck-v1-s0"
+    run = root / "ppo-BaseLab-PuckSpeed-v1-s0"
     assert yaml.safe_load((run / "config.yml").read_text())["env"] == variant
-    assert (doc.parent / "baselines" / "SoftPuck-v1.png").is_file()
+    assert (doc.parent / "baselines" / "BaseLab-PuckSpeed-v1.png").is_file()
+    # a run folder holding another env's run is not reused for this one
+    from spinstrike.agents.baselines import _run
+
+    with pytest.raises(SystemExit, match=r"holds a run of spinstrike_baselines_lab:BaseLab/"
+                                         r"PuckSpeed-v1, not of SpinStrike/PuckSpeed-v1"):
+        run.rename(root / "ppo-PuckSpeed-v1-s0")
+        _run("ppo", "SpinStrike/PuckSpeed-v1", 0, root, 0.1)
+    (root / "ppo-PuckSpeed-v1-s0").rename(run)
     capsys.readouterr()
     assert main(["baselines", "--quick", "--envs", "CartPole-v1", "--root", str(root),
                  "--doc", str(doc)]) == 2
     assert "--envs: 'CartPole-v1'" in capsys.readouterr().err
     assert sorted(p.name for p in root.iterdir()) == [run.name]
+
+
+def test_a_control_variant_without_a_step_limit_is_refused_not_run_for_ever(user_module, capsys):
+    """A control env registered without ``max_episode_steps``: ``gym.make`` adds no limit and
+    its episodes never end, so ``evaluate`` and ``record`` ran until killed and ``train`` hung
+    in its final evaluation (its batched env stopped at 250 steps). Refused, saying what to
+    register; ``--env-kwargs '{max_episode_steps: N}'`` makes it finite."""
+    user_module("spinstrike_ctl_lab", (
+        "import gymnasium as gym\n"
+        "gym.register('CtlLab/Push-v0', entry_point='spinstrike.envs.control:RodSpinControlEnv',"
+        " kwargs={'max_force': 8.0})\n"))
+    variant = "spinstrike_ctl_lab:CtlLab/Push-v0"
+    for argv in (["evaluate", "--random", "--env", variant, "--episodes", "1", "--no-save"],
+                 ["record", "--random", "--env", variant, "--episodes", "1", "--out", "v.mp4"],
+                 ["train", "--env", variant, "--timesteps", "64", "--out", "run"]):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert "a control env's episodes never end and it registers no max_episode_steps" in err
+        assert "register it with max_episode_steps" in err
+    assert not Path("run").exists() and not Path("v.mp4").exists()
+    assert main(["evaluate", "--random", "--env", variant, "--episodes", "1", "--no-save",
+                 "--env-kwargs", "{max_episode_steps: 5}", "--json"]) == 0
