@@ -425,8 +425,11 @@ def _strike_post(b, k, S, Pm, cpair, crec, stats, n_stored, sbuf, scfg):
     row = sbuf[b]
     chunk = scfg[SC_CHUNK]
     t0 = k * chunk
+    # every contact: beyond the n_stored records, counted in the statistics and their impulses
+    # summed in row n_stored (a strike at e = 0 can make ~10^4; 64 a chunk were counted)
+    row[S_CONTACTS] += stats[b, STAT_CONTACTS]
+    row[S_IMPULSE] += crec[b, n_stored, REC_J]
     for q in range(min(stats[b, STAT_CONTACTS], n_stored)):
-        row[S_CONTACTS] += 1.0
         row[S_IMPULSE] += crec[b, q, REC_J]
         if row[S_FIRST_TIME] < 0.0:
             row[S_FIRST_TIME] = t0 + crec[b, q, REC_TIME]

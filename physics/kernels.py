@@ -80,6 +80,8 @@ from spinstrike.physics.layout import (
     MATERIAL_COLUMNS,
     PARAM_COLUMNS,
     REC_COLUMNS,
+    REC_J,
+    REC_JT,
     STAT_COLUMNS,
     STAT_FALLBACK,
     STAT_WATCH,
@@ -136,7 +138,8 @@ def unpack(fbuf, ibuf):
     HW = _floats(fbuf, ibuf, F_HALF, B * HALF_COLUMNS).reshape((B, HALF_COLUMNS))
     MAT = _floats(fbuf, ibuf, F_MATERIALS, B * P * MATERIAL_COLUMNS).reshape(
         (B, P, MATERIAL_COLUMNS))
-    crec = _floats(fbuf, ibuf, F_CREC, B * M * REC_COLUMNS).reshape((B, M, REC_COLUMNS))
+    crec = _floats(fbuf, ibuf, F_CREC, B * (M + 1) * REC_COLUMNS).reshape(
+        (B, M + 1, REC_COLUMNS))
     toi = _floats(fbuf, ibuf, F_TOI, B * P).reshape((B, P))
     fcfg = _floats(fbuf, ibuf, F_FCFG, FCFG_SIZE)
     clock = _floats(fbuf, ibuf, F_TIME, B)
@@ -203,6 +206,9 @@ def step_element(v, b, dt, fixed, rotation, contact_friction, table_friction, ja
     for k in range(STAT_COLUMNS):  # the watched pair stays
         if k != STAT_WATCH:
             v.stats[b, k] = 0
+    m = v.cpair.shape[1]  # the sums of the contacts beyond the records
+    v.crec[b, m, REC_J] = 0.0
+    v.crec[b, m, REC_JT] = 0.0
     v.clock[b] += dt
     _fixed_if(fixed, v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,
               v.icfg[CI_SUBSTEPS], v.icfg[CI_ITERATIONS], 0.0, 0.0, rotation, flat,

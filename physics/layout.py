@@ -108,7 +108,9 @@ MATERIAL_COLUMNS = len(MATERIAL)
 
 # -- what a step reports -------------------------------------------------------------------------
 
-#: contact record ``crec [B, M, .]``: s, m, m, unit normal (a to b), N s, N s (along (-ny, nx))
+#: contact record ``crec [B, M + 1, .]``: s, m, m, unit normal (a to b), N s, N s (along
+#: (-ny, nx)); row M holds the sums of ``j`` and ``jt`` over the contacts beyond the M records
+#: (a strike of a thousand tiny bounces: its total impulse, where the records stop)
 RECORD = Table("contact record", "time", "px", "py", "nx", "ny", "j", "jt", prefix="REC_")
 REC_TIME, REC_PX, REC_PY, REC_NX, REC_NY, REC_J, REC_JT = RECORD
 REC_COLUMNS = len(RECORD)
@@ -214,7 +216,8 @@ def field_shapes(B: int, N: int, P: int, M: int,
     rows, cols = (N, N + 4) if calendar else (0, 0)
     return {"state": (B, N, STATE_COLUMNS), "params": (B, N, PARAM_COLUMNS),
             "forces": (B, N, FORCE_COLUMNS), "half": (B, HALF_COLUMNS),
-            "materials": (B, P, MATERIAL_COLUMNS), "crec": (B, M, REC_COLUMNS), "toi": (B, P),
+            "materials": (B, P, MATERIAL_COLUMNS), "crec": (B, M + 1, REC_COLUMNS),
+            "toi": (B, P),
             "fcfg": (FCFG_SIZE,), "time": (B,), "calf": (B, cf), "rest": (B, N, FORCE_COLUMNS),
             "pair_a": (P,), "pair_b": (P,), "cpair": (B, M), "stats": (B, STAT_COLUMNS),
             "kind": (B, P), "changed": (B, N), "icfg": (ICFG_SIZE,), "cali": (B, ci),

@@ -343,9 +343,11 @@ class PymunkBackend:
             b = ctx[0]
             if p == stats[b, STAT_WATCH]:  # counted also where the records are full
                 stats[b, STAT_WATCHED] += 1
-            if k >= M:
-                return
             nx, ny = n.x, n.y
+            if k >= M:  # the records are full: summed in row M (layout.RECORD)
+                crec[b, M, REC_J] += -(jx * nx + jy * ny)
+                crec[b, M, REC_JT] += -(jy * nx - jx * ny)
+                return
             px = py = 0.0
             points = arbiter.contact_point_set.points
             for cp in points:

@@ -194,7 +194,8 @@ def trace_state(trace, t, S):
 @jit_inline
 def _record(p, t, px, py, nx, ny, j, jt, cpair, crec, stats):
     k = stats[STAT_CONTACTS]
-    if k < cpair.shape[0]:
+    m = cpair.shape[0]
+    if k < m:
         cpair[k] = p
         crec[k, REC_TIME] = t
         crec[k, REC_PX] = px
@@ -203,6 +204,9 @@ def _record(p, t, px, py, nx, ny, j, jt, cpair, crec, stats):
         crec[k, REC_NY] = ny
         crec[k, REC_J] = j
         crec[k, REC_JT] = jt
+    else:  # the records are full: summed in row m (layout.RECORD)
+        crec[m, REC_J] += j
+        crec[m, REC_JT] += jt
     stats[STAT_CONTACTS] = k + 1
     if p == stats[STAT_WATCH]:  # counted also where the records are full
         stats[STAT_WATCHED] += 1

@@ -184,6 +184,8 @@ class Contacts:
         normal: [K, 2] unit, from a to b.  impulse: [K] normal impulse j >= 0, N s.
         tangent_impulse: [K] friction impulse along t = (-n_y, n_x), N s.
         dropped: [B] contacts not stored because an element exceeded ``max_contacts``.
+        dropped_impulse, dropped_tangent_impulse: [B] their normal and friction impulses,
+            summed (N s): ``impulse`` summed per element plus these is the step's total.
     """
 
     batch: np.ndarray
@@ -195,6 +197,8 @@ class Contacts:
     impulse: np.ndarray
     tangent_impulse: np.ndarray
     dropped: np.ndarray
+    dropped_impulse: np.ndarray
+    dropped_tangent_impulse: np.ndarray
 
     def __post_init__(self) -> None:
         for a in self.__dict__.values():
@@ -338,7 +342,8 @@ class World:
         self._last_contacts: Contacts | None = None
         e, ei = np.zeros(0), np.zeros(0, dtype=np.int64)
         self._no_contacts = Contacts(ei, ei, ei, e, np.zeros((0, 2)), np.zeros((0, 2)), e,
-                                     e.copy(), np.zeros(B, dtype=np.int64))
+                                     e.copy(), np.zeros(B, dtype=np.int64), np.zeros(B),
+                                     np.zeros(B))
         self._frozen = True
         self.reset()  # the scene's placement, checked as any other change
         if isinstance(self.solver, PymunkSolver):
@@ -897,6 +902,7 @@ class World:
         watch = self._stats[:, STAT_WATCH].copy()  # the watched pair stays
         self._stats[:] = 0
         self._stats[:, STAT_WATCH] = watch
+        self._crec[:, self.max_contacts] = 0.0  # the sums beyond the records
         self._backend.step(self.dt)
         self._time += self.dt
         finite = np.isfinite(self._state).all(axis=(1, 2))
@@ -935,9 +941,11 @@ class World:
         b, k = np.nonzero(np.arange(self.max_contacts)[None, :] < stored[:, None])
         p = self._cpair[b, k]
         rec = self._crec[b, k]
+        over = self._crec[:, self.max_contacts]  # the sums beyond the records (zero if none)
         return Contacts(b, self._pair_a[p], self._pair_b[p], rec[:, REC_TIME],
                         rec[:, [REC_PX, REC_PY]], rec[:, [REC_NX, REC_NY]], rec[:, REC_J],
-                        rec[:, REC_JT], counts - stored)
+                        rec[:, REC_JT], counts - stored, over[:, REC_J].copy(),
+                        over[:, REC_JT].copy())
 
     # ------------------------------------------------------------------------------------------
     # conserved quantities

@@ -121,3 +121,68 @@ def test_a_held_strike_gets_the_spin_of_an_independent_integration(seed):
     want = ref.step(a)[-1]["spin"]
     assert not info["fallback"] and info["n_contacts"] > 100
     assert info["spin"] == pytest.approx(want, rel=1e-3)
+
+
+def test_a_strike_of_thousands_of_contacts_reports_all_of_them():
+    """``info["n_contacts"]`` and ``info["impulse"]`` counted only the contacts the world's 64
+    records per chunk held: a strike of 11,036 contacts reported 576 (9 chunks x 64) and an
+    impulse of 0.0767 N s, below the rod's own momentum, 0.134 kg m/s, which the impulses gave
+    it from rest (found by a new user). Replayed in a world that keeps every record, chunk by
+    chunk as the env steps: the same count and total."""
+    from spinstrike import physics
+    from spinstrike.envs.strike import CHUNK
+
+    env = gym.make("SpinStrike/RodSpin-v0", restitution=0.0)
+    env.reset(seed=7)
+    w = env.unwrapped.world
+    a = np.array([0.18860006, -0.32417755, -0.216762])
+    start, v0 = _launch(env, a)
+    replay = physics.World(w.scene, max_contacts=100_000)
+    replay.restore(w.get_state(parameters=True))
+    positions = w.state.positions.copy()
+    positions[0, 1] = start
+    velocities = np.zeros((1, 2, 2))
+    velocities[0, 1] = v0
+    replay.set_state(positions=positions, velocities=velocities, omegas=0.0)
+    info = _strike(env, a)
+    count, total = 0, 0.0
+    for _ in range(round(info["sim_time"] / CHUNK)):
+        contacts = replay.step(CHUNK)
+        assert contacts.dropped[0] == 0
+        count += len(contacts)
+        total += float(contacts.impulse.sum())
+    assert count > 10_000
+    assert info["n_contacts"] == count
+    assert info["impulse"] == pytest.approx(total, rel=1e-12)
+    assert info["impulse"] >= float(w.mass[0, 0] * np.linalg.norm(info["rod_velocity"]))
+    assert replay.state.omegas[0, 0] == info["spin"]
+
+
+@pytest.mark.parametrize("solver", ["exact", "fixed", "pymunk"])
+def test_contacts_beyond_the_records_are_counted_and_their_impulses_summed(solver):
+    """A world keeping 4 records of a step's contacts: the others are counted in ``dropped``,
+    their impulses summed in ``dropped_impulse`` / ``dropped_tangent_impulse``; with the stored
+    ones, the totals a world keeping every record reports."""
+    from spinstrike import physics
+
+    # a light puck against a cushion, a heavy one driven into it (a jam: ~50-150 contacts)
+    scene = {"table": {"size": [1.2, 0.8]}, "effects": ["rotation", "walls", "contact_friction"],
+             "materials": {"restitution": 0.5, "friction": 0.3},
+             "solver": {"mode": solver, **({} if solver == "exact" else {"substeps": 200})},
+             "bodies": [{"name": "light", "shape": "disk", "radius": 0.05, "mass": 0.001,
+                         "position": [-0.55, 0.0]},
+                        {"name": "heavy", "shape": "disk", "radius": 0.05, "mass": 1.0,
+                         "position": [-0.3, 0.01], "velocity": [-6.0, 0.5]}]}
+    small = physics.World(scene, max_contacts=4)
+    full = physics.World(scene, max_contacts=100_000)
+    most = 0
+    for _ in range(5):
+        c, f = small.step(0.02), full.step(0.02)
+        most = max(most, len(f))
+        assert f.dropped[0] == 0
+        assert len(c) + c.dropped[0] == len(f)
+        assert c.impulse.sum() + c.dropped_impulse[0] == pytest.approx(f.impulse.sum(),
+                                                                       rel=1e-12, abs=1e-15)
+        assert c.tangent_impulse.sum() + c.dropped_tangent_impulse[0] == pytest.approx(
+            f.tangent_impulse.sum(), rel=1e-12, abs=1e-15)
+    assert most > 40  # a step had more contacts than the small world keeps
