@@ -232,13 +232,17 @@ def write_doc(doc: Path, generated: str, begin: str = BEGIN, end: str = END,
               option: str = "--doc") -> None:
     """Write ``generated`` into ``doc`` between the markers ``begin`` and ``end`` (default
     :data:`BEGIN`, :data:`END`), keeping what an existing ``doc`` has around them. A file
-    without the markers (written before they existed) is generated throughout, so it is
-    replaced; a file with only one of them, or either twice, is refused rather than guessed
-    at (``option`` names the command's option for another file)."""
+    with text but without the markers is refused (it was replaced: a user's own notes given
+    as ``--doc`` were lost), as is one with only one of them, or either twice, rather than
+    guessed at (``option`` names the command's option for another file)."""
     before, after = "", "\n"
     if doc.exists():
         old = doc.read_text()
         counts = old.count(begin), old.count(end)
+        if counts == (0, 0) and old.strip():
+            raise SystemExit(f"{doc}: has text but no markers of a generated part, so it is not "
+                             f"replaced; pass another {option}, or put the lines {begin!r} and "
+                             f"{end!r} where the generated part goes")
         if counts != (0, 0):
             if counts != (1, 1) or old.index(begin) > old.index(end):
                 raise SystemExit(f"{doc}: expected the markers {begin!r} and {end!r} once each, "

@@ -228,14 +228,17 @@ def _budget(entry: dict, where: str) -> tuple[int, int]:
 
 def _convert_values(entry: dict, where: str) -> None:
     """Schedules, policy kwargs, and numbers PyYAML read as strings (``1e6``), in place."""
-    for key in ("learning_rate", "clip_range"):
-        if key in entry:
+    for key in ("learning_rate", "clip_range", "clip_range_vf"):  # rl-zoo3's schedule keys
+        if key in entry and entry[key] is not None:
             entry[key] = _schedule(entry[key], f"{where}.{key}")
+    if isinstance(entry.get("train_freq"), list):  # [1, "episode"]: a tuple, as rl-zoo3 does
+        entry["train_freq"] = tuple(entry["train_freq"])
     if "policy_kwargs" in entry:
         entry["policy_kwargs"] = _policy_kwargs(entry["policy_kwargs"], where)
     for key, value in entry.items():
-        if isinstance(value, str) and key not in ("learning_rate", "clip_range", "device",
-                                                  "train_freq", "noise_type"):
+        if isinstance(value, str) and key not in ("learning_rate", "clip_range",
+                                                  "clip_range_vf", "device", "train_freq",
+                                                  "noise_type"):
             try:
                 entry[key] = float(value)
             except ValueError:
@@ -390,5 +393,8 @@ def _resolve(algo: str, env_id: str, entry: dict, where: str, source: str) -> Ru
         raise AgentConfigError(f"{where}.env_kwargs: must be a mapping")
     _convert_values(entry, where)
     _check_values(entry, where)
+    if algo == "ppo" and isinstance(entry.get("ent_coef"), str):  # failed inside learn()
+        raise AgentConfigError(f"{where}.ent_coef: a number >= 0 for PPO; 'auto' is SAC's "
+                               f"(got {entry['ent_coef']!r})")
     return RunConfig(algo, env_id, n_timesteps, policy, n_envs, normalize, env_kwargs, entry,
                      source, raw)

@@ -152,7 +152,16 @@ def load_model_policy(run_dir: str | Path) -> tuple[Policy, dict]:
     def policy(env, obs):
         if norm is not None:
             obs = norm.normalize_obs(obs)
-        return model.predict(obs, deterministic=True)[0]
+        try:
+            return model.predict(obs, deterministic=True)[0]
+        except (ValueError, IndexError, KeyError) as exc:
+            # the env changed since training (a variant's registered arguments, an edited
+            # config.yml): SB3's own error was an IndexError or a shape deep in predict
+            raise AgentConfigError(
+                f"run_dir: {run_dir}'s model does not take {meta['env']}'s observations now "
+                f"(the model's space: {model.observation_space}; {type(exc).__name__}: {exc}); "
+                f"was the env changed since training (a variant's registered arguments, "
+                f"config.yml)?") from None
 
     return policy, meta
 

@@ -483,8 +483,15 @@ def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, 
         with (work / "command.txt").open("a") as f:  # the commands that made the run, in order
             f.write((command or shlex.join(sys.argv)) + "\n")
     else:
-        model = cls(cfg.policy, env, seed=seed, device=device, verbose=0,
-                    **_model_kwargs(cfg, env))
+        try:
+            model = cls(cfg.policy, env, seed=seed, device=device, verbose=0,
+                        **_model_kwargs(cfg, env))
+        except (TypeError, ValueError, AssertionError) as exc:
+            # keys SB3 takes through to torch or a buffer (policy_kwargs, *_kwargs) are checked
+            # there: its message, naming the file, and no traceback
+            raise AgentConfigError(f"hyperparameters ({cfg.source}, {cfg.env_id}): "
+                                   f"stable-baselines3's {cls.__name__} refused them: "
+                                   f"{type(exc).__name__}: {exc}") from None
         meta = {"algo": algo, "env": cfg.env_id, "seed": seed, "source": cfg.source,
                 "versions": _versions(), "torch_threads": torch.get_num_threads(),
                 "hyperparameters": cfg.as_yaml_dict(), "finish": finish}

@@ -122,6 +122,19 @@ CASES = [
      lambda t: ["train", "--env-kwargs", "{scene: " + _text(
          t, "dup.yaml", "effects: [rotation]\neffects: [rotation, walls]\n") + "}"],
      ["scene", "found the key 'effects' twice", "line 1"]),
+    # rl-zoo3's own values that passed the checks and crashed inside SB3 with a traceback
+    ("ppo-ent-coef-auto",  # 'auto' is SAC's: a TypeError in learn(), after the rollouts
+     lambda t: ["train", "--config", _config(t, "ent.yml", {"n_timesteps": 100,
+                                                           "ent_coef": "auto"})],
+     ["ent.yml", ".ent_coef: a number >= 0 for PPO; 'auto' is SAC's"]),
+    ("policy-kwargs-net-arch-string",  # torch's TypeError building the network
+     lambda t: ["train", "--config", _config(t, "arch.yml", {
+         "n_timesteps": 100, "policy_kwargs": {"net_arch": "64,64"}})],
+     ["hyperparameters (", "arch.yml", "stable-baselines3's PPO refused them"]),
+    ("rollout-buffer-kwargs-unknown",  # RolloutBuffer's TypeError
+     lambda t: ["train", "--config", _config(t, "buf.yml", {
+         "n_timesteps": 100, "rollout_buffer_kwargs": {"foo": 1}})],
+     ["buf.yml", "stable-baselines3's PPO refused them", "'foo'"]),
     ("eval-episodes-zero",
      lambda t: ["train", "--eval-episodes", "0"],
      ["--eval-episodes: must be >= 1"]),
@@ -475,3 +488,35 @@ def test_record_every_frame_without_moviepy_names_the_extra(monkeypatch, tmp_pat
     with pytest.raises(gym.error.DependencyNotInstalled, match=r"spinstrike\[render\]"):
         RecordEveryFrame(env, str(tmp_path / "videos"))
     env.close()
+
+
+def test_rl_zoo3_values_read_as_rl_zoo3_reads_them(tmp_path):
+    """``train_freq: [1, episode]`` (a list in YAML; rl-zoo3 makes it a tuple) and
+    ``clip_range_vf: lin_0.2`` (one of rl-zoo3's schedule keys) were passed to SB3 as written
+    and crashed there."""
+    sac = load_agent_config("sac", ENV, _config(tmp_path, "sac.yml", {
+        "n_timesteps": 100, "train_freq": [1, "episode"]}))
+    assert sac.model_kwargs["train_freq"] == (1, "episode")
+    ppo = load_agent_config("ppo", ENV, _config(tmp_path, "ppo.yml", {
+        "n_timesteps": 100, "clip_range_vf": "lin_0.2"}))
+    schedule = ppo.model_kwargs["clip_range_vf"]
+    assert callable(schedule) and schedule(1.0) == pytest.approx(0.2)
+
+
+def test_a_run_whose_env_changed_since_training_is_refused_on_evaluation(sandbox, capsys):
+    """A run trained on one env, its config.yml then naming another (or a variant re-registered
+    with other observations): ``evaluate`` failed deep in SB3's predict with an IndexError or a
+    shape error. Now one line naming the run and the model's observation space."""
+    assert main(["train", "--timesteps", "64", "--n-envs", "1", "--out", "run", "--no-eval",
+                 "--no-video", "--no-progress"]) == 0
+    config = sandbox / "run" / "config.yml"
+    meta = yaml.safe_load(config.read_text())
+    meta["env"] = "SpinStrike/PuckSpeed-v1"
+    meta["hyperparameters"] = {"SpinStrike/PuckSpeed-v1": meta["hyperparameters"][ENV]}
+    config.write_text(yaml.safe_dump(meta))
+    capsys.readouterr()
+    assert main(["evaluate", "run", "--episodes", "1", "--no-save"]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    [line] = [x for x in err.splitlines() if "error:" in x]
+    assert "run_dir: run's model does not take SpinStrike/PuckSpeed-v1's observations" in line

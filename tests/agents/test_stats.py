@@ -131,6 +131,14 @@ def test_baselines_doc_markers(tmp_path):
     assert "new tables" in text and "## SpinStrike/RodSpin-v0" not in text
     assert "## Control envs: what limits the learners (issue 16)" in text
     assert "### Fourth session (2026-11-23): why the RodSpinControl students fail" in text
+    # a file of the user's own, without markers, was replaced whole by --doc
+    doc.write_text("my notes\n")
+    with pytest.raises(SystemExit, match="has text but no markers of a generated part"):
+        write_doc(doc, "tables")
+    assert doc.read_text() == "my notes\n"
+    doc.write_text("")  # an empty file is written
+    write_doc(doc, "tables")
+    assert "tables" in doc.read_text()
     doc.write_text(f"{BEGIN}\n# Baselines\nnotes with no end marker\n")
     with pytest.raises(SystemExit, match="expected the markers"):
         write_doc(doc, "tables")
