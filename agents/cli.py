@@ -380,27 +380,23 @@ def cmd_baselines(args) -> int:
     return int(baselines_main(args.rest) or 0)
 
 
-def _seed(text: str) -> int:
-    """A seed: an integer >= 0 (a negative one was numpy's or Gymnasium's traceback)."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0 (got {text!r})")
-    return value
+def _at_least_zero(note: str = ""):
+    """An argparse type: an integer >= 0 (``note`` added to the message)."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = -1
+        if value < 0:
+            raise argparse.ArgumentTypeError(f"must be an integer >= 0{note} (got {text!r})")
+        return value
+
+    return parse
 
 
-def _threads(text: str) -> int:
-    """PyTorch threads: an integer >= 0 (0: torch's default)."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0, 0 for torch's default "
-                                         f"(got {text!r})")
-    return value
+#: a seed (a negative one was numpy's or Gymnasium's traceback); PyTorch threads
+_seed = _at_least_zero()
+_threads = _at_least_zero(", 0 for torch's default")
 
 
 def _device(text: str) -> str:
