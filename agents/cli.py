@@ -142,9 +142,28 @@ def _train_defaults(args) -> None:
             args.out = str(default_run_dir(args.algo or "ppo", args.env or DEFAULT_ENV,
                                            args.seed or 0))
         return
-    args.algo = args.algo or "ppo"
-    args.env = args.env or DEFAULT_ENV
+    record = _run_record(args.config)  # `--config RUN/config.yml`: the run's algo and env
+    args.algo = args.algo or record.get("algo") or "ppo"
+    args.env = args.env or record.get("env") or DEFAULT_ENV
     args.seed = 0 if args.seed is None else args.seed
+
+
+def _run_record(path: str | None) -> dict:
+    """The algo and env of a run's ``config.yml`` given as ``--config`` (empty for a
+    hyperparameter file, or anything unreadable: the loader says what is wrong with it). Left
+    out on the command line, they were the defaults' (ppo, RodSpin-v0), and a run of another env
+    was refused for having no entry for RodSpin-v0."""
+    if path is None:
+        return {}
+    import yaml
+
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except (OSError, yaml.YAMLError, ValueError):
+        return {}
+    if not (isinstance(data, dict) and isinstance(data.get("hyperparameters"), dict)):
+        return {}
+    return {k: data[k] for k in ("algo", "env") if isinstance(data.get(k), str)}
 
 
 def cmd_train(args) -> int:
@@ -575,7 +594,16 @@ def main(argv: list[str] | None = None) -> int:
     if os.getcwd() not in sys.path and "" not in sys.path:
         sys.path.append(os.getcwd())
     try:
+        if args.command in ("evaluate", "record"):
+            from spinstrike.agents.imitate import _sigterm_exits
+
+            # SIGTERM as Ctrl-C: the unfinished video is removed (a *.partial.mp4 was left)
+            with _sigterm_exits():
+                return args.func(args)
         return args.func(args)
+    except KeyboardInterrupt:  # evaluate, record: no traceback (train returns 130 itself)
+        print(f"spinstrike {args.command}: interrupted", file=sys.stderr)
+        return 128 + 2
     except (AgentConfigError, ConfigError, SceneError) as exc:
         print("error: " + " ".join(str(exc).split()), file=sys.stderr)  # on one line
         return 2

@@ -313,6 +313,39 @@ def test_sigterm_during_training_says_resume_and_the_run_resumes(tmp_path):
         "timesteps"] >= 100000
 
 
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
+def test_a_stopped_recording_leaves_no_video_and_no_traceback(tmp_path, signame):
+    """Ctrl-C on ``spinstrike record`` printed a KeyboardInterrupt traceback, and SIGTERM left
+    ``NAME.partial.mp4`` behind (found by a new user). Now: exit 128 + the signal, one line,
+    no file."""
+    import signal
+    import time
+
+    signum = getattr(signal, signame)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "spinstrike.agents.cli", "record", "--random", "--env",
+         "SpinStrike/RodSpinControl-v0", "--episodes", "30", "--out", "v.mp4"],
+        cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline = time.time() + 240
+        while not (tmp_path / "v.partial.mp4").exists():
+            assert proc.poll() is None, proc.stderr.read().decode()
+            assert time.time() < deadline, "no video started in 240 s"
+            time.sleep(0.1)
+        time.sleep(0.5)
+        proc.send_signal(signum)
+        code = proc.wait(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    err = proc.stderr.read().decode()
+    assert code == 128 + signum, err
+    assert "Traceback" not in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == [], err
+
+
 def test_every_command_helps(capsys):
     """``--help`` of the CLI and of each command exits 0 and says what each command and
     argument is (the baselines description was once cut mid-sentence, ``bench``'s arguments

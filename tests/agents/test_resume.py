@@ -258,3 +258,20 @@ def test_a_runs_record_trains_it_again(tmp_path, capsys):
     assert main(["train", "--algo", "sac", "--env", ENV, "--config", str(run / "config.yml"),
                  "--out", str(tmp_path / "x")]) == 2
     assert "is the record of a ppo run" in capsys.readouterr().err
+
+
+def test_a_runs_record_given_as_config_brings_its_algo_and_env(tmp_path):
+    """``spinstrike train --config RUN/config.yml`` with neither --algo nor --env took the
+    defaults (ppo, RodSpin-v0) and refused a SAC run of PuckSpeed-v1's record for having no
+    entry for RodSpin-v0 (found by a new user); now the record's algo and env."""
+    env_id = "SpinStrike/PuckSpeed-v1"
+    from spinstrike.agents.config import load_agent_config
+
+    entry = load_agent_config("sac", env_id).raw | {"n_timesteps": 64, "learning_starts": 32}
+    record = tmp_path / "config.yml"
+    record.write_text(yaml.safe_dump({"algo": "sac", "env": env_id, "seed": 0,
+                                      "hyperparameters": {env_id: entry}}))
+    assert main(["train", "--config", str(record), "--out", str(tmp_path / "run"), "--no-eval",
+                 "--no-video", "--no-progress"]) == 0
+    made = yaml.safe_load((tmp_path / "run" / "config.yml").read_text())
+    assert (made["algo"], made["env"]) == ("sac", env_id)
