@@ -157,11 +157,13 @@ def _run_record(path: str | None) -> dict:
         return {}
     import yaml
 
+    from spinstrike.agents.config import is_run_record
+
     try:
         data = yaml.safe_load(Path(path).read_text())
     except (OSError, yaml.YAMLError, ValueError):
         return {}
-    if not (isinstance(data, dict) and isinstance(data.get("hyperparameters"), dict)):
+    if not is_run_record(data):
         return {}
     return {k: data[k] for k in ("algo", "env") if isinstance(data.get(k), str)}
 

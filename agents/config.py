@@ -25,8 +25,9 @@ from typing import Any
 
 import yaml
 
-__all__ = ["ALGOS", "AgentConfigError", "RunConfig", "algo_class", "check_env_id",
-           "load_agent_config", "recorded_agent_config", "yaml_problem"]
+__all__ = ["ALGOS", "SCHEDULE_KEYS", "AgentConfigError", "RunConfig", "algo_class",
+           "check_env_id", "is_run_record", "load_agent_config", "recorded_agent_config",
+           "yaml_problem"]
 
 #: algorithms the CLI trains
 ALGOS = ("ppo", "sac", "td3")
@@ -180,7 +181,7 @@ def _read_entry(path: Path, env_id: str, algo: str | None = None) -> tuple[str, 
         raise AgentConfigError(f"config: {path} is not valid YAML ({yaml_problem(exc)})") from None
     if not isinstance(data, dict):
         raise AgentConfigError(f"config: {path} must map env ids to hyperparameters")
-    if isinstance(data.get("hyperparameters"), dict) and "algo" in data:  # a run's record
+    if is_run_record(data):
         if algo is not None and data["algo"] != algo:
             raise AgentConfigError(f"config: {path} is the record of a {data['algo']} run; its "
                                    f"hyperparameters are {data['algo']}'s (give --algo "
@@ -226,9 +227,20 @@ def _budget(entry: dict, where: str) -> tuple[int, int]:
     return n_timesteps, n_envs
 
 
+#: the keys whose ``lin_<number>`` strings are schedules (rl-zoo3's)
+SCHEDULE_KEYS = ("learning_rate", "clip_range", "clip_range_vf")
+
+
+def is_run_record(data: Any) -> bool:
+    """Whether YAML ``data`` is a run's ``config.yml`` (``spinstrike train``'s record: ``algo``,
+    ``env``, ``hyperparameters``), not a hyperparameter file."""
+    return isinstance(data, dict) and isinstance(data.get("hyperparameters"), dict) \
+        and "algo" in data
+
+
 def _convert_values(entry: dict, where: str) -> None:
     """Schedules, policy kwargs, and numbers PyYAML read as strings (``1e6``), in place."""
-    for key in ("learning_rate", "clip_range", "clip_range_vf"):  # rl-zoo3's schedule keys
+    for key in SCHEDULE_KEYS:
         if key in entry and entry[key] is not None:
             entry[key] = _schedule(entry[key], f"{where}.{key}")
     if isinstance(entry.get("train_freq"), list):  # [1, "episode"]: a tuple, as rl-zoo3 does
@@ -236,8 +248,7 @@ def _convert_values(entry: dict, where: str) -> None:
     if "policy_kwargs" in entry:
         entry["policy_kwargs"] = _policy_kwargs(entry["policy_kwargs"], where)
     for key, value in entry.items():
-        if isinstance(value, str) and key not in ("learning_rate", "clip_range",
-                                                  "clip_range_vf", "device", "train_freq",
+        if isinstance(value, str) and key not in (*SCHEDULE_KEYS, "device", "train_freq",
                                                   "noise_type"):
             try:
                 entry[key] = float(value)

@@ -344,9 +344,10 @@ class PymunkBackend:
             if p == stats[b, STAT_WATCH]:  # counted also where the records are full
                 stats[b, STAT_WATCHED] += 1
             nx, ny = n.x, n.y
+            j, jt = -(jx * nx + jy * ny), -(jy * nx - jx * ny)  # along n and t = (-ny, nx)
             if k >= M:  # the records are full: summed in row M (layout.RECORD)
-                crec[b, M, REC_J] += -(jx * nx + jy * ny)
-                crec[b, M, REC_JT] += -(jy * nx - jx * ny)
+                crec[b, M, REC_J] += j
+                crec[b, M, REC_JT] += jt
                 return
             px = py = 0.0
             points = arbiter.contact_point_set.points
@@ -361,8 +362,8 @@ class PymunkBackend:
             rec[REC_PY] = py / m
             rec[REC_NX] = nx
             rec[REC_NY] = ny
-            rec[REC_J] = -(jx * nx + jy * ny)
-            rec[REC_JT] = -(jy * nx - jx * ny)
+            rec[REC_J] = j
+            rec[REC_JT] = jt
 
         return post_solve
 
