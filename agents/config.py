@@ -192,6 +192,8 @@ def _read_entry(path: Path, env_id: str, algo: str | None = None) -> tuple[str, 
             try:  # a variant's own entry (its id as registered, or module-prefixed)
                 envs.base_id(key)
             except envs.ConfigError as exc:
+                if _unseen_variant(key, env_id):
+                    continue
                 raise AgentConfigError(f"config: {path}: unknown env id {key!r} ({exc}); "
                                        f"a key is an id such as these, or 'default'") from None
     # a variant without an entry of its own takes its shipped env's, as rl-zoo3 would want it
@@ -202,6 +204,26 @@ def _read_entry(path: Path, env_id: str, algo: str | None = None) -> tuple[str, 
     if entry_key is None:
         raise AgentConfigError(f"config: {path} has no entry for {env_id!r} and no 'default'")
     return entry_key, dict(data[entry_key] or {})
+
+
+def _unseen_variant(key: Any, env_id: str) -> bool:
+    """Whether a hyperparameter file's unregistered ``key`` is a plain id in a namespace of the
+    user's own that this run does not load: another variant's entry, whose module (not named by
+    the plain id) registers it only when that variant is trained. Such a key is skipped, as
+    rl-zoo3 skips every other entry. Checked (so a typo is refused): a module-prefixed key (its
+    module is there to import), an id in SpinStrike's namespace or in none, and an id in the
+    namespace of the env being trained, whose module has been imported by now."""
+    from gymnasium.envs.registration import parse_env_id
+    from gymnasium.error import Error
+
+    if not isinstance(key, str) or ":" in key:
+        return False
+    try:
+        namespace = parse_env_id(key)[0]
+        trained = parse_env_id(env_id.rpartition(":")[2])[0]
+    except Error:
+        return False
+    return namespace not in (None, "SpinStrike", trained)
 
 
 def _budget(entry: dict, where: str) -> tuple[int, int]:

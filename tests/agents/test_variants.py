@@ -173,3 +173,29 @@ def test_a_control_variant_without_a_step_limit_is_refused_not_run_for_ever(user
     assert not Path("run").exists() and not Path("v.mp4").exists()
     assert main(["evaluate", "--random", "--env", variant, "--episodes", "1", "--no-save",
                  "--env-kwargs", "{max_episode_steps: 5}", "--json"]) == 0
+
+
+def test_one_hyperparameter_file_for_the_lab_and_the_shipped_envs(lab, capsys):
+    """A file holding an entry for a variant in a namespace of the user's own, keyed by its plain
+    id: training any other env (whose run does not import the variant's module) refused the
+    whole file as naming an "unknown env id". Such a key is skipped, as rl-zoo3 skips every other
+    entry; a key in SpinStrike's namespace, or in the namespace of the env being trained (its
+    module imported), is still checked, so a typo there is refused."""
+    shipped = load_agent_config("ppo", "SpinStrike/RodSpin-v0").raw
+    path = lab / "lab.yml"
+    path.write_text(yaml.safe_dump({"OtherLab/Far-v0": dict(shipped, n_steps=16),
+                                    VARIANT: dict(shipped, n_steps=32),
+                                    "SpinStrike/RodSpin-v0": dict(shipped, n_steps=64)}))
+    common = ["--timesteps", "128", "--n-envs", "2", "--eval-episodes", "1", "--no-video",
+              "--no-progress", "--config", str(path)]
+    assert main(["train", "--env", "SpinStrike/RodSpin-v0", "--out", "shipped", *common]) == 0
+    assert main(["train", "--env", f"{MODULE}:{VARIANT}", "--out", "variant", *common]) == 0
+    for run, n_steps in (("shipped", 64), ("variant", 32)):
+        record = yaml.safe_load((lab / run / "config.yml").read_text())
+        assert record["hyperparameters"][record["env"]]["n_steps"] == n_steps
+    capsys.readouterr()
+    for typo in ("SpinStrike/RodSpn-v0", "TestLab/BouncyRd-v0", "spinstrike_no_lab:X/Y-v0"):
+        path.write_text(yaml.safe_dump({typo: shipped, VARIANT: shipped}))
+        assert main(["train", "--env", f"{MODULE}:{VARIANT}", "--out", "typo", *common]) == 2
+        assert f"unknown env id {typo!r}" in capsys.readouterr().err
+    assert not (lab / "typo").exists()
