@@ -268,13 +268,25 @@ def cmd_evaluate(args) -> int:
 
 def _size(text: str) -> tuple[int, int]:
     from spinstrike.agents.config import AgentConfigError
+    from spinstrike.envs.config import size_problem
 
     try:
         w, h = (int(x) for x in text.lower().split("x"))
     except ValueError:
         raise AgentConfigError(f"--size: must be WIDTHxHEIGHT in pixels, e.g. 720x480 "
                                f"(got {text!r})") from None
+    problem = size_problem((w, h))
+    if problem:
+        raise AgentConfigError(f"--size: {problem}")
     return w, h
+
+
+def _video_size(result: dict, asked: tuple[int, int] | None) -> str:
+    """The video's ``WxH`` as written, saying so where H.264 rounded the asked size up."""
+    w, h = result["size"]
+    if asked is not None and tuple(asked) != (w, h):
+        return f"{w}x{h}: --size {asked[0]}x{asked[1]} rounded up to even sizes, as H.264 needs"
+    return f"{w}x{h}"
 
 
 def _check_video_out(out: str) -> None:
@@ -317,9 +329,8 @@ def cmd_record(args) -> int:
     size = _size(args.size) if args.size else None
     result = record(policy, env_id, out, episodes=args.episodes, seed=args.seed,
                     env_kwargs=env_kwargs, size=size, grid=args.grid)
-    w, h = result["size"]
     print(f"video: {result['path']} ({result['frames']} frames at {result['fps']} fps, "
-          f"{w}x{h})")
+          f"{_video_size(result, None if args.grid else size)})")
     return 0
 
 
@@ -348,11 +359,10 @@ def _record_scene(args) -> int:
     out = args.out or f"{Path(str(args.scene)).stem}.mp4"
     _check_video_out(out)
     world = physics.World(args.scene)
-    result = record_world(world, out, seconds=args.seconds, dt=args.dt,
-                          size=_size(args.size) if args.size else (720, 480))
-    w, h = result["size"]
+    size = _size(args.size) if args.size else (720, 480)
+    result = record_world(world, out, seconds=args.seconds, dt=args.dt, size=size)
     print(f"video: {result['path']} ({result['frames']} frames at {result['fps']:g} fps, "
-          f"{w}x{h}; {result['contacts']} contacts)")
+          f"{_video_size(result, size)}; {result['contacts']} contacts)")
     return 0
 
 
@@ -401,23 +411,25 @@ def cmd_baselines(args) -> int:
     return int(baselines_main(args.rest) or 0)
 
 
-def _at_least_zero(note: str = ""):
-    """An argparse type: an integer >= 0 (``note`` added to the message)."""
+def _at_least(low: int, note: str = ""):
+    """An argparse type: an integer >= ``low`` (``note`` added to the message)."""
     def parse(text: str) -> int:
         try:
             value = int(text)
         except ValueError:
-            value = -1
-        if value < 0:
-            raise argparse.ArgumentTypeError(f"must be an integer >= 0{note} (got {text!r})")
+            value = low - 1
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {low}{note} (got {text!r})")
         return value
 
     return parse
 
 
-#: a seed (a negative one was numpy's or Gymnasium's traceback); PyTorch threads
-_seed = _at_least_zero()
-_threads = _at_least_zero(", 0 for torch's default")
+#: a seed (a negative one was numpy's or Gymnasium's traceback); PyTorch threads; a number of
+#: envs (0 was refused naming the hyperparameter file's n_envs, not the flag)
+_seed = _at_least(0)
+_threads = _at_least(0, ", 0 for torch's default")
+_n_envs = _at_least(1)
 
 
 def _device(text: str) -> str:
@@ -434,10 +446,10 @@ def _device(text: str) -> str:
 
 
 def _step_count(text: str) -> int:
-    """A number of steps: an integer, or a whole number written as a float (``2e6``, as the
-    hyperparameter files' ``n_timesteps`` may be)."""
+    """A number of steps >= 1: an integer, or a whole number written as a float (``2e6``, as
+    the hyperparameter files' ``n_timesteps`` may be)."""
     try:
-        return int(text)
+        return _one_or_more(int(text), text)
     except ValueError:
         pass
     try:
@@ -447,7 +459,13 @@ def _step_count(text: str) -> int:
             from None
     if not value.is_integer():
         raise argparse.ArgumentTypeError(f"must be a whole number of steps (got {text!r})")
-    return int(value)
+    return _one_or_more(int(value), text)
+
+
+def _one_or_more(steps: int, text: str) -> int:
+    if steps < 1:  # (was refused naming the file's n_timesteps, not the flag)
+        raise argparse.ArgumentTypeError(f"must be >= 1 step (got {text!r})")
+    return steps
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -465,7 +483,7 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--timesteps", type=_step_count, help="override n_timesteps, e.g. 2e6 as "
                    "in an rl-zoo3 file (resuming: a new budget for the run, recorded in its "
                    "config.yml)")
-    t.add_argument("--n-envs", type=int, help="override n_envs")
+    t.add_argument("--n-envs", type=_n_envs, help="override n_envs")
     t.add_argument("--env-kwargs",
                    help="env constructor arguments as YAML, e.g. '{restitution: 0.8}'")
     t.add_argument("--out", help="run directory (default runs/<algo>-<env>-s<seed>)")

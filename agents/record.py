@@ -11,6 +11,7 @@ its last frame until the slowest is done.
 from __future__ import annotations
 
 import math
+import operator
 from collections import deque
 from pathlib import Path
 
@@ -51,6 +52,19 @@ class _Episode:
         self.env.close()
 
 
+def _check_size(size) -> tuple[int, int]:
+    from spinstrike.envs.config import size_problem
+
+    try:
+        w, h = (operator.index(side) for side in size)
+    except (TypeError, ValueError):
+        raise ValueError(f"size: must be (width, height) in pixels (got {size!r})") from None
+    problem = size_problem((w, h))
+    if problem:
+        raise ValueError(f"size: {problem}")
+    return w, h
+
+
 def record(policy, env_id: str, path: str | Path, episodes: int = 3, seed: int = 2000,
            env_kwargs: dict | None = None, size: tuple[int, int] | None = None,
            grid: bool = False, hold: float = 0.5) -> dict:
@@ -68,7 +82,7 @@ def record(policy, env_id: str, path: str | Path, episodes: int = 3, seed: int =
     """
     kwargs = dict(env_kwargs or {})
     if size is not None:
-        kwargs["render_size"] = tuple(size)
+        kwargs["render_size"] = _check_size(size)
     runs = [_Episode(policy, env_id, seed + k, kwargs) for k in range(episodes)]
     fps = runs[0].env.metadata["render_fps"]
     held = int(round(hold * fps))
@@ -124,6 +138,7 @@ def record_world(world, path: str | Path, seconds: float = 3.0, dt: float = 0.02
         raise ValueError(f"seconds: must be a number > 0 (got {seconds!r})")
     if not (math.isfinite(dt) and dt > 0):
         raise ValueError(f"dt: must be a number > 0 s (got {dt!r})")
+    size = _check_size(size)
     b = element
     if isinstance(b, bool) or not isinstance(b, int | np.integer) or not 0 <= b < world.batch_size:
         raise ValueError(f"element: must be in [0, {world.batch_size}) (got {element!r})")

@@ -43,6 +43,18 @@ __all__ = [
 ]
 
 
+#: the smallest and largest width or height of a rendered frame, in pixels
+FRAME_SIZES = (16, 4096)
+
+
+def size_problem(size: Any) -> str | None:
+    """What is wrong with a frame's ``(width, height)`` (None: nothing)."""
+    low, high = FRAME_SIZES
+    if not all(low <= side <= high for side in size):
+        return f"must be two sizes in [{low}, {high}] pixels (got {tuple(size)})"
+    return None
+
+
 class ConfigError(ValueError):
     """An invalid env argument. The message names the argument and what is allowed."""
 
@@ -114,8 +126,9 @@ class EnvConfig(BaseModel):
     @field_validator("render_size", "obs_size")
     @classmethod
     def _size(cls, v):
-        if not (16 <= v[0] <= 4096 and 16 <= v[1] <= 4096):
-            raise ValueError(f"must be two sizes in [16, 4096] pixels (got {v})")
+        problem = size_problem(v)
+        if problem:
+            raise ValueError(problem)
         return v
 
     @field_validator("randomize")

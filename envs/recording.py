@@ -67,8 +67,15 @@ class VideoWriter:
 
     @property
     def size(self) -> tuple[int, int] | None:
-        """(width, height) of the frames written (None before the first)."""
-        return None if self._size is None else (self._size[1], self._size[0])
+        """(width, height) of the video as written (None before the first frame): the frames',
+        an ``.mp4``'s rounded up to even sizes (H.264's yuv420p needs them; the last row or
+        column is repeated)."""
+        if self._size is None:
+            return None
+        h, w = self._size
+        if self.path.suffix.lower() != ".gif":
+            h, w = h + h % 2, w + w % 2
+        return w, h
 
     def write(self, frame: np.ndarray) -> None:
         """Append one frame."""

@@ -9,6 +9,7 @@ import sys
 import warnings
 
 import gymnasium as gym
+import imageio.v3 as iio
 import imageio_ffmpeg
 import numpy as np
 import pytest
@@ -209,6 +210,25 @@ def test_cli_evaluates_and_films_the_baselines_on_the_env_asked(tmp_path, capsys
     assert main(["record", str(tmp_path), "--env-kwargs", kwargs]) == 2
     assert "a run is evaluated and filmed on the env it was trained on" in \
         capsys.readouterr().err
+
+
+def test_an_odd_size_is_filmed_and_reported_as_written(tmp_path, capsys):
+    """H.264 (yuv420p) needs even sizes: the frames are padded by one row or column. ``record``
+    printed the asked size, not the file's; the writer's ``size`` is now the file's and the line
+    says it was rounded up. A GIF keeps the asked size."""
+    for argv, asked, written in (
+            (["--random", "--env", "SpinStrike/RodSpin-v0", "--episodes", "1"], (33, 17), (34, 18)),
+            (["--scene", "break", "--seconds", "0.1"], (41, 30), (42, 30))):
+        for suffix in (".mp4", ".gif"):
+            video = tmp_path / f"v{suffix}"
+            size = "x".join(map(str, asked))
+            assert main(["record", *argv, "--size", size, "--out", str(video)]) == 0
+            line = capsys.readouterr().out
+            w, h = written if suffix == ".mp4" else asked
+            frame = iio.imread(video, index=0)
+            assert frame.shape[:2] == (h, w)
+            assert f"{w}x{h}" in line
+            assert (f"--size {size} rounded up to even sizes" in line) == (suffix == ".mp4")
 
 
 def test_installed_entry_point_lists_envs():

@@ -334,7 +334,10 @@ CASES = [
     ("record-size-too-small",
      lambda t: ["record", "--oracle", "--env", ENV, "--size", "8x8", "--out",
                 str(t / "sub" / "v.gif")],
-     ["render_size", "[16, 4096]", "(got (8, 8))"]),
+     ["--size: must be two sizes in [16, 4096] pixels", "(got (8, 8))"]),
+    ("record-scene-size-too-large",  # was taken, and a 5000x5000 frame was drawn
+     lambda t: ["record", "--scene", "break", "--size", "5000x100", "--out", str(t / "v.mp4")],
+     ["--size: must be two sizes in [16, 4096] pixels", "(got (5000, 100))"]),
 ]
 
 
@@ -371,6 +374,10 @@ def test_bad_input_is_one_error_line_and_writes_nothing(build, words, sandbox, c
     (["bench", "nope"], "which", "'nope'"),
     (["evaluate", "--episodes", "many"], "--episodes", "'many'"),
     (["train", "--timesteps", "100.5"], "--timesteps", "'100.5'"),
+    # named the hyperparameter file's n_timesteps and n_envs, not the flags
+    (["train", "--timesteps", "0"], "--timesteps", "must be >= 1 step (got '0')"),
+    (["train", "--timesteps", "-5"], "--timesteps", "must be >= 1 step (got '-5')"),
+    (["train", "--n-envs", "0"], "--n-envs", "must be an integer >= 1 (got '0')"),
     # --clear --prune cleared the cache and ignored --prune
     (["cache", "--clear", "--prune"], "--prune", "not allowed with argument --clear"),
     # were tracebacks (torch's, numpy's, Gymnasium's) after the arguments were taken
@@ -385,6 +392,7 @@ def test_bad_input_is_one_error_line_and_writes_nothing(build, words, sandbox, c
     (["evaluate", "--planner", "--oracle", "--env", ENV], "--oracle",
      "not allowed with argument --planner"),
 ], ids=["algo-not-in-list", "bench-unknown", "episodes-not-an-int", "timesteps-not-whole",
+        "timesteps-zero", "timesteps-negative", "n-envs-zero",
         "cache-clear-and-prune", "device-unknown", "torch-threads-negative", "train-seed-negative",
         "evaluate-seed-negative", "record-seed-negative", "record-oracle-and-random",
         "evaluate-planner-and-oracle"])

@@ -10,6 +10,7 @@ import time
 import warnings
 
 import gymnasium as gym
+import imageio.v3 as iio
 import imageio_ffmpeg
 import numpy as np
 import pytest
@@ -483,13 +484,16 @@ def test_video_writer_and_tile(tmp_path):
     with VideoWriter(tmp_path / "a.mp4", 30) as w:
         for f in frames:
             w.write(f)
-    assert w.frames == 5 and w.size == (15, 9) and _mp4_frames(tmp_path / "a.mp4") == 5
+    # the file's size: H.264 (yuv420p) needs even sizes, the last row and column are repeated
+    assert w.frames == 5 and w.size == (16, 10) and _mp4_frames(tmp_path / "a.mp4") == 5
+    assert iio.imread(tmp_path / "a.mp4", index=0).shape == (10, 16, 3)
     with VideoWriter(tmp_path / "a.gif", 30) as w:
         for f in frames:
             w.write(f)
     from PIL import Image
 
-    assert Image.open(tmp_path / "a.gif").n_frames == 5
+    assert Image.open(tmp_path / "a.gif").n_frames == 5 and w.size == (15, 9)
+    assert Image.open(tmp_path / "a.gif").size == (15, 9)
     grid = tile([frames[1], None, frames[2]], 2)
     assert grid.shape == (18, 30, 3)
     assert (grid[:9, :15] == 40).all() and (grid[:9, 15:] == 0).all()
