@@ -437,11 +437,23 @@ def _device(text: str) -> str:
     after the run directory was made)."""
     import torch
 
+    if text == "auto":  # SB3's: cuda where there is one, else the CPU
+        return text
     try:
-        torch.device(text)
+        device = torch.device(text)
     except (RuntimeError, ValueError):
         raise argparse.ArgumentTypeError(f"not a PyTorch device (got {text!r}); e.g. cpu, "
-                                         "cuda, cuda:1, mps") from None
+                                         "cuda, cuda:1, mps, auto") from None
+    # SB3 trains on the CPU without a word when the device asked for is not there
+    there = {"cuda": torch.cuda.is_available, "mps": torch.backends.mps.is_available}
+    if device.type in there and not there[device.type]():
+        raise argparse.ArgumentTypeError(
+            f"PyTorch {torch.__version__} sees no {device.type} device here (got {text!r}); "
+            f"use cpu, or auto for {device.type} where there is one")
+    if device.type == "cuda" and device.index is not None \
+            and device.index >= torch.cuda.device_count():
+        raise argparse.ArgumentTypeError(f"no such CUDA device (got {text!r}; "
+                                         f"{torch.cuda.device_count()} here)")
     return text
 
 
@@ -495,7 +507,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="replace an existing run directory, or an interrupted one "
                         "(<out>.partial)")
     t.add_argument("--device", type=_device, default="cpu",
-                   help="PyTorch device (default cpu)")
+                   help="PyTorch device: cpu (default), cuda, cuda:N, mps, or auto (SB3's: cuda "
+                        "where there is one)")
     t.add_argument("--torch-threads", type=_threads, default=1,
                    help="PyTorch CPU threads (default 1: fastest for small networks; 0 = torch's "
                         "default)")

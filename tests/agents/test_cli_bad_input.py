@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import pytest
+import torch
 import yaml
 
 from spinstrike.agents.cli import main
@@ -383,6 +384,9 @@ def test_bad_input_is_one_error_line_and_writes_nothing(build, words, sandbox, c
     # were tracebacks (torch's, numpy's, Gymnasium's) after the arguments were taken
     (["train", "--device", "gpu"], "--device", "not a PyTorch device (got 'gpu')"),
     (["train", "--torch-threads", "-2"], "--torch-threads", "must be an integer >= 0"),
+    # SB3 trained on the CPU without a word when no CUDA device was there
+    pytest.param(["train", "--device", "cuda"], "--device", "sees no cuda device here",
+                 marks=pytest.mark.skipif(torch.cuda.is_available(), reason="CUDA is here")),
     (["train", "--seed", "-1"], "--seed", "must be an integer >= 0 (got '-1')"),
     (["evaluate", "--oracle", "--env", ENV, "--seed", "-1"], "--seed", "(got '-1')"),
     (["record", "--oracle", "--env", ENV, "--seed", "-3"], "--seed", "(got '-3')"),
@@ -393,7 +397,8 @@ def test_bad_input_is_one_error_line_and_writes_nothing(build, words, sandbox, c
      "not allowed with argument --planner"),
 ], ids=["algo-not-in-list", "bench-unknown", "episodes-not-an-int", "timesteps-not-whole",
         "timesteps-zero", "timesteps-negative", "n-envs-zero",
-        "cache-clear-and-prune", "device-unknown", "torch-threads-negative", "train-seed-negative",
+        "cache-clear-and-prune", "device-unknown", "torch-threads-negative",
+        "device-cuda-not-here", "train-seed-negative",
         "evaluate-seed-negative", "record-seed-negative", "record-oracle-and-random",
         "evaluate-planner-and-oracle"])
 def test_argparse_rejects_choices_with_status_2(argv, argument, value, sandbox, capsys):
@@ -405,6 +410,14 @@ def test_argparse_rejects_choices_with_status_2(argv, argument, value, sandbox, 
     assert f"argument {argument}:" in line and value in line, err
     assert "Traceback" not in err
     assert not any(sandbox.iterdir())
+
+
+def test_device_auto_is_sb3s_and_trains(sandbox, capsys):
+    """``auto`` (SB3's own choice: cuda where there is one) was refused as not a PyTorch
+    device; it trains."""
+    assert main(["train", "--device", "auto", "--timesteps", "64", "--n-envs", "2",
+                 "--eval-episodes", "1", "--no-video", "--no-progress", "--out", "run"]) == 0
+    assert (sandbox / "run" / "model.zip").is_file()
 
 
 def test_the_command_line_takes_a_budget_as_the_hyperparameter_files_write_it():
