@@ -134,6 +134,9 @@ class Frame:
     panel: list[str] = field(default_factory=list)
     #: draw rods as anti-aliased capsules (video frames; plain frames keep their pixels)
     smooth: bool = False
+    #: the renderer's view widened by this factor about the origin (>= 1: a video frame whose
+    #: bodies went beyond the view; plain frames keep theirs)
+    zoom: float = 1.0
 
 
 def body_draws(world, b: int, S: np.ndarray | None = None) -> list[BodyDraw]:
@@ -394,6 +397,14 @@ class Renderer:
 
     def draw(self, frame: Frame) -> np.ndarray:
         """Draw a frame; return it as ``(height, width, 3)`` uint8."""
+        scale = self.scale
+        self.scale = scale / max(1.0, frame.zoom)
+        try:
+            return self._draw(frame)
+        finally:
+            self.scale = scale
+
+    def _draw(self, frame: Frame) -> np.ndarray:
         pg = self._init()
         surf = self._surface
         surf.fill(COLOURS["cloth_edge"])

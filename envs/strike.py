@@ -39,7 +39,7 @@ from spinstrike.envs.rendering import (
     strike_times,
 )
 from spinstrike.physics import SceneError
-from spinstrike.physics.layout import STATE_COLUMNS
+from spinstrike.physics.layout import STATE_COLUMNS, X, Y
 from spinstrike.physics.solvers import TRACE_DROPPED, TRACE_ENTRIES
 
 __all__ = ["PuckSpeedEnv", "PuckSpeedV1Env", "PuckSpeedV1VectorEnv", "PuckSpeedVectorEnv",
@@ -401,6 +401,7 @@ class _StrikeTask(Task):
         last_contact = clip.contacts[:, fast.TC_TIME].max() if len(clip.contacts) else np.inf
         points = [[body_points(b) for b in body_draws(self.world, 0, S)] for S in clip.states]
         frames = []
+        zoom = self._zoom(0, clip.states[..., X:Y + 1])  # one scale for the whole strike
         for f, S in enumerate(clip.states):
             t = clip.times[f]
             trails = [[points[g][i][k] for g in range(max(0, f - TRAIL_FRAMES), f + 1)]
@@ -410,15 +411,26 @@ class _StrikeTask(Task):
             final = f == len(clip.states) - 1
             frames.append(self._video_frame(
                 0, S, t, clip.slow_motion, reward if (t >= last_contact or final) else None,
-                trails=trails, markers=markers))
+                trails=trails, markers=markers, zoom=zoom))
         last = frames[-1]
         step = max(1, len(clip.states) // 8)
         last.ghosts = [body_draws(self.world, 0, S) for S in clip.states[::step]]
         last.markers = [_marker(c, self.it, 1.0) for c in clip.contacts]
         return frames
 
+    def _zoom(self, b: int, positions: np.ndarray) -> float:
+        """How far a video frame's view must widen (about the origin, >= 1) to show element
+        ``b``'s bodies whole at all of ``positions`` (``[..., N, 2]``): on an unbounded table a
+        fast puck or striker can leave the fixed view (1: they stay in it; else 5 % to spare)."""
+        hx, hy = self.view_half()
+        reach = self.world.half_length[b] + self.world.radius[b]
+        extent = np.abs(positions) + reach[:, None]
+        need = max(float(np.max(extent[..., 0])) / hx, float(np.max(extent[..., 1])) / hy)
+        return 1.0 if need <= 1.0 else 1.05 * need
+
     def _video_frame(self, b: int, S: np.ndarray | None, t: float, slow_motion: int,
-                     reward: float | None, trails=(), markers=()) -> Frame:
+                     reward: float | None, trails=(), markers=(),
+                     zoom: float | None = None) -> Frame:
         bodies = body_draws(self.world, b, S)
         target = bodies[self.it]
         pace = f"slow motion x{slow_motion}" if slow_motion > 1 else "real time (x1)"
@@ -429,6 +441,8 @@ class _StrikeTask(Task):
                      walls="walls" in self.world.effects, trails=list(trails),
                      markers=list(markers), vectors=self._vectors(b, target),
                      gauge=self._gauge(b, target), smooth=True,
+                     zoom=self._zoom(b, self.world.state.positions[b] if S is None
+                                     else S[:, X:Y + 1]) if zoom is None else zoom,
                      panel=[f"{self.TITLE}   {when}", self._achieved(b, target), score])
 
     def frame(self, b: int, decorate: bool = True) -> Frame:

@@ -23,7 +23,7 @@ from spinstrike.agents.cli import main
 from spinstrike.agents.oracle import oracle_for
 from spinstrike.envs import fast
 from spinstrike.envs.recording import RecordEveryFrame, VideoWriter, tile
-from spinstrike.envs.rendering import Marker, Renderer, strike_times
+from spinstrike.envs.rendering import COLOURS, Marker, Renderer, strike_times
 from spinstrike.envs.strike import CHUNK
 from spinstrike.physics.layout import ANGLE, OMEGA, VX, VY, X, Y
 
@@ -283,6 +283,30 @@ def test_rgb_array_returns_the_last_frame_of_the_list(env_id):
     last = listed.render()[-1]
     np.testing.assert_array_equal(single.render(), last)
     np.testing.assert_array_equal(single.render(), last)  # and keeps returning it
+
+
+@pytest.mark.parametrize("env_id", ["SpinStrike/PuckSpeed-v1", "SpinStrike/RodSpin-v0"])
+def test_a_strikes_bodies_stay_in_its_frames(env_id):
+    """On the strike envs' unbounded table the view was fixed about the origin, so a fast puck,
+    rod or striker ended half out of the picture (6 of 60 random PuckSpeed-v1 strikes). A
+    strike's frames now widen the view, one scale for the whole strike, where its bodies go
+    beyond it: no body's colour touches the frame's edge, and the rest are drawn as before."""
+    env = gym.make(env_id, render_mode="rgb_array_list")
+    env.action_space.seed(0)
+    colours = [COLOURS[name] for name in env.unwrapped.world.names]
+    widened = 0
+    for seed in range(30):
+        env.reset(seed=seed)
+        env.step(env.action_space.sample())
+        frames = np.stack(env.render())
+        edges = np.concatenate([frames[:, 0], frames[:, -1], frames[:, :, 0], frames[:, :, -1]],
+                               axis=1)
+        for colour in colours:
+            assert not (edges == colour).all(axis=-1).any(), (seed, colour)
+        zoom = env.unwrapped.task.frame(0).zoom
+        widened += zoom > 1
+        assert zoom >= 1
+    assert widened >= 1  # (PuckSpeed-v1: seeds 7, 20, 25, 27; RodSpin-v0: 25)
 
 
 @pytest.mark.parametrize("env_id", ["SpinStrike/RodSpin-v0", "SpinStrike/RodSpinControl-v0"])
