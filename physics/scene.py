@@ -62,6 +62,7 @@ __all__ = [
     "packaged_scene",
     "packaged_scenes",
     "read_scene",
+    "solver_over",
     "validate_solver",
 ]
 
@@ -643,6 +644,19 @@ def load_scene(source: str | Path | dict[str, Any] | Scene) -> Scene:
         return Scene.model_validate(data)
     except ValidationError as exc:
         raise SceneError(_format_error(exc)) from None
+
+
+def solver_over(scene: ExactSolver | FixedSolver | PymunkSolver,
+                given: Any) -> ExactSolver | FixedSolver | PymunkSolver:
+    """A ``solver`` argument over a scene's solver block (``World``'s, as the envs' does): a
+    mode name or dict of the scene's mode overrides the keys it gives and keeps the scene's
+    others (``{"mode": "exact", "tolerance": 1e-10}`` on a scene with ``settle_substep: 1e-5``
+    keeps it, where it went back to 1e-3 s); a block of another mode, or a solver model,
+    replaces the scene's."""
+    block = {"mode": given} if isinstance(given, str) else given
+    if isinstance(block, dict) and block.get("mode") == scene.mode:
+        block = {**scene.model_dump(), **block}
+    return validate_solver(block)
 
 
 def validate_solver(solver: Any) -> ExactSolver | FixedSolver | PymunkSolver:

@@ -112,7 +112,7 @@ from spinstrike.physics.scene import (
     Scene,
     SceneError,
     load_scene,
-    validate_solver,
+    solver_over,
 )
 from spinstrike.physics.shapes import radius_of_gyration
 from spinstrike.physics.solvers import MAX_SETTLE_SUBSTEPS
@@ -252,8 +252,9 @@ class World:
     Args:
         scene: a :class:`~spinstrike.physics.scene.Scene`, a dict, a YAML string or a path.
         batch_size: B, the number of copies.
-        solver: overrides the scene's solver block (a dict such as ``{"mode": "fixed",
-            "substeps": 8}``, a mode name, or a solver model).
+        solver: overrides the scene's solver block: a dict such as ``{"mode": "fixed",
+            "substeps": 8}``, a mode name, or a solver model. Of the scene's mode, it keeps
+            the scene's values it leaves out; another mode, or a model, replaces the block.
         max_contacts: contacts stored per element per step (more are counted in
             ``Contacts.dropped``, never silently lost).
 
@@ -273,7 +274,8 @@ class World:
             if (isinstance(value, bool) or not isinstance(value, (int, np.integer))
                     or value < 1):
                 raise SceneError(f"{name}: must be an integer >= 1 (got {value!r})")
-        self.solver = validate_solver(solver) if solver is not None else self.scene.solver
+        self.solver = (solver_over(self.scene.solver, solver) if solver is not None
+                       else self.scene.solver)
         self._tolerance = (self.solver.tolerance if isinstance(self.solver, ExactSolver)
                            else 1e-9)
         self.batch_size = B = int(batch_size)

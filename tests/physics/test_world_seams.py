@@ -343,3 +343,25 @@ def test_a_pymunk_snapshot_keeps_its_overlap_and_an_exact_world_refuses_it():
     assert pm.gaps().min() < -1e-4
     with pytest.raises(SceneError, match="exact solver's states never overlap"):
         physics.World(scene).restore(snap)
+
+
+def test_a_solver_argument_of_the_scenes_mode_keeps_the_scenes_other_values():
+    """``World(scene, solver=...)`` replaced the scene's whole block, where the envs' ``solver=``
+    keeps the scene's values it leaves out: the packaged RodSpin scene's ``settle_substep`` of
+    1e-5 s went back to 1 ms when only the tolerance was asked for. Now both merge a block of
+    the scene's mode, and a block of another mode (or a solver model) replaces it."""
+    from spinstrike.physics.scene import ExactSolver, FixedSolver
+
+    scene = physics.World("rod_spin").solver
+    assert scene.settle_substep == 1e-5
+    tighter = physics.World("rod_spin", solver={"mode": "exact", "tolerance": 1e-10}).solver
+    assert tighter == scene.model_copy(update={"tolerance": 1e-10})
+    env = gym.make("SpinStrike/RodSpin-v0", solver={"mode": "exact", "tolerance": 1e-10})
+    assert env.unwrapped.world.solver == tighter  # the env's and World's argument agree
+    assert physics.World("rod_spin", solver="exact").solver == scene
+    assert physics.World("rod_spin", solver={"mode": "fixed", "substeps": 3}).solver == \
+        FixedSolver(substeps=3)
+    assert physics.World("rod_spin", solver=ExactSolver(tolerance=1e-8)).solver == \
+        ExactSolver(tolerance=1e-8)
+    with pytest.raises(SceneError, match="tolerence"):
+        physics.World("rod_spin", solver={"mode": "exact", "tolerence": 1e-10})
