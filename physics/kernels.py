@@ -159,7 +159,8 @@ def unpack(fbuf, ibuf):
 #: solver is ``fixed`` (else exact); the ``rotation``, ``contact_friction`` and
 #: ``table_friction`` effects; whether the scene's contacts can ``jam``, a level
 #: (``layout.LEVEL``): 0, one contact pair (sequential impulses always converge in one sweep);
-#: 1, two or more pairs, or contact friction; 2, the same among ``layout.CALENDAR_BODIES`` or
+#: 1, one pair with contact friction (it can jam; frictionless, it is held); 2, two or more
+#: pairs; 3, the same among ``layout.CALENDAR_BODIES`` or
 #: more bodies of an exact world, which then steps on its broadphase and event calendar
 #: (``physics.calendar``); whether a contact pair can lie ``flat`` (two rods, or a rod and a
 #: cushion: ``contacts.flat_points``)

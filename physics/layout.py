@@ -166,10 +166,14 @@ CAL_HEAP_SIZE, CAL_WATCH_SIZE, CAL_STAMP = CALENDAR
 CAL_COLUMNS = len(CALENDAR)
 
 #: levels of the ``jam`` compile-time flag (``kernels.FLAGS``, values, not columns): one contact
-#: pair (contacts cannot jam), contacts can jam, and can jam among many bodies (from
-#: ``CALENDAR_BODIES``: the exact solver uses its broadphase and event calendar)
-LEVEL = Table("contact level", "one_pair", "can_jam", "many_bodies", prefix="LEVEL_")
-LEVEL_ONE_PAIR, LEVEL_CAN_JAM, LEVEL_MANY_BODIES = LEVEL
+#: pair (contacts cannot jam), one pair with contact friction (a frictional contact can jam, a
+#: frictionless one is held: both compiled, the pair's friction picks at run time), contacts can
+#: jam (two pairs or more), and can jam among many bodies (from ``CALENDAR_BODIES``: the exact
+#: solver uses its broadphase and event calendar). The hold is compiled below ``can_jam``, the
+#: jam block solve from ``one_pair_friction`` on.
+LEVEL = Table("contact level", "one_pair", "one_pair_friction", "can_jam", "many_bodies",
+              prefix="LEVEL_")
+LEVEL_ONE_PAIR, LEVEL_ONE_PAIR_FRICTION, LEVEL_CAN_JAM, LEVEL_MANY_BODIES = LEVEL
 
 #: bodies from which an exact world uses the broadphase and the event calendar
 CALENDAR_BODIES = 8

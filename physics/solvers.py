@@ -94,6 +94,7 @@ from spinstrike.physics.layout import (
     INV_MASS,
     LEVEL_CAN_JAM,
     LEVEL_MANY_BODIES,
+    LEVEL_ONE_PAIR_FRICTION,
     NONE,
     OMEGA,
     RADIUS,
@@ -384,7 +385,7 @@ def _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, crec, stats)
 
 
 #: the block solve, compiled only for scenes whose contacts can jam (``kernels.FLAGS``)
-_jam_if = static_if(_jam)
+_jam_if = static_if(_jam, level=LEVEL_ONE_PAIR_FRICTION)
 
 
 @jit
@@ -1106,8 +1107,8 @@ def _no_hold(S, Pm, F, hw, PA, PB, MAT, t_now, dt, tol, zeno_speed, rotation,
     return t_now, -1
 
 
-#: the hold, compiled only for one-pair worlds (the ``jam`` flag's level, ``kernels.FLAGS``):
-#: a walled table or a many-body scene never pays for its compile
+#: the hold, compiled only for one-pair worlds, with contact friction or not (the ``jam`` flag's
+#: level, ``kernels.FLAGS``): a walled table or a many-body scene never pays for its compile
 _hold_unless = static_if(_try_hold, negate=True, level=LEVEL_CAN_JAM, otherwise=_no_hold)
 
 

@@ -78,6 +78,7 @@ from spinstrike.physics.layout import (
     LEVEL_CAN_JAM,
     LEVEL_MANY_BODIES,
     LEVEL_ONE_PAIR,
+    LEVEL_ONE_PAIR_FRICTION,
     OMEGA,
     PARAM_COLUMNS,
     RADIUS,
@@ -355,9 +356,9 @@ class World:
         """The ``jam`` flag's level (``kernels.FLAGS``, ``layout.LEVEL``)."""
         if self._calendar:
             return LEVEL_MANY_BODIES
-        if len(self._pair_a) >= 2 or self.contact_friction:
+        if len(self._pair_a) >= 2:
             return LEVEL_CAN_JAM
-        return LEVEL_ONE_PAIR
+        return LEVEL_ONE_PAIR_FRICTION if self.contact_friction else LEVEL_ONE_PAIR
 
     def _can_lie_flat(self, pairs: tuple[list[int], list[int]]) -> bool:
         """The ``flat`` flag (``kernels.FLAGS``): a contact pair of two rods, or of a rod and a
