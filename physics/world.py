@@ -505,7 +505,7 @@ class World:
             self._fcfg[[CF_TOL, CF_ZENO_SPEED, CF_SETTLE]] = (s.tolerance, s.zeno_speed,
                                                              s.settle_substep)
             self._icfg[[CI_MAX_EVENTS, CI_MAX_ITERATIONS, CI_ZENO_IMPACTS]] = (
-                s.max_events, s.max_iterations, s.zeno_impacts)
+                s.events_for(self.n_bodies), s.max_iterations, s.zeno_impacts)
         elif isinstance(s, FixedSolver):
             self._icfg[[CI_SUBSTEPS, CI_ITERATIONS]] = (s.substeps, s.iterations)
 

@@ -9,6 +9,8 @@ e = 1 over 500 steps keep their energy to 1e-12, never overlap and never leave t
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -171,3 +173,39 @@ def test_a_mallet_driven_into_a_cushion_rests_there_the_same_way_on_both_loops()
         on_end = abs(abs(y) - (fast.table_half_size[b, 1] - 0.04)) < 1e-9 and vy == 0.0
         rests += on_side or on_end
     assert rests >= 2
+
+
+def _puck_gas(n_side: int, max_events=None) -> dict:
+    """``n_side``^2 pucks at ~1 m/s in a walled box, 10 % free spacing, e = 1."""
+    r, sp = 0.02, 2.1
+    width = sp * r * n_side + sp * r
+    height = math.sqrt(3) * sp / 2 * r * (n_side - 1) + sp * r
+    rng = np.random.default_rng(2)
+    bodies = [{"name": f"d{j}_{i}", "shape": "disk", "radius": r, "mass": 0.1,
+               "position": [-width / 2 + sp * r * (i + 0.5 + 0.5 * (j % 2)),
+                            -height / 2 + sp * r / 2 + math.sqrt(3) * sp / 2 * r * j],
+               "velocity": rng.normal(size=2).tolist()}
+              for j in range(n_side) for i in range(n_side)]
+    solver = {"mode": "exact"} | ({} if max_events is None else {"max_events": max_events})
+    return {"effects": ["rotation", "walls"], "table": {"size": [width, height]},
+            "materials": {"restitution": 1.0}, "bodies": bodies, "solver": solver}
+
+
+def test_a_large_world_gets_events_enough_to_stay_exact():
+    """``max_events`` was 1000 a step whatever the number of bodies: 256 pucks in a box at
+    e = 1 make ~1200 events a 0.01 s step, so every step ran out and was settled by fixed
+    substeps (not exact, and 4x slower), with nothing to tell but ``last_step.fallback``. The
+    default is now 1000 or 20 per body, whichever is more; a value given is kept as given."""
+    world = physics.World(_puck_gas(16))
+    assert world.n_bodies == 256 and world.solver.max_events is None
+    e0 = world.kinetic_energy()[0]
+    events = []
+    for _ in range(4):
+        world.step(0.01)
+        assert not world.last_step.fallback[0]
+        events.append(int(world.last_step.events[0]))
+    assert max(events) > 1000  # (what the old default ran out at)
+    assert world.kinetic_energy()[0] == pytest.approx(e0, rel=1e-12)
+    capped = physics.World(_puck_gas(16, max_events=1000))
+    capped.step(0.01)
+    assert capped.last_step.fallback[0] and capped.last_step.events[0] == 1000
