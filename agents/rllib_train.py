@@ -201,7 +201,13 @@ def train_rllib(env_id: str, *, config: str | Path | None = None, seed: int = 0,
     if not ray.is_initialized():
         # address None: a new local Ray, as documented (Ray itself would join any cluster
         # running on this machine, e.g. another job's)
-        ray.init(address=address or "local", include_dashboard=False, log_to_driver=False)
+        try:
+            ray.init(address=address or "local", include_dashboard=False, log_to_driver=False)
+        except ConnectionError as exc:  # (was Ray's traceback, exit 1)
+            raise AgentConfigError(
+                f"--address {address}: no Ray cluster to join ({str(exc).splitlines()[0]}); "
+                "start one with `ray start --head` (see docs/rllib.md), or leave --address out "
+                "to train on a new local Ray") from None
         started = True
     try:
         _check_cpus(ray, num_env_runners)

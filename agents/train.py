@@ -134,12 +134,18 @@ def _latest_checkpoint(run_dir: Path) -> Path | None:
     return ckpts[-1] if ckpts else None
 
 
-def _recorded_run(work: Path, given: dict[str, Any], config,
-                  timesteps) -> tuple[str, RunConfig, int, dict]:
+#: how a run ends (``finish``), each with the command line's flag for it
+FINISH_FLAGS = {"evaluate": "--no-eval", "eval_episodes": "--eval-episodes",
+                "video": "--no-video"}
+
+
+def _recorded_run(work: Path, given: dict[str, Any], config, timesteps,
+                  finish: dict[str, Any]) -> tuple[str, RunConfig, int, dict]:
     """The run as ``work/config.yml`` records it: ``(algo, cfg, seed, finish)``, with the budget
     set to ``timesteps`` if given (``finish``: how the first command asked the run to end).
-    ``given`` maps each command-line flag to its value (None: left out); a value that
-    contradicts the record is refused, all of them in one message."""
+    ``given`` maps each command-line flag to its value, ``finish`` each key of ``FINISH`` (None:
+    left out); a value that contradicts the record is refused, all of them in one message (a
+    finish of its own left the files of the record's, a video of the model before, in place)."""
     meta = yaml.safe_load((work / "config.yml").read_text())
     try:
         algo, env_id, seed = meta["algo"], meta["env"], meta["seed"]
@@ -152,6 +158,9 @@ def _recorded_run(work: Path, given: dict[str, Any], config,
                 "--imitate": (meta.get("imitation") or {}).get("teacher", "none")}
     wrong = [f"{flag} {given[flag]} (recorded: {value})" for flag, value in recorded.items()
              if given.get(flag) is not None and given[flag] != value]
+    ends = {**FINISH, **(meta.get("finish") or {})}
+    wrong += [f"{FINISH_FLAGS[key]} (recorded: {key} {ends[key]})" for key, value in
+              finish.items() if value is not None and value != ends[key]]
     env_kwargs = dict(given.get("--env-kwargs") or {})
     if "scene" in env_kwargs:  # recorded as read (see train)
         from spinstrike.envs.config import resolve_scene
@@ -665,13 +674,14 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
         seed: default 0.
         out: run directory (default ``runs/<algo>-<env>-s<seed>``).
         resume: continue ``out`` from its newest checkpoint, as its ``config.yml`` records it:
-            ``algo``, ``env_id``, ``seed``, ``config``, ``n_envs`` and ``env_kwargs`` may be
-            None (or repeat the record; anything else is refused), ``timesteps`` sets a new
-            budget (recorded in ``config.yml``).
+            ``algo``, ``env_id``, ``seed``, ``config``, ``n_envs``, ``env_kwargs``,
+            ``evaluate``, ``eval_episodes`` and ``video`` may be None (or repeat the record;
+            anything else is refused), ``timesteps`` sets a new budget (recorded in
+            ``config.yml``).
         force: replace an existing run directory.
         evaluate, eval_episodes, video: after training, evaluate against random and oracle
             over ``eval_episodes`` (default True, 50), record an mp4 (default True); a resumed
-            run finishes as its first command asked (``config.yml``'s ``finish``) unless given.
+            run finishes as its first command asked (``config.yml``'s ``finish``).
         eval_freq, eval_episodes_during: the learning curve's evaluations (default: 10 evenly
             spaced, for PPO at least half a rollout apart, of 10 episodes each).
         torch_threads: PyTorch CPU threads (1 is fastest for these small networks, and leaves
@@ -697,7 +707,9 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
         work = _work_dir(run_dir, resume, force)
         given = {"--algo": algo, "--env": env_id, "--seed": seed, "--n-envs": n_envs,
                  "--env-kwargs": env_kwargs, "--imitate": imitate}
-        algo, cfg, seed, recorded = _recorded_run(work, given, config, timesteps)
+        algo, cfg, seed, recorded = _recorded_run(
+            work, given, config, timesteps,
+            {"evaluate": evaluate, "eval_episodes": eval_episodes, "video": video})
         env_id = cfg.env_id
         done = _latest_checkpoint(work)
         done = _checkpoint_steps(done) if done is not None else 0

@@ -43,6 +43,10 @@ def _progress_steps(path):
     return [int(float(r["time/total_timesteps"])) for r in rows if r["time/total_timesteps"]]
 
 
+def _tree(root):
+    return {p.relative_to(root): p.stat().st_mtime_ns for p in root.rglob("*")}
+
+
 def test_resume_keeps_the_learning_history(tmp_path, monkeypatch):
     """After ``--resume``, evaluations.npz (what learning_curve.png and ``spinstrike baselines``
     read) and progress.csv hold the whole run: the points before the interrupt, then the new
@@ -188,6 +192,17 @@ def test_a_resumed_run_finishes_as_its_first_command_asked_and_counts_all_its_ti
     runs = yaml.safe_load((run / "config.yml").read_text())["runs"]
     total = sum(r["wall_time_s"] for r in runs)
     assert len(runs) == 2 and f"{total:.0f} s in 2 sessions" in (run / "summary.md").read_text()
+    # a finish of its own was taken as a one-off: the files of the recorded finish (a video of
+    # the model before, a summary of other episodes) stayed beside the new model. Refused, as
+    # the README says; a flag that repeats the record is fine
+    capsys.readouterr()
+    before = _tree(run)
+    assert main(["train", "--resume", "--out", str(run), "--timesteps", "2048", "--no-eval",
+                 "--eval-episodes", "5", "--no-video"]) == 2
+    err = capsys.readouterr().err
+    assert "--no-eval (recorded: evaluate True)" in err
+    assert "--eval-episodes (recorded: eval_episodes 3)" in err and "--no-video" not in err
+    assert _tree(run) == before
 
 
 def test_a_resumed_run_draws_the_tasks_that_come_next(tmp_path, monkeypatch):

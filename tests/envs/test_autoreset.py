@@ -275,6 +275,23 @@ def test_gymnasium_vector_wrappers_run_in_next_step_mode():
     assert np.any(vec.env.obs_rms.mean != 0)
 
 
+def test_same_step_returns_are_where_the_readme_says():
+    """The README sent a CleanRL-style SAME_STEP loop to ``info["final_info"]["episode"]``,
+    which is not there (a KeyError); ``RecordEpisodeStatistics`` puts the returns in the step's
+    own ``info["episode"]``, masked by ``info["_episode"]``, as over Gymnasium's own envs; the
+    strike's info is in ``info["final_info"]``."""
+    vec = gym.wrappers.vector.RecordEpisodeStatistics(
+        gym.make_vec("SpinStrike/RodSpin-v0", 4, autoreset_mode="same_step"))
+    vec.reset(seed=0)
+    vec.action_space.seed(0)
+    for _ in range(3):
+        _, reward, term, _, info = vec.step(vec.action_space.sample())
+        assert term.all() and info["_episode"].all() and "episode" not in info["final_info"]
+        np.testing.assert_allclose(info["episode"]["r"], reward, rtol=1e-6)
+        np.testing.assert_array_equal(info["episode"]["l"], 1)
+        np.testing.assert_array_equal(info["final_info"]["reward_spin"], reward)
+
+
 def test_vector_env_whose_init_raises_prints_no_attribute_error(capfd):
     with pytest.raises(ConfigError):
         gym.make_vec("SpinStrike/RodSpin-v0", num_envs=2, no_such_key=1)
