@@ -450,6 +450,23 @@ def test_cli_backend_rllib_starts_its_own_ray_beside_a_running_cluster(tmp_path)
         cluster.shutdown()
 
 
+def test_cli_backend_rllib_address_auto_without_a_cluster_is_one_error_line(tmp_path):
+    """docs/rllib.md's ``--address auto`` with no Ray running ended in Ray's ConnectionError
+    traceback, exit 1; it is one error line saying how to start a cluster, exit 2, and no run
+    folder. (RAY_TMPDIR: an empty Ray folder, so that no other test's cluster is found.)"""
+    cmd = [sys.executable, "-m", "spinstrike.agents.cli", "train", "--backend", "rllib",
+           "--env", STRIKE, "--address", "auto", "--timesteps", "256", "--no-video", "--out",
+           str(tmp_path / "run")]
+    env = {k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}
+    env.update(SDL_VIDEODRIVER="dummy", SDL_AUDIODRIVER="dummy", RAY_TMPDIR=str(tmp_path))
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env)
+    assert done.returncode == 2, done.stderr[-3000:]
+    [line] = [x for x in done.stderr.splitlines() if x.startswith("error:")]
+    assert "--address auto: no Ray cluster to join" in line and "ray start --head" in line
+    assert "Traceback" not in done.stderr
+    assert not (tmp_path / "run").exists() and not (tmp_path / "run.partial").exists()
+
+
 def test_cli_backend_rllib_refuses_more_runners_than_the_cluster_has_cpus(tmp_path):
     """Was a silent wait without end after "Started a local Ray instance" (Ray places one
     runner per CPU), and no run folder."""
