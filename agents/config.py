@@ -123,10 +123,65 @@ def _schedule(value: Any, key: str):
     return value
 
 
+def _zoo_dict(text: str, where: str) -> dict:
+    """rl-zoo3's string form of a mapping, ``"dict(log_std_init=-2, net_arch=[64, 64],
+    activation_fn=nn.ReLU)"``, which rl-zoo3 evaluates as Python: read without evaluating
+    anything. Taken: ``dict(...)`` with keywords or a ``{...}`` literal, nested; numbers,
+    strings, booleans, None, lists and tuples of them; an activation class named as rl-zoo3
+    files name it (``nn.ReLU``, ``th.nn.Tanh``, ``torch.nn.ELU``), read as its
+    ``activation_fn`` name (``relu``). Anything else is refused, naming it."""
+    import ast
+
+    by_class = {cls: name for name, cls in ACTIVATIONS.items()}
+
+    def bad(node: ast.AST, why: str):
+        return AgentConfigError(f"{where}: {ast.unparse(node)!r} in {text!r}: {why}; "
+                                "spinstrike reads rl-zoo3's dict(...) strings without "
+                                "evaluating them (or write a YAML mapping)")
+
+    def value(node: ast.AST) -> Any:
+        if isinstance(node, ast.Call):
+            return mapping(node)
+        if isinstance(node, ast.Dict):
+            if any(k is None for k in node.keys):
+                raise bad(node, "a ** inside a mapping is not read")
+            return {value(k): value(v) for k, v in zip(node.keys, node.values, strict=True)}
+        if isinstance(node, ast.List | ast.Tuple):
+            return [value(item) for item in node.elts]
+        if isinstance(node, ast.Attribute | ast.Name):
+            dotted = ast.unparse(node)
+            head, _, leaf = dotted.rpartition(".")
+            if head in ("", "nn", "th.nn", "torch.nn") and leaf in by_class:
+                return by_class[leaf]
+            raise bad(node, f"not a value or an activation (allowed: nn.<{'|'.join(by_class)}>)")
+        try:
+            return ast.literal_eval(node)
+        except ValueError:
+            raise bad(node, "not a literal") from None
+
+    def mapping(node: ast.AST) -> dict:
+        if isinstance(node, ast.Dict):
+            return value(node)
+        if not (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+                and node.func.id == "dict" and not node.args
+                and all(k.arg is not None for k in node.keywords)):
+            raise bad(node, "must be dict(key=value, ...) or {...}")
+        return {k.arg: value(k.value) for k in node.keywords}
+
+    try:
+        tree = ast.parse(text.strip(), mode="eval")
+    except SyntaxError:
+        raise AgentConfigError(f"{where}: {text!r} is neither a YAML mapping nor rl-zoo3's "
+                               "dict(...) string") from None
+    return mapping(tree.body)
+
+
 def _policy_kwargs(value: Any, where: str) -> dict:
+    if isinstance(value, str):  # rl-zoo3's "dict(...)"
+        value = _zoo_dict(value, f"{where}.policy_kwargs")
     if not isinstance(value, dict):
-        raise AgentConfigError(f"{where}.policy_kwargs: must be a YAML mapping (got "
-                               f"{type(value).__name__}); strings are not evaluated")
+        raise AgentConfigError(f"{where}.policy_kwargs: must be a YAML mapping or rl-zoo3's "
+                               f"dict(...) string (got {type(value).__name__})")
     out = dict(value)
     for key in out:
         if key not in POLICY_KWARGS:
@@ -145,15 +200,16 @@ def _policy_kwargs(value: Any, where: str) -> dict:
 
 def _normalize(value: Any, where: str) -> bool | dict:
     """``normalize``: true / false, or a mapping of ``VecNormalize``'s arguments (rl-zoo3's
-    form; its string form, ``"dict(norm_reward=False)"``, which rl-zoo3 evaluates, is refused
-    here as strings are not evaluated: it used to be taken for plain true)."""
+    form), also as rl-zoo3's string, ``"dict(norm_reward=False)"`` (read, not evaluated: it
+    used to be taken for plain true)."""
     if isinstance(value, bool):
         return value
+    if isinstance(value, str):
+        value = _zoo_dict(value, f"{where}.normalize")
     if not isinstance(value, dict):
         raise AgentConfigError(
-            f"{where}.normalize: must be true, false or a YAML mapping of VecNormalize's "
-            f"arguments, e.g. {{norm_obs: true, norm_reward: false}} (got {value!r}); strings "
-            f"are not evaluated")
+            f"{where}.normalize: must be true, false or a mapping of VecNormalize's "
+            f"arguments, e.g. {{norm_obs: true, norm_reward: false}} (got {value!r})")
     from stable_baselines3.common.vec_env import VecNormalize
 
     allowed = set(inspect.signature(VecNormalize.__init__).parameters) - {"self", "venv",

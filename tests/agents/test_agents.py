@@ -275,7 +275,7 @@ def test_bad_inputs_fail_before_anything_is_written(tmp_path, capsys):
         assert err.startswith("error:") and needle in err, (argv, err)
         assert not out.exists() and not out.with_name("run.partial").exists()
     bad.write_text("SpinStrike/RodSpin-v0:\n  n_timesteps: 100\n  policy_kwargs: 'dict(a=1)'\n")
-    with pytest.raises(AgentConfigError, match="policy_kwargs: must be a YAML mapping"):
+    with pytest.raises(AgentConfigError, match="policy_kwargs.a: unknown"):
         load_agent_config("ppo", "SpinStrike/RodSpin-v0", bad)
     bad.write_text("SpinStrike/Other-v0:\n  n_timesteps: 100\n")
     with pytest.raises(AgentConfigError, match="unknown env id 'SpinStrike/Other-v0'"):

@@ -96,10 +96,14 @@ CASES = [
     ("n_envs-negative",
      lambda t: ["train", "--config", _config(t, "m2.yml", {"n_timesteps": 100, "n_envs": -2})],
      ["m2.yml", "n_envs: must be an integer >= 1", "(got -2)"]),
-    ("normalize-string",  # rl-zoo3 evaluates it; it was taken for plain true (norm_reward on)
+    ("normalize-string-evaluated",  # rl-zoo3 evaluates it; it was taken for plain true
      lambda t: ["train", "--config", _config(t, "ns.yml", {
-         "n_timesteps": 100, "normalize": "dict(norm_obs=True, norm_reward=False)"})],
-     ["ns.yml", "normalize: must be true, false or a YAML mapping", "strings are not evaluated"]),
+         "n_timesteps": 100, "normalize": "dict(norm_obs=__import__('os').getpid())"})],
+     ["ns.yml", "normalize: \"__import__('os').getpid()\"", "without evaluating them"]),
+    ("policy-kwargs-string-unknown-class",
+     lambda t: ["train", "--config", _config(t, "pk.yml", {
+         "n_timesteps": 100, "policy_kwargs": "dict(activation_fn=nn.Softmax)"})],
+     ["pk.yml", "policy_kwargs: 'nn.Softmax'", "not a value or an activation"]),
     ("normalize-unknown-argument",
      lambda t: ["train", "--config", _config(t, "nu.yml", {
          "n_timesteps": 100, "normalize": {"norm_obs": True, "norm_rewards": False}})],

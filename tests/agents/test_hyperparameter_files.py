@@ -4,6 +4,8 @@ through ``spinstrike train --config FILE``. The values it refuses are cases of
 
 import functools
 
+import pytest
+
 from spinstrike.agents.cli import main
 
 ENV = "SpinStrike/RodSpin-v0"
@@ -29,6 +31,25 @@ def test_a_learning_rate_written_3e_4_trains_at_3e_4(tmp_path, monkeypatch):
     model = PPO.load(tmp_path / "run" / "model.zip", device="cpu")
     assert model.learning_rate == 3e-4 and model.lr_schedule(1.0) == 3e-4
     assert model.gamma == 0.9
+
+def test_rl_zoo3s_string_forms_are_read_without_being_evaluated(tmp_path, monkeypatch):
+    """rl-zoo3's files write ``policy_kwargs`` and ``normalize`` as Python strings, which
+    rl-zoo3 evaluates; spinstrike refused them ("strings are not evaluated"), so a file taken
+    from rl-zoo3 did not train. They are read (not evaluated) and reach the model."""
+    from stable_baselines3 import PPO
+    from torch import nn
+
+    monkeypatch.chdir(tmp_path)
+    entry = (TINY + '  policy_kwargs: "dict(log_std_init=-1.5, ortho_init=False, '
+             'activation_fn=nn.ReLU, net_arch=dict(pi=[32], vf=[48]))"\n'
+             '  normalize: "dict(norm_obs=True, norm_reward=False)"\n')
+    assert _train(tmp_path, entry) == 0
+    model = PPO.load(tmp_path / "run" / "model.zip", device="cpu")
+    assert model.policy.activation_fn is nn.ReLU and model.policy.ortho_init is False
+    assert model.policy.net_arch == {"pi": [32], "vf": [48]}
+    assert float(model.policy.log_std.detach()[0]) == pytest.approx(-1.5, abs=0.05)  # 1 update
+    assert (tmp_path / "run" / "vecnormalize.pkl").is_file()
+
 
 def test_normalize_settings_reach_the_learning_curve_evaluation(tmp_path, monkeypatch):
     """``normalize: {norm_obs: false, clip_obs: 0.5}`` reached the training env only: the
