@@ -29,6 +29,7 @@ from spinstrike.physics.scene import (
     join_by_field,
     packaged_scene,
     read_scene,
+    validate_solver,
 )
 
 __all__ = [
@@ -397,7 +398,12 @@ def _solver_block(scene: Any, given: dict | str) -> dict:
     another mode, it replaces the block (the scene's keys belong to its own mode)."""
     given = {"mode": given} if isinstance(given, str) else dict(given)
     scene = {"mode": scene} if isinstance(scene, str) else dict(scene or {"mode": "exact"})
-    return {**scene, **given} if given.get("mode") == scene.get("mode") else given
+    block = {**scene, **given} if given.get("mode") == scene.get("mode") else given
+    try:  # the argument's own error, named as given (it read "scene: solver: ...")
+        validate_solver(block)
+    except SceneError as exc:
+        raise ConfigError(str(exc)) from None
+    return block
 
 
 def _drop_parameters_of_dropped_effects(data: dict, effects: list[str]) -> None:

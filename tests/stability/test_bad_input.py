@@ -259,6 +259,21 @@ def test_bad_env_arguments_are_one_config_error(env_id, kw, names):
     assert names in str(info.value)
 
 
+@pytest.mark.parametrize(("solver", "message"), [
+    ({"mode": "rk4"}, "solver: unknown mode 'rk4'; allowed: 'exact', 'fixed', 'pymunk'"),
+    ("rk4", "solver: unknown mode 'rk4'"),
+    ({"mode": "exact", "tolerence": 1e-10}, "solver.tolerence: Extra inputs are not permitted"),
+    ({"mode": "fixed", "substeps": 0}, "solver.substeps: Input should be greater than or equal"),
+])
+def test_a_bad_solver_argument_is_named_as_given(solver, message):
+    """``solver=`` went into the scene first, so its error read ``scene: solver: ...``, as if
+    the scene were wrong; it names the argument."""
+    for env_id in ("SpinStrike/RodSpin-v0", "SpinStrike/RodSpinControl-v0"):
+        with pytest.raises(ConfigError) as info:
+            _make(env_id, solver=solver)
+        assert str(info.value).startswith(message), str(info.value)
+
+
 def test_bad_vector_env_arguments_are_config_errors():
     for kw, names in (({"num_envs": 0}, "num_envs: must be an int >= 1"),
                       ({"num_envs": 2, "render_mode": "hologram"}, "render_mode"),
