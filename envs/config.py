@@ -29,7 +29,7 @@ from spinstrike.physics.scene import (
     join_by_field,
     packaged_scene,
     read_scene,
-    validate_solver,
+    solver_over,
 )
 
 __all__ = [
@@ -392,18 +392,16 @@ def _scene_data(source: str | dict) -> dict:
 
 
 def _solver_block(scene: Any, given: dict | str) -> dict:
-    """The ``solver`` argument over the scene's block: of the scene's mode, it keeps the scene's
-    values it leaves out (RodSpin's ``settle_substep`` of 1e-5 s was lost to the 1 ms default
-    when ``solver={"mode": "exact", "tolerance": 1e-10}`` changed the tolerance only); of
-    another mode, it replaces the block (the scene's keys belong to its own mode)."""
-    given = {"mode": given} if isinstance(given, str) else dict(given)
-    scene = {"mode": scene} if isinstance(scene, str) else dict(scene or {"mode": "exact"})
-    block = {**scene, **given} if given.get("mode") == scene.get("mode") else given
-    try:  # the argument's own error, named as given (it read "scene: solver: ...")
-        validate_solver(block)
+    """The ``solver`` argument over the scene's block, by ``World``'s rule
+    (``physics.scene.solver_over``): of the scene's mode, it keeps the scene's values it leaves
+    out (RodSpin's ``settle_substep`` of 1e-5 s was lost to the 1 ms default when
+    ``solver={"mode": "exact", "tolerance": 1e-10}`` changed the tolerance only); of another
+    mode, it replaces the block. A bad block is refused naming ``solver`` (it read
+    "scene: solver: ...")."""
+    try:
+        return solver_over(scene, given).model_dump()
     except SceneError as exc:
         raise ConfigError(str(exc)) from None
-    return block
 
 
 def _drop_parameters_of_dropped_effects(data: dict, effects: list[str]) -> None:

@@ -661,16 +661,19 @@ def load_scene(source: str | Path | dict[str, Any] | Scene) -> Scene:
         raise SceneError(_format_error(exc)) from None
 
 
-def solver_over(scene: ExactSolver | FixedSolver | PymunkSolver,
-                given: Any) -> ExactSolver | FixedSolver | PymunkSolver:
-    """A ``solver`` argument over a scene's solver block (``World``'s, as the envs' does): a
-    mode name or dict of the scene's mode overrides the keys it gives and keeps the scene's
-    others (``{"mode": "exact", "tolerance": 1e-10}`` on a scene with ``settle_substep: 1e-5``
-    keeps it, where it went back to 1e-3 s); a block of another mode, or a solver model,
-    replaces the scene's."""
+def solver_over(scene: Any, given: Any) -> ExactSolver | FixedSolver | PymunkSolver:
+    """A ``solver`` argument over a scene's solver block (``World``'s and the envs'): a mode
+    name or dict of the scene's mode overrides the keys it gives and keeps the scene's others
+    (``{"mode": "exact", "tolerance": 1e-10}`` on a scene with ``settle_substep: 1e-5`` keeps
+    it, where it went back to 1e-3 s); a block of another mode, or a solver model, replaces the
+    scene's (whose keys belong to its own mode). ``scene``: a solver model, or a scene's block
+    as written (a dict, a mode name, or None for the default exact solver)."""
+    if isinstance(scene, (ExactSolver, FixedSolver, PymunkSolver)):
+        scene = scene.model_dump()
+    scene = {"mode": scene} if isinstance(scene, str) else dict(scene or {"mode": "exact"})
     block = {"mode": given} if isinstance(given, str) else given
-    if isinstance(block, dict) and block.get("mode") == scene.mode:
-        block = {**scene.model_dump(), **block}
+    if isinstance(block, dict) and block.get("mode") == scene.get("mode"):
+        block = {**scene, **block}
     return validate_solver(block)
 
 
