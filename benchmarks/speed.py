@@ -270,11 +270,17 @@ BODY_STEPS = 50
 BODY_REPEATS = 3
 
 
-def _exact_pucks(n_pucks: int, steps: int) -> tuple[float, float]:
-    """One world (B = 1) of the sweep's scene on the exact solver, ``steps`` steps of 0.02 s
-    from its start: (CPU seconds per step, contacts per step). The kernels are compiled (and the
-    step timed) on a separate world first."""
+#: the bodies sweep's fixed-solver column: substeps per 0.02 s step (pymunk's 10-substep column)
+FIXED_SUBSTEPS = 10
+
+
+def _exact_pucks(n_pucks: int, steps: int, solver: dict | None = None) -> tuple[float, float]:
+    """One world (B = 1) of the sweep's scene on the exact solver (or ``solver``), ``steps``
+    steps of 0.02 s from its start: (CPU seconds per step, contacts per step). The kernels are
+    compiled (and the step timed) on a separate world first."""
     scene = _many_pucks_scene(n_pucks)
+    if solver is not None:
+        scene["solver"] = solver
     physics.World(scene).step(0.02)  # compile
     world = physics.World(scene)
     contacts = 0
@@ -320,26 +326,28 @@ def _pymunk_pucks(n_pucks: int, steps: int, substeps: int) -> float:
     return (time.process_time() - t) / steps
 
 
-def bodies_sweep(bodies=BODIES, steps: int = BODY_STEPS,
-                 repeats: int = BODY_REPEATS) -> list[tuple[int, float, float, float, float]]:
+def bodies_sweep(bodies=BODIES, steps: int = BODY_STEPS, repeats: int = BODY_REPEATS
+                 ) -> list[tuple[int, float, float, float, float, float]]:
     """The bodies sweep, exact beside raw pymunk in the same run: per number of pucks,
-    (pucks, exact s/step, contacts/step, pymunk 1 substep s/step, pymunk 10 substeps s/step),
-    CPU time (``time.process_time``), one world; each the fastest of ``repeats`` runs from the
-    scene's start, the three taken in turn (a machine busy with other work slows one run, not
-    all of them)."""
+    (pucks, exact s/step, contacts/step, pymunk 1 substep s/step, pymunk 10 substeps s/step,
+    the fixed solver at ``FIXED_SUBSTEPS`` substeps s/step), CPU time (``time.process_time``),
+    one world; each the fastest of ``repeats`` runs from the scene's start, the four taken in
+    turn (a machine busy with other work slows one run, not all of them)."""
     rows = []
+    fixed = {"mode": "fixed", "substeps": FIXED_SUBSTEPS}
     for n in bodies:
-        t = p1 = p10 = math.inf
+        t = p1 = p10 = f10 = math.inf
         for _ in range(repeats):
             t_run, c = _exact_pucks(n, steps)
             t = min(t, t_run)
             p1 = min(p1, _pymunk_pucks(n, steps, 1))
             p10 = min(p10, _pymunk_pucks(n, steps, 10))
-        rows.append((n, t, c, p1, p10))
+            f10 = min(f10, _exact_pucks(n, steps, fixed)[0])
+        rows.append((n, t, c, p1, p10, f10))
         per = f"{t / c * 1e6:10.1f}" if c > 0 else "         -"
         print(f"{n:4d} pucks: exact {t * 1e6:11.1f} us/step, {c:7.2f} contacts/step, {per} us/"
-              f"contact; pymunk 1 substep {p1 * 1e6:8.1f}, 10 substeps {p10 * 1e6:8.1f} us/step",
-              flush=True)
+              f"contact; pymunk 1 substep {p1 * 1e6:8.1f}, 10 substeps {p10 * 1e6:8.1f} us/step;"
+              f" fixed {FIXED_SUBSTEPS} substeps {f10 * 1e6:8.1f} us/step", flush=True)
     return rows
 
 
@@ -350,16 +358,19 @@ def _bodies_lines(rows, steps: int, load: float | None = None) -> list[str]:
              "0.02 s from the scene's start, CPU time per step (the fastest of "
              f"{BODY_REPEATS} runs); raw pymunk (one `Space`, segment "
              "cushions, circles) on the same scene in the same run, at 1 and 10 substeps per "
-             "step. Run alone: `python -m spinstrike.benchmarks.speed --section bodies`"
+             f"step, and SpinStrike's fixed solver at {FIXED_SUBSTEPS} substeps (its "
+             "defaults otherwise: 4 impulse sweeps, one positional correction a substep). Run "
+             "alone: `python -m spinstrike.benchmarks.speed --section bodies`"
              + (f" (this table: load average {load:.2f} at the start)" if load is not None
                 else "") + ".", "",
              "| pucks | exact, µs/step | contacts/step | exact, µs per contact | pymunk 1 "
-             "substep, µs/step | pymunk 10 substeps, µs/step | exact / pymunk 10 |",
-             "|---|---|---|---|---|---|---|"]
-    for n, t, c, p1, p10 in rows:
+             "substep, µs/step | pymunk 10 substeps, µs/step | exact / pymunk 10 | fixed "
+             f"{FIXED_SUBSTEPS} substeps, µs/step | fixed / pymunk 10 |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for n, t, c, p1, p10, f10 in rows:
         per = f"{t / c * 1e6:.1f}" if c > 0 else "-"
         lines.append(f"| {n} | {t * 1e6:.1f} | {c:.2f} | {per} | {p1 * 1e6:.1f} | "
-                     f"{p10 * 1e6:.1f} | {t / p10:.2f} |")
+                     f"{p10 * 1e6:.1f} | {t / p10:.2f} | {f10 * 1e6:.1f} | {f10 / p10:.2f} |")
     lines += ["", "![cost per step against number of bodies](speed_bodies.png)", ""]
     return lines
 
@@ -375,6 +386,7 @@ def _plot_bodies(path: Path, rows) -> None:
     ax.loglog(ns, [r[1] * 1e6 for r in rows], "o-", label="exact")
     ax.loglog(ns, [r[3] * 1e6 for r in rows], "s--", label="pymunk, 1 substep")
     ax.loglog(ns, [r[4] * 1e6 for r in rows], "^--", label="pymunk, 10 substeps")
+    ax.loglog(ns, [r[5] * 1e6 for r in rows], "v-", label=f"fixed, {FIXED_SUBSTEPS} substeps")
     ax.set_xlabel("pucks")
     ax.set_ylabel("µs per step (CPU)")
     ax.set_title("one world, one 0.02 s step")
@@ -592,7 +604,9 @@ def main(argv: list[str] | None = None) -> int:
         "atomic counts numba kept on the arrays of inlined helpers were two thirds of its "
         "time. What grows with N is the flight of every body to each event (the scan's "
         "arithmetic, kept so that the two agree bit for bit) and one test of each changed "
-        "body's box against every other body per event. At one world and 64 pucks, "
+        "body's box against every other body per event. The settling that ends a step, and "
+        "the fixed solver, sweep only the pairs close enough to touch (a sweep and prune after "
+        "each substep's drift), not all N^2 pairs: the fixed column. At one world and 64 pucks, "
         "`world.step`'s contact record (numpy, in Python) costs about as much as the kernel.",
         "* **Contacts.** Free flight is cheap; each impact costs a search per affected pair. "
         "A mallet driven into a cushion rests on it (the end of its Zeno run of ever-smaller "

@@ -24,6 +24,12 @@ runs the same loop on three structures instead, kept in the element's calendar r
 
 So an event costs the searches of the pairs it touched, O(log P) heap updates, one pass over
 the watch list and O(N) box tests per changed body, instead of O(N^2).
+
+The same rows are the scratch of the fixed substeps that settle the rest of a step (and of the
+fixed solver's, in a world of as many bodies): **the pair list** (``close_pairs``) holds, in pair
+order, the pairs whose boxes about the bodies' current poses meet, a superset of those close
+enough to touch, so the substeps' sweeps visit those instead of all P pairs, with the same
+outcome bit for bit.
 """
 
 from __future__ import annotations
@@ -54,6 +60,7 @@ from spinstrike.physics.layout import (
     I_CALI,
     I_PAIR_INDEX,
     INV_MASS,
+    OMEGA,
     RADIUS,
     VX,
     VY,
@@ -61,9 +68,10 @@ from spinstrike.physics.layout import (
     Y,
 )
 
-__all__ = ["BOX_MARGIN", "NEAR_SLACK", "box_meets_wall", "boxes_meet", "element_rows",
-           "heap_remove", "heap_set", "near_time", "rows", "sort_by_xmin", "sort_ints",
-           "stays_clear", "swept_box", "watch_insert", "watch_remove"]
+__all__ = ["BOX_MARGIN", "NEAR_SLACK", "box_meets_wall", "boxes_meet", "close_pairs",
+           "element_rows", "empty_heap", "heap_remove", "heap_set", "near_time", "rows",
+           "sort_by_xmin", "sort_ints", "speed_bound", "stays_clear", "swept_box",
+           "watch_insert", "watch_remove"]
 
 #: share of a body's reach added to its swept box: pairs that pass closer than this are
 #: searched (a search of a pair grazing past by little more than the tolerance takes many
@@ -238,6 +246,72 @@ def stays_clear(p, S, Pm, F, hw, PA, PB, T, tol, table_friction):
     t = _first_within(dx * dx + dy * dy, dx * ux + dy * uy, ux * ux + uy * uy,
                       (ra + rb) * (1.0 + BOX_MARGIN) + tol)
     return t > T
+
+
+# -- the settle's pair list ----------------------------------------------------------------------
+
+
+@jit_inline
+def speed_bound(S, Pm, F, i, T):
+    """Fastest a point of body i's core can move within T: centre, spin, applied force."""
+    return (math.sqrt(S[i, VX] ** 2 + S[i, VY] ** 2) + abs(S[i, OMEGA]) * Pm[i, HALF_LENGTH]
+            + math.sqrt(F[i, FX] ** 2 + F[i, FY] ** 2) * Pm[i, INV_MASS] * T)
+
+
+@jit_uncounted
+def close_pairs(S, Pm, F, hw, pad, reaches, T, pidx, box, order, seen, out):
+    """The pairs (in pair order, into ``out``; returns how many) of the bodies whose boxes
+    overlap, and of a body and a cushion its box reaches (sweep and prune along x): each body's
+    box is its centre plus ``reaches`` times its reach (a bounding circle, whatever its angle),
+    ``pad`` and, for T > 0, its :func:`speed_bound` over T seconds. A pair left out is farther
+    apart than the sum of its bodies' widenings (a body and a cushion, than the body's); every
+    pair is listed when a box is not finite. ``seen``: scratch [N], zero on return."""
+    n = S.shape[0]
+    finite = True
+    for i in range(n):
+        half = (Pm[i, HALF_LENGTH] + Pm[i, RADIUS]) * reaches + pad
+        if T > 0.0:
+            half += speed_bound(S, Pm, F, i, T) * T
+        half *= 1.0 + NEAR_SLACK
+        finite &= math.isfinite(half) and math.isfinite(S[i, X]) and math.isfinite(S[i, Y])
+        box[i, BOX_XMIN] = S[i, X] - half
+        box[i, BOX_XMAX] = S[i, X] + half
+        box[i, BOX_YMIN] = S[i, Y] - half
+        box[i, BOX_YMAX] = S[i, Y] + half
+    if not finite:  # (NaN boxes cannot be sorted; the passes find nothing to do there anyway)
+        for p in range(out.shape[0]):
+            out[p] = p
+        return out.shape[0]
+    sort_by_xmin(order, box, n, seen)
+    for i in range(n):
+        seen[i] = 0
+    m = 0
+    for k in range(n):
+        i = order[k]
+        for q in range(k + 1, n):
+            j = order[q]
+            if box[j, BOX_XMIN] > box[i, BOX_XMAX]:
+                break
+            p = pidx[i, j]
+            if p >= 0 and boxes_meet(box, i, j):
+                out[m] = p
+                m += 1
+        for w in range(4):
+            p = pidx[i, n + w]
+            if p >= 0 and box_meets_wall(box, i, w, hw):
+                out[m] = p
+                m += 1
+    sort_ints(out, m)
+    return m
+
+
+@jit_inline
+def empty_heap(cnt, heap, hpos):
+    """Take every pair out of the calendar (the settle that ends a step uses its rows as
+    scratch; the next step's first predictions fill it afresh)."""
+    for k in range(cnt[CAL_HEAP_SIZE]):
+        hpos[heap[k]] = 0
+    cnt[CAL_HEAP_SIZE] = 0
 
 
 # -- the calendar: an indexed binary heap of pairs by (time, pair) -------------------------------

@@ -91,6 +91,7 @@ from spinstrike.physics.solvers import (
     exact_element,
     exact_many_element,
     fixed_element,
+    many_rows,
     untraced,
 )
 
@@ -161,16 +162,58 @@ def unpack(fbuf, ibuf):
 #: (``layout.LEVEL``): 0, one contact pair (sequential impulses always converge in one sweep);
 #: 1, one pair with contact friction (it can jam; frictionless, it is held); 2, two or more
 #: pairs; 3, the same among ``layout.CALENDAR_BODIES`` or
-#: more bodies of an exact world, which then steps on its broadphase and event calendar
-#: (``physics.calendar``); whether a contact pair can lie ``flat`` (two rods, or a rod and a
-#: cushion: ``contacts.flat_points``)
+#: more bodies, where an exact world steps on its broadphase and event calendar
+#: (``physics.calendar``) and the substeps of its settling, or of the fixed solver, sweep only
+#: the pairs close enough to touch; whether a contact pair can lie ``flat`` (two rods, or a rod
+#: and a cushion: ``contacts.flat_points``)
 FLAGS = ("fixed", "rotation", "contact_friction", "table_friction", "jam", "flat")
 #: a world's flags by name (``World.flags``), in :data:`FLAGS` order
 Flags = namedtuple("Flags", FLAGS)
 
 
+@jit_inline
+def _no_rows(Pm, fbuf, ibuf, b):
+    """No pair-list scratch: a world of few bodies visits every pair."""
+    return None
+
+
+#: the fixed solver's pair-list scratch (``solvers.many_rows``) in a many-body world (the
+#: ``jam`` level ``LEVEL_MANY_BODIES``), None below it
+_rows_if = static_if(many_rows, level=LEVEL_MANY_BODIES, otherwise=_no_rows)
+
+
+@jit_inline
+def _fixed(v, b, dt, rotation, flat, contact_friction, table_friction, jam, trace):
+    """The fixed solver's step of element b (one positional-correction sweep a substep, no
+    block solve)."""
+    fixed_element(v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,
+                  v.icfg[CI_SUBSTEPS], v.icfg[CI_ITERATIONS], 0.0, 0.0, rotation, flat,
+                  contact_friction, table_friction, v.cpair[b], v.crec[b], v.stats[b],
+                  v.changed[b], 1, False, trace, _rows_if(jam, v.Pm[b], v.fbuf, v.ibuf, b))
+
+
+#: the exact solver's calendar, only at the ``jam`` level ``LEVEL_MANY_BODIES`` (exact worlds of
+#: ``CALENDAR_BODIES`` or more bodies): other worlds never compile it, and their exact step
+#: keeps its own argument list
+_many_if = static_if(exact_many_element, level=LEVEL_MANY_BODIES)
+
+
+@jit_inline
+def _exact_many(v, b, dt, rotation, flat, contact_friction, table_friction, jam, trace):
+    """The exact solver's step of element b on its calendar, at the ``jam`` level
+    ``LEVEL_MANY_BODIES`` (no code below it)."""
+    _many_if(jam, v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt, v.fcfg[CF_TOL],
+             v.icfg[CI_MAX_EVENTS], v.icfg[CI_MAX_ITERATIONS], v.fcfg[CF_ZENO_SPEED],
+             v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE], rotation, flat, contact_friction,
+             table_friction, v.cpair[b], v.crec[b], v.stats[b], v.toi[b], v.kind[b],
+             v.changed[b], v.rest[b], v.fbuf, v.ibuf, b, trace)
+
+
 #: one solver or the other, by the world's literal ``fixed`` flag: the other is never compiled
-_fixed_if = static_if(fixed_element)
+#: (a fixed world of many bodies has the ``jam`` level ``LEVEL_MANY_BODIES`` too, for its pair
+#: lists, and must not compile the exact solver's calendar)
+_fixed_if = static_if(_fixed)
+_exact_many_unless = static_if(_exact_many, negate=True)
 #: the scan (``exact_element``) only below the ``jam`` level ``LEVEL_MANY_BODIES``, where the
 #: calendar steps the world instead. (A test inside the solver would not do: numba prunes a branch
 #: on a literal argument compared with a literal, not with a named constant, so a many-body world
@@ -188,10 +231,6 @@ def _scan(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_s
 
 
 _exact_unless = static_if(_scan, negate=True)
-#: the exact solver's calendar, only at the ``jam`` level ``LEVEL_MANY_BODIES`` (exact worlds of
-#: ``CALENDAR_BODIES`` or more bodies): other worlds never compile it, and their exact step
-#: keeps its own argument list
-_many_if = static_if(exact_many_element, level=LEVEL_MANY_BODIES)
 
 
 @jit
@@ -211,20 +250,14 @@ def step_element(v, b, dt, fixed, rotation, contact_friction, table_friction, ja
     v.crec[b, m, REC_J] = 0.0
     v.crec[b, m, REC_JT] = 0.0
     v.clock[b] += dt
-    _fixed_if(fixed, v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,
-              v.icfg[CI_SUBSTEPS], v.icfg[CI_ITERATIONS], 0.0, 0.0, rotation, flat,
-              contact_friction, table_friction, v.cpair[b], v.crec[b], v.stats[b], v.changed[b],
-              1, False, trace)
+    _fixed_if(fixed, v, b, dt, rotation, flat, contact_friction, table_friction, jam, trace)
     _exact_unless(fixed, v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,
                   v.fcfg[CF_TOL], v.icfg[CI_MAX_EVENTS], v.icfg[CI_MAX_ITERATIONS],
                   v.fcfg[CF_ZENO_SPEED], v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE], rotation, flat,
                   contact_friction, table_friction, jam, v.cpair[b], v.crec[b], v.stats[b],
                   v.toi[b], v.kind[b], v.changed[b], v.rest[b], trace)
-    _many_if(jam, v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt, v.fcfg[CF_TOL],
-             v.icfg[CI_MAX_EVENTS], v.icfg[CI_MAX_ITERATIONS], v.fcfg[CF_ZENO_SPEED],
-             v.icfg[CI_ZENO_IMPACTS], v.fcfg[CF_SETTLE], rotation, flat, contact_friction,
-             table_friction, v.cpair[b], v.crec[b], v.stats[b], v.toi[b], v.kind[b],
-             v.changed[b], v.rest[b], v.fbuf, v.ibuf, b, trace)
+    _exact_many_unless(fixed, v, b, dt, rotation, flat, contact_friction, table_friction, jam,
+                       trace)
     for i in range(v.S.shape[1]):
         for k in range(v.S.shape[2]):
             if not math.isfinite(v.S[b, i, k]):

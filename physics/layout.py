@@ -169,13 +169,15 @@ CAL_COLUMNS = len(CALENDAR)
 #: pair (contacts cannot jam), one pair with contact friction (a frictional contact can jam, a
 #: frictionless one is held: both compiled, the pair's friction picks at run time), contacts can
 #: jam (two pairs or more), and can jam among many bodies (from ``CALENDAR_BODIES``: the exact
-#: solver uses its broadphase and event calendar). The hold is compiled below ``can_jam``, the
-#: jam block solve from ``one_pair_friction`` on.
+#: solver uses its broadphase and event calendar, and its settling and the fixed solver sweep
+#: pair lists made in the calendar's rows). The hold is compiled below ``can_jam``, the jam block
+#: solve from ``one_pair_friction`` on.
 LEVEL = Table("contact level", "one_pair", "one_pair_friction", "can_jam", "many_bodies",
               prefix="LEVEL_")
 LEVEL_ONE_PAIR, LEVEL_ONE_PAIR_FRICTION, LEVEL_CAN_JAM, LEVEL_MANY_BODIES = LEVEL
 
-#: bodies from which an exact world uses the broadphase and the event calendar
+#: bodies from which an exact world uses the broadphase and the event calendar, and an exact or
+#: fixed world's substeps sweep only the pairs close enough to touch
 CALENDAR_BODIES = 8
 
 
@@ -211,7 +213,8 @@ def field_shapes(B: int, N: int, P: int, M: int,
     """Shape of every packed field for B elements of N bodies, P contact pairs and M stored
     contacts per element (``solvers.unpack`` rebuilds the same views inside the kernels).
 
-    ``calendar``: the world steps with the exact solver's calendar (many bodies), which needs
+    ``calendar``: the world steps with the exact solver's calendar, or the fixed solver on its
+    pair lists (many bodies), which needs
     the calendar rows ``calf``, ``cali`` (:func:`calendar_widths`) and the pair index
     ``[N, N + 4]`` (the pair of two bodies, or of a body and cushion w at column N + w; -1:
     none); otherwise they are empty. ``rest``: the force components the cushions a body rests

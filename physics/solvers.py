@@ -40,12 +40,15 @@ import numpy as np
 from spinstrike.physics.calendar import (
     box_meets_wall,
     boxes_meet,
+    close_pairs,
     element_rows,
+    empty_heap,
     heap_remove,
     heap_set,
     near_time,
     sort_by_xmin,
     sort_ints,
+    speed_bound,
     stays_clear,
     swept_box,
     watch_insert,
@@ -87,6 +90,7 @@ from spinstrike.physics.layout import (
     FRICTION_DECEL,
     FX,
     FY,
+    H_P,
     HALF_H,
     HALF_LENGTH,
     HALF_W,
@@ -124,7 +128,7 @@ from spinstrike.physics.layout import (
 from spinstrike.physics.motion import flight
 
 __all__ = ["MAX_SWEEPS", "TRACE_COUNT", "Trace", "exact_element", "exact_many_element",
-           "fixed_element", "rests_on",
+           "fixed_element", "many_rows", "rests_on",
            "trace_state", "untraced"]
 
 #: sequential-impulse sweeps over simultaneous contacts at one event
@@ -323,11 +327,15 @@ def _flat_contact(p, S, Pm, a, b, is_wall, MAT, nx, ny, o1ax, o1ay, o1bx, o1by, 
 
 @jit_uncounted
 def _contact_pass(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, flat, contact_friction,
-                  changed, cpair, crec, stats):
-    """One sweep: resolve every pair within ``slop`` and approaching. Returns (any, resting)."""
+                  changed, cpair, crec, stats, listed, n_listed):
+    """One sweep: resolve every pair within ``slop`` and approaching, in pair order. Returns
+    (any, resting). ``listed``: None (every pair), or the pairs ``listed[:n_listed]`` in pair
+    order, a superset of those within ``slop`` (``calendar.close_pairs``): the same contacts
+    in the same order, for the others are left alone either way."""
     hit = False
     resting = 0
-    for p in range(PA.shape[0]):
+    for k in range(PA.shape[0] if listed is None else n_listed):
+        p = k if listed is None else listed[k]
         h, r = _contact(p, S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, flat,
                         contact_friction, changed, cpair, crec, stats)
         hit |= h
@@ -390,9 +398,10 @@ _jam_if = static_if(_jam, level=LEVEL_ONE_PAIR_FRICTION)
 
 @jit
 def _sweeps(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, flat, contact_friction, changed,
-            cpair, crec, stats, sweeps, jam):
+            cpair, crec, stats, sweeps, jam, listed, n_listed):
     """Up to ``sweeps`` contact passes until none hits; then, if ``jam`` and the last pass still
-    hit, the block solve of the jam. Returns the number of resting bounces seen.
+    hit, the block solve of the jam. Returns the number of resting bounces seen. ``listed``,
+    ``n_listed``: the pairs the passes visit (:func:`_contact_pass`).
 
     ``jam`` is a compile-time flag (``kernels.FLAGS``): a world whose contacts cannot jam (one
     contact pair, no contact friction) never compiles the block solve."""
@@ -400,7 +409,7 @@ def _sweeps(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, flat, contact
     hit = False
     for _ in range(sweeps):
         hit, r = _contact_pass(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, flat,
-                               contact_friction, changed, cpair, crec, stats)
+                               contact_friction, changed, cpair, crec, stats, listed, n_listed)
         resting += r
         if not hit:
             break
@@ -448,7 +457,7 @@ def _share(im, ii, c, equal):
 
 
 @jit
-def _separate(S, Pm, hw, PA, PB, weighted, rotate, slop):
+def _separate(S, Pm, hw, PA, PB, weighted, rotate, slop, listed, n_listed):
     """Push overlapping pairs apart along the normal, in proportion to their inverse masses
     (``weighted``), or in equal shares between the movable bodies of a pair.
 
@@ -456,7 +465,9 @@ def _separate(S, Pm, hw, PA, PB, weighted, rotate, slop):
     are pushed ``slop / 2`` beyond touching: pushed to a gap of exactly 0, their cores still
     touch, and round-off can leave them crossed (a settle left two bare rods crossed by 3e-17 m).
 
-    One sweep in pair order; returns the deepest overlap it corrected (0 if none). A sweep can
+    One sweep in pair order (every pair, or ``listed[:n_listed]``, a superset of the pairs that
+    overlap: :func:`_contact_pass`); returns the deepest overlap it corrected (0 if none) and the
+    sum of the overlaps it corrected, a bound on how far it moved any body's centre. A sweep can
     push a body into a third one (a puck pressed between the mallet and a cushion), so callers
     that must leave no overlap repeat it (``_substep``'s ``separate_sweeps``). Repeated
     sweeps use equal shares: with inverse-mass shares a light body pinned between a heavy one
@@ -471,7 +482,9 @@ def _separate(S, Pm, hw, PA, PB, weighted, rotate, slop):
     """
     n = S.shape[0]
     deepest = 0.0
-    for p in range(PA.shape[0]):
+    moved = 0.0
+    for k in range(PA.shape[0] if listed is None else n_listed):
+        p = k if listed is None else listed[k]
         a, b, wall = pair_bodies(p, PA, PB, n)
         g, nx, ny, oax, oay, _, obx, oby, _, _ = pair_geometry(S, Pm, a, b, wall, hw[HALF_W],
                                                                hw[HALF_H])
@@ -491,6 +504,7 @@ def _separate(S, Pm, hw, PA, PB, weighted, rotate, slop):
             if total > 0.0:
                 if -g > deepest:
                     deepest = -g
+                moved -= g
                 depth = -g / total
                 S[a, X] -= nx * depth * ta
                 S[a, Y] -= ny * depth * ta
@@ -501,14 +515,16 @@ def _separate(S, Pm, hw, PA, PB, weighted, rotate, slop):
                     S[b, Y] += ny * depth * tb
                     if rb > 0.0:
                         S[b, ANGLE] += depth * rb / cb
-    return deepest
+    return deepest, moved
 
 
 @jit
-def _cores_crossed(S, Pm, PA, PB):
-    """Whether any two rods' cores cross (``contacts.cores_cross``)."""
+def _cores_crossed(S, Pm, PA, PB, listed, n_listed):
+    """Whether any two rods' cores cross (``contacts.cores_cross``): of every pair, or of
+    ``listed[:n_listed]``, a superset of the pairs that overlap (:func:`_contact_pass`)."""
     n = S.shape[0]
-    for p in range(PA.shape[0]):
+    for k in range(PA.shape[0] if listed is None else n_listed):
+        p = k if listed is None else listed[k]
         a = PA[p]
         b = PB[p]
         if b < n and cores_cross(S[a, X], S[a, Y], S[a, ANGLE], Pm[a, HALF_LENGTH],
@@ -544,7 +560,7 @@ def _kick(S, Pm, F, h, rotation, table_friction):
 @jit
 def _substep(S, Pm, F, hw, PA, PB, MAT, h, t, iterations, slop, rotation, flat, contact_friction,
              table_friction, cpair, crec, stats, changed, separate_sweeps, rotate, jam, trace,
-             closed_form):
+             closed_form, rows):
     """One fixed substep of h seconds, ending at time t: forces and drift (:func:`_kick`; with
     ``closed_form``, the exact solver's settling, the closed-form flight :func:`_advance`, so a
     body that meets nothing in the settled rest of a step keeps its exact path: Euler's kick
@@ -556,18 +572,43 @@ def _substep(S, Pm, F, hw, PA, PB, MAT, h, t, iterations, slop, rotation, flat, 
     (``rotate``: turning the bodies too, :func:`_separate`) or while it leaves two rods' cores
     crossed. (A push of less than ``slop`` can cross bare rods that touch: one pair's correction
     crossed two bare rods in a pile of twelve bodies by 4e-12 m, and the last sweep, which
-    corrected nothing deeper than ``slop``, handed them on crossed.)"""
+    corrected nothing deeper than ``slop``, handed them on crossed.)
+
+    ``rows``: None, every pass visits every pair; or a many-body world's scratch
+    (:func:`_settle_rows`), and the passes visit the pairs that may be close enough to matter
+    (``calendar.close_pairs``), with the same outcome bit for bit. The list holds every pair
+    within ``slop + margin`` after the drift; the impulses move no body, and the list is made
+    again whenever the positional correction may have moved a body by ``margin`` since."""
     if closed_form:
         _advance(S, Pm, F, h, rotation, table_friction)
     else:
         _kick(S, Pm, F, h, rotation, table_friction)
-    _sweeps(S, Pm, hw, PA, PB, MAT, slop, 0.0, t, rotation, flat, contact_friction, changed,
-            cpair, crec, stats, iterations, jam)
-    for sweep in range(separate_sweeps):
-        deepest = _separate(S, Pm, hw, PA, PB, sweep == 0, rotate, slop)
-        if deepest <= slop and (deepest == 0.0 or sweep + 1 == separate_sweeps
-                                or not _cores_crossed(S, Pm, PA, PB)):
-            break
+    if rows is None:
+        _sweeps(S, Pm, hw, PA, PB, MAT, slop, 0.0, t, rotation, flat, contact_friction, changed,
+                cpair, crec, stats, iterations, jam, None, 0)
+        for sweep in range(separate_sweeps):
+            deepest, _ = _separate(S, Pm, hw, PA, PB, sweep == 0, rotate, slop, None, 0)
+            if deepest <= slop and (deepest == 0.0 or sweep + 1 == separate_sweeps
+                                    or not _cores_crossed(S, Pm, PA, PB, None, 0)):
+                break
+    else:
+        pidx, box, order, seen, listed, margin = rows
+        n_listed = close_pairs(S, Pm, F, hw, slop + margin, 1.0, 0.0, pidx, box, order, seen,
+                               listed)
+        _sweeps(S, Pm, hw, PA, PB, MAT, slop, 0.0, t, rotation, flat, contact_friction, changed,
+                cpair, crec, stats, iterations, jam, listed, n_listed)
+        moved = 0.0
+        for sweep in range(separate_sweeps):
+            deepest, by = _separate(S, Pm, hw, PA, PB, sweep == 0, rotate, slop, listed,
+                                    n_listed)
+            moved += by
+            if moved > margin:
+                n_listed = close_pairs(S, Pm, F, hw, slop + margin, 1.0, 0.0, pidx, box, order,
+                                       seen, listed)
+                moved = 0.0
+            if deepest <= slop and (deepest == 0.0 or sweep + 1 == separate_sweeps
+                                    or not _cores_crossed(S, Pm, PA, PB, listed, n_listed)):
+                break
     if trace is not None:  # the trace hook
         trace_state(trace, t, S)
 
@@ -575,19 +616,21 @@ def _substep(S, Pm, F, hw, PA, PB, MAT, h, t, iterations, slop, rotation, flat, 
 @jit
 def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, rotation, flat,
                   contact_friction, table_friction, cpair, crec, stats, changed,
-                  separate_sweeps, jam, trace):
+                  separate_sweeps, jam, trace, rows):
     """Advance one element by T seconds in ``substeps`` fixed substeps (:func:`_substep`).
 
     ``separate_sweeps``: positional-correction sweeps per substep; the fixed solver uses 1
     (its documented, cheap behaviour; the exact solver's settling, :func:`_settle`, repeats
     them). ``jam``: the sweeps end in the block solve of a jam. ``trace``: the trace hook (a
-    ``Trace``: the state after every substep), or None.
+    ``Trace``: the state after every substep), or None. ``rows``: None, every pass visits every
+    pair; or a many-body world's scratch (:func:`many_rows`), and the passes visit only the
+    pairs close enough to touch, with the same outcome (:func:`_substep`).
     """
     h = T / substeps
     for k in range(substeps):
         _substep(S, Pm, F, hw, PA, PB, MAT, h, t0 + (k + 1) * h, iterations, slop, rotation, flat,
                  contact_friction, table_friction, cpair, crec, stats, changed,
-                 separate_sweeps, rotation and separate_sweeps > 1, jam, trace, False)
+                 separate_sweeps, rotation and separate_sweeps > 1, jam, trace, False, rows)
     stats[STAT_SUBSTEPS] += substeps
 
 
@@ -715,13 +758,6 @@ def _int(value):
 
 
 @jit_inline
-def _speed_bound(S, Pm, F, i, T):
-    """Fastest a point of body i's core can move within T: centre, spin, applied force."""
-    return (math.sqrt(S[i, VX] ** 2 + S[i, VY] ** 2) + abs(S[i, OMEGA]) * Pm[i, HALF_LENGTH]
-            + math.sqrt(F[i, FX] ** 2 + F[i, FY] ** 2) * Pm[i, INV_MASS] * T)
-
-
-@jit_inline
 def _out_of_reach(S, Pm, a, b, wall, hw, closing, T, size):
     """Whether bodies a and b (b unused for cushion ``wall`` >= 0) provably cannot meet within
     T: their bounding circles (centre, radius plus half-length) are farther apart than the
@@ -739,7 +775,7 @@ def _out_of_reach(S, Pm, a, b, wall, hw, closing, T, size):
 
 
 @jit
-def _settle_substeps(S, Pm, F, hw, PA, PB, T, settle_substep):
+def _settle_substeps(S, Pm, F, hw, PA, PB, T, settle_substep, rows):
     """Substeps for settling, so that no pair closes by more than it can overlap undetected.
 
     Only pairs that can meet within T count (:func:`_out_of_reach`): a 0.1 mm post that no
@@ -755,33 +791,50 @@ def _settle_substeps(S, Pm, F, hw, PA, PB, T, settle_substep):
     back by the positional correction, not bounced: a puck at 1e5 m/s in a 1 m box, left to
     the settle by ``max_events``, moved 60 m a substep and ended squashed into a corner. So a
     body moves at most half its reach a substep against the cushions too.
+
+    ``rows``: None, or a many-body world's scratch (:func:`_settle_rows`): then only the pairs
+    whose boxes of twice their reach plus their flight within T overlap are checked
+    (``calendar.close_pairs``), a superset of the pairs that are not out of reach, and the
+    result is the same.
     """
-    n = S.shape[0]
     h = settle_substep
-    for p in range(PA.shape[0]):
-        a = PA[p]
-        b = PB[p]
-        if b >= n:
-            reach = Pm[a, RADIUS] + Pm[a, HALF_LENGTH]
-            closing = _speed_bound(S, Pm, F, a, T)
-            if closing > 0.0 and 0.5 * reach / closing < h and not _out_of_reach(
-                    S, Pm, a, a, b - n, hw, closing, T, reach):
-                h = 0.5 * reach / closing
-            continue
-        size = Pm[a, RADIUS] + Pm[b, RADIUS]
-        if Pm[a, HALF_LENGTH] > 0.0 and Pm[b, HALF_LENGTH] > 0.0:
-            # crossing cores are seen however thin the rods (capsule_capsule gives them their
-            # depth, the least distance of an end from the other's line, and the normal that
-            # uncrosses them): a rod 50 um thick against a bare one needed 5e6 substeps for a
-            # 1 s step. Before crossed cores had a depth they read as -(rho_a + rho_b) with no
-            # usable normal, and this bound let a substep cross them for good
-            size = max(size, min(Pm[a, HALF_LENGTH], Pm[b, HALF_LENGTH]))
-        closing = _speed_bound(S, Pm, F, a, T) + _speed_bound(S, Pm, F, b, T)
-        if closing > 0.0 and 0.5 * size / closing < h and not _out_of_reach(
-                S, Pm, a, b, -1, hw, closing, T, size):
-            h = 0.5 * size / closing
+    if rows is None:
+        for p in range(PA.shape[0]):
+            h = _pair_substep(S, Pm, F, hw, PA, PB, T, p, h)
+    else:
+        pidx, box, order, seen, listed, _ = rows
+        for k in range(close_pairs(S, Pm, F, hw, 0.0, 2.0, T, pidx, box, order, seen, listed)):
+            h = _pair_substep(S, Pm, F, hw, PA, PB, T, listed[k], h)
     steps = T / h
     return steps if steps >= 1.0 else 1.0  # not rounded nor capped (see _settle); NaN: 1
+
+
+@jit_inline
+def _pair_substep(S, Pm, F, hw, PA, PB, T, p, h):
+    """The substep ``h`` shortened, where pair p needs it, for :func:`_settle_substeps`."""
+    n = S.shape[0]
+    a = PA[p]
+    b = PB[p]
+    if b >= n:
+        reach = Pm[a, RADIUS] + Pm[a, HALF_LENGTH]
+        closing = speed_bound(S, Pm, F, a, T)
+        if closing > 0.0 and 0.5 * reach / closing < h and not _out_of_reach(
+                S, Pm, a, a, b - n, hw, closing, T, reach):
+            return 0.5 * reach / closing
+        return h
+    size = Pm[a, RADIUS] + Pm[b, RADIUS]
+    if Pm[a, HALF_LENGTH] > 0.0 and Pm[b, HALF_LENGTH] > 0.0:
+        # crossing cores are seen however thin the rods (capsule_capsule gives them their
+        # depth, the least distance of an end from the other's line, and the normal that
+        # uncrosses them): a rod 50 um thick against a bare one needed 5e6 substeps for a
+        # 1 s step. Before crossed cores had a depth they read as -(rho_a + rho_b) with no
+        # usable normal, and this bound let a substep cross them for good
+        size = max(size, min(Pm[a, HALF_LENGTH], Pm[b, HALF_LENGTH]))
+    closing = speed_bound(S, Pm, F, a, T) + speed_bound(S, Pm, F, b, T)
+    if closing > 0.0 and 0.5 * size / closing < h and not _out_of_reach(
+            S, Pm, a, b, -1, hw, closing, T, size):
+        return 0.5 * size / closing
+    return h
 
 
 @jit
@@ -795,7 +848,7 @@ def _plan(needed, budget):
 
 @jit
 def _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, sweeps, tol, rotation, flat,
-            contact_friction, table_friction, cpair, crec, stats, changed, jam, trace):
+            contact_friction, table_friction, cpair, crec, stats, changed, jam, trace, rows):
     """Settle the rest of the step (``t_now..dt``) in fixed substeps (:func:`_substep`, with
     ``sweeps`` impulse sweeps and positional-correction sweeps) and flag the element.
 
@@ -813,9 +866,12 @@ def _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, sweeps, tol, r
     ``MAX_FINAL_SEPARATE_SWEEPS`` times: in a plastic pile driven along a wedge (four disks
     pressed into a cushion corner) a sweep removes only ~1/6 of the overlap, and 64 sweeps left
     8.8e-9 m where the tolerance is 1e-9 m.
+
+    ``rows``: None, or a many-body world's scratch (:func:`_settle_rows`): each substep then
+    visits only the pairs close enough to touch (:func:`_substep`).
     """
     span = dt - t_now
-    n, capped = _plan(_settle_substeps(S, Pm, F, hw, PA, PB, span, settle_substep),
+    n, capped = _plan(_settle_substeps(S, Pm, F, hw, PA, PB, span, settle_substep, rows),
                       _int(MAX_SETTLE_SUBSTEPS))
     h = span / n
     t0 = t_now
@@ -826,12 +882,12 @@ def _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, sweeps, tol, r
         final = k == n
         _substep(S, Pm, F, hw, PA, PB, MAT, h, t0 + k * h, sweeps, tol, rotation, flat,
                  contact_friction, table_friction, cpair, crec, stats, changed,
-                 MAX_FINAL_SEPARATE_SWEEPS if final else sweeps, rotation, jam, trace, True)
+                 MAX_FINAL_SEPARATE_SWEEPS if final else sweeps, rotation, jam, trace, True, rows)
         total += 1
         if final:
             break
         left = (n - k) * h
-        needed = _settle_substeps(S, Pm, F, hw, PA, PB, left, settle_substep)
+        needed = _settle_substeps(S, Pm, F, hw, PA, PB, left, settle_substep, rows)
         if needed > (n - k) * (1.0 + 1e-9):  # faster than planned (not round-off): plan again
             m, c = _plan(needed, MAX_SETTLE_SUBSTEPS - total)
             capped |= c
@@ -1169,7 +1225,8 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
             resting += _stalled_in_contact(best, S, Pm, hw, PA, PB, tol)
         else:
             resting += _sweeps(S, Pm, hw, PA, PB, MAT, tol, zeno_speed, t_now, rotation, flat,
-                               contact_friction, changed, cpair, crec, stats, sweeps, jam)
+                               contact_friction, changed, cpair, crec, stats, sweeps, jam, None,
+                               0)
             _rest_on_cushions(S, Pm, F, hw, PA, PB, MAT, rest, changed, tol, zeno_speed,
                               contact_friction, table_friction)
             if trace is not None:  # the trace hook
@@ -1197,7 +1254,7 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
             if t_now < dt:
                 _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, sweeps, tol,
                         rotation, flat, contact_friction, table_friction, cpair, crec, stats,
-                        changed, jam, trace)
+                        changed, jam, trace, None)
             break
     _end_rests(F, rest)
     stats[STAT_EVENTS] += events
@@ -1368,9 +1425,38 @@ def exact_many_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_itera
     if settle:
         _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, _int(MAX_SWEEPS), tol,
                 rotation, flat, contact_friction, table_friction, cpair, crec, stats, changed,
-                LEVEL_MANY_BODIES, trace)
+                LEVEL_MANY_BODIES, trace, _settle_rows(Pm, cnt, heap, hpos, box, order, pidx))
     stats[STAT_EVENTS] += events
     stats[STAT_ITERATIONS] += iterations
+
+
+#: share of the smallest body's reach by which a settle's pair list reaches beyond the tolerance
+#: (``_settle_rows``): a wider list visits more pairs, a narrower one is made again more often
+SETTLE_LIST_MARGIN = 0.25
+
+
+@jit_inline
+def _settle_rows(Pm, cnt, heap, hpos, box, order, pidx):
+    """A many-body world's calendar rows as the scratch of the settle that ends its step
+    (``rows`` of :func:`_substep`): (pair index, boxes, body order, scratch [N], pair list
+    [P], margin). The calendar is emptied: its heap holds the pair list, and the first N heap
+    positions (zero again after each use) are the sort's scratch. The margin is
+    ``SETTLE_LIST_MARGIN`` of the smallest reach (0 for bodies of no size)."""
+    empty_heap(cnt, heap, hpos)
+    n = Pm.shape[0]
+    reach = math.inf
+    for i in range(n):
+        reach = min(reach, Pm[i, HALF_LENGTH] + Pm[i, RADIUS])
+    return pidx, box, order, hpos[:n], heap, SETTLE_LIST_MARGIN * reach
+
+
+@jit_inline
+def many_rows(Pm, fbuf, ibuf, b):
+    """Element b's calendar rows in a many-body world's buffers as the pair lists' scratch
+    (``rows`` of :func:`fixed_element`, :func:`_settle_rows`)."""
+    _, box, cnt, heap, hpos, _, _, _, order, pidx = element_rows(fbuf, ibuf, b, Pm.shape[0],
+                                                                 ibuf[H_P])
+    return _settle_rows(Pm, cnt, heap, hpos, box, order, pidx)
 
 
 @jit_uncounted

@@ -310,8 +310,10 @@ class World:
 
         pairs = self._pair_list()
         self._pair_rows: dict[tuple[str, str], np.ndarray] = {}
-        #: the exact solver steps on its broadphase and event calendar (many bodies)
-        self._calendar = (isinstance(self.solver, ExactSolver)
+        #: many bodies: the exact solver steps on its broadphase and event calendar, and its
+        #: settling and the fixed solver visit only the pairs close enough to touch (lists made
+        #: in the calendar's rows)
+        self._calendar = (isinstance(self.solver, (ExactSolver, FixedSolver))
                           and self.n_bodies >= CALENDAR_BODIES)
         self._alloc_buffers(len(pairs[0]))
         size = table.size if table.size is not None else (math.inf, math.inf)

@@ -1,6 +1,6 @@
 """The speed benchmark's bodies sweep, as a user runs it alone (``--section bodies``): it writes
-the bodies section of ``speed.md`` and its plot, with exact and raw pymunk rows from the same
-run, and a second run replaces that section instead of adding one."""
+the bodies section of ``speed.md`` and its plot, with exact, fixed-solver and raw pymunk rows
+from the same run, and a second run replaces that section instead of adding one."""
 
 from __future__ import annotations
 
@@ -24,6 +24,8 @@ def test_the_bodies_section_is_written_and_replaced(tmp_path):
         exact, p10, ratio = float(r[1]), float(r[5]), float(r[6])
         assert exact > 0 and p10 > 0
         assert abs(ratio - exact / p10) <= 0.01 + 0.01 * ratio
+        fixed, fixed_ratio = float(r[7]), float(r[8])  # the fixed solver's column
+        assert fixed > 0 and abs(fixed_ratio - fixed / p10) <= 0.01 + 0.01 * fixed_ratio
     assert (tmp_path / "speed_bodies.png").stat().st_size > 0
 
 

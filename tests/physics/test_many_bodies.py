@@ -209,3 +209,59 @@ def test_a_large_world_gets_events_enough_to_stay_exact():
     capped = physics.World(_puck_gas(16, max_events=1000))
     capped.step(0.01)
     assert capped.last_step.fallback[0] and capped.last_step.events[0] == 1000
+
+
+def _inelastic_pile(n: int) -> dict:
+    """n pucks (2 mm and 1 cm) and bare rods, masses 1e-3 to 1e3 kg, thrown at the centre of a
+    walled box at e = 0: a collapse whose steps are mostly settled, with corrections deep
+    enough to move a body by more than the pair list's margin (a quarter of the 2 mm puck's
+    reach)."""
+    rng = np.random.default_rng(3)
+    side = math.ceil(math.sqrt(n))
+    bodies = []
+    for k in range(n):
+        x, y = (k % side - (side - 1) / 2) * 0.03, (k // side - (side - 1) / 2) * 0.03
+        body = {"name": f"b{k}", "mass": float(10 ** rng.uniform(-3, 3)), "position": [x, y],
+                "velocity": [-20 * x, -20 * y]}
+        if k % 3 == 2:
+            body.update(shape="rod", length=0.02, thickness=0.0, angle=float(rng.uniform(0, 3)))
+        else:
+            body.update(shape="disk", radius=float(rng.choice([0.002, 0.01])))
+        bodies.append(body)
+    size = 0.03 * side + 0.05
+    return {"effects": ["rotation", "walls"], "table": {"size": [size, size]},
+            "materials": {"restitution": 0.0}, "bodies": bodies}
+
+
+@pytest.mark.parametrize("solver", [None, {"mode": "fixed", "substeps": 4}],
+                         ids=["exact settle", "fixed"])
+@pytest.mark.parametrize("n", [12, 80])
+def test_settles_and_fixed_substeps_visit_close_pairs_only_bit_for_bit(solver, n):
+    """From ``layout.CALENDAR_BODIES`` bodies the exact solver's settling and the fixed solver
+    sweep only the pairs close enough to touch (``calendar.close_pairs``, made after each
+    substep's drift and again whenever the positional correction may have moved a body by the
+    list's margin), not all N^2 pairs: 12x faster settled steps at 400 bodies, 100x faster
+    fixed steps. Stepped with every pair visited, the same world must give the same states bit
+    for bit. (With ``NUMBA_DISABLE_JIT`` the 12-body pile was seen to remake the list within a
+    correction: 9 times in its first 114 settling substeps, and 15 times in 40 fixed ones.)"""
+    scene = _inelastic_pile(n)
+    if solver is not None:
+        scene["solver"] = solver
+    batch = 2
+    fast = physics.World(scene, batch_size=batch)
+    plain = _scan_world(scene, batch_size=batch)
+    assert fast.flags.jam == layout.LEVEL_MANY_BODIES
+    assert plain.flags.jam == layout.LEVEL_CAN_JAM
+    vel = fast.state.velocities.copy()
+    vel[1] *= -0.5  # the second element flies apart first, then back against the cushions
+    for w in (fast, plain):
+        w.set_state(velocities=vel)
+    settled = 0
+    for _ in range(30):
+        fast.step(0.01)
+        plain.step(0.01)
+        np.testing.assert_array_equal(fast.get_state()["state"], plain.get_state()["state"])
+        np.testing.assert_array_equal(fast.last_step.contacts, plain.last_step.contacts)
+        settled += int(np.count_nonzero(fast.last_step.fallback))
+    if solver is None:
+        assert settled >= 20  # the settle ran
