@@ -189,7 +189,9 @@ def _goal_width(cfg) -> None:
     paid = math.exp(-0.5 * ((GOAL_BOUND - 1.0) / cfg.reward_width) ** 2)
     if paid > GOAL_CLIP_REWARD:
         widest = (GOAL_BOUND - 1.0) / math.sqrt(-2.0 * math.log(GOAL_CLIP_REWARD))
-        raise ValueError(f"reward_width: with obs_mode='dict' at most {widest:.3f} (got "
+        # printed rounded down: 0.76096 printed as 0.761 refused 0.761 "at most 0.761"
+        raise ValueError(f"reward_width: with obs_mode='dict' at most "
+                         f"{math.floor(widest * 1e4) / 1e4:.4f} (got "
                          f"{cfg.reward_width}): the achieved goal is clipped at {GOAL_BOUND:g} "
                          f"times the largest target, where this width still pays {paid:.2g}, "
                          f"so a result beyond it would be paid as if on it")

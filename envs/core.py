@@ -201,9 +201,10 @@ class Task(ABC):
             w, h = self.cfg.obs_size
             return spaces.Box(0, 255, (h, w, 3), dtype=np.uint8)
         if self.GOAL is None:
+            name = type(self).__name__.removesuffix("Task")
             raise ConfigError(f"obs_mode: 'dict' needs a goal-conditioned env (the strike "
-                              f"envs with goal='target'); {type(self).__name__} has no goal: "
-                              f"use 'vector' or 'pixels'")
+                              f"envs with goal='target'); the {name} envs have no goal: use "
+                              f"'vector' or 'pixels'")
         keep = np.ones(len(self.LAYOUT), bool)
         keep[self.GOAL] = False
         glow = np.array([f.low for f in self.ACHIEVED], np.float32)

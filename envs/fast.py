@@ -58,6 +58,7 @@ from spinstrike.physics.layout import (
     REC_PX,
     REC_PY,
     REC_TIME,
+    REC_WATCHED_J,
     STAT_CONTACTS,
     STAT_FALLBACK,
     STAT_WATCHED,
@@ -204,22 +205,19 @@ def _pre(b, S, Pm, F, dt, tbuf, kcfg):
 
 
 @jit
-def _post(b, S, HW, PA, PB, cpair, crec, stats, n_stored, tbuf, kcfg):
+def _post(b, S, HW, crec, stats, n_stored, tbuf, kcfg):
     """Hits on the target, reward, info and observation after the step."""
     row = tbuf[b]
     Sb = S[b]
     im = int(kcfg[K_MALLET])
     it = int(kcfg[K_TARGET])
     after = _measure(Sb, it, kcfg)
-    # every mallet-target impulse (the world watches the pair): the records keep the first
-    # max_contacts of a step, and a settled rod pressed into a cushion made 90 (32 counted);
-    # their impulse from the records, which hold nearly every step's whole (CONTROL_CONTACTS)
+    # every mallet-target impulse (the world watches the pair), counted and summed by the solver
+    # whether or not the records, which keep a step's first max_contacts, hold it: a mallet
+    # pushing the rod at e = 0 makes ~1,500 contacts in a settled step, and the sum of the
+    # stored ones was a median 0.11 of the whole
     hits = stats[b, STAT_WATCHED]
-    impulse = 0.0
-    for k in range(min(stats[b, STAT_CONTACTS], n_stored)):
-        p = cpair[b, k]
-        if (PA[p] == im and PB[p] == it) or (PA[p] == it and PB[p] == im):
-            impulse += crec[b, k, REC_J]
+    impulse = crec[b, n_stored, REC_WATCHED_J]
     row[T_REWARD] = (after - row[T_BEFORE]) / kcfg[K_SCALE] if hits > 0 else 0.0
     row[T_HITS] = hits
     row[T_IMPULSE] = impulse
@@ -254,7 +252,7 @@ def control_body(fbuf, ibuf, tbuf, kcfg, start, stop, fixed, rotation, cf, tf, j
     for b in range(start, stop):
         _pre(b, v.S, v.Pm, v.F, dt, tbuf, kcfg)
         step_element(v, b, dt, fixed, rotation, cf, tf, jam, flat, off)
-        _post(b, v.S, v.HW, v.PA, v.PB, v.cpair, v.crec, v.stats, n_stored, tbuf, kcfg)
+        _post(b, v.S, v.HW, v.crec, v.stats, n_stored, tbuf, kcfg)
     return True
 
 
@@ -289,7 +287,7 @@ def control_post(fbuf, ibuf, tbuf, kcfg):
     """The step's last stage alone, after the backend stepped the world."""
     v = unpack(fbuf, ibuf)
     for b in range(ibuf[H_B]):
-        _post(b, v.S, v.HW, v.PA, v.PB, v.cpair, v.crec, v.stats, ibuf[H_M], tbuf, kcfg)
+        _post(b, v.S, v.HW, v.crec, v.stats, ibuf[H_M], tbuf, kcfg)
 
 
 @jit

@@ -195,9 +195,15 @@ class _StrikeTask(Task):
     def _check_caption_fits(self, cfg) -> None:
         """A pixel observation shows the goal only in its caption: refuse an ``obs_size`` too
         narrow for it (at 84 x 84 the caption stopped before 'target', and a CNN trained on a
-        task it could not see)."""
-        caption = self._caption_text(0.0, -np.asarray(self._widest_goal(cfg), float))
-        lack = Renderer(cfg.obs_size, (1.0, 1.0)).text_fits(caption)
+        task it could not see). Every sign of the widest goal is measured: in the font a '+' is
+        wider than a '-', and at the width the negative goal needed a positive one's last digit
+        was cut."""
+        widest = np.asarray(self._widest_goal(cfg), float)
+        renderer = Renderer(cfg.obs_size, (1.0, 1.0))
+        lack, caption = max(
+            (renderer.text_fits(text), text) for text in (
+                self._caption_text(0.0, widest * np.reshape(signs, widest.shape))
+                for signs in itertools.product((1.0, -1.0), repeat=widest.size)))
         if lack:
             w, h = cfg.obs_size
             raise ConfigError(
@@ -1009,8 +1015,8 @@ _RENDERING = """    ## Rendering
     (480 x 320), without overlays: the bodies (a spinning body with its arc arrow, as in the
     video) at one scale for every state (set by the largest
     target the config and its ``randomize`` ranges allow) and a caption, the only place they
-    show the goal (``obs_size`` too narrow for it is refused: RodSpin needs ~153 pixels of
-    width, PuckSpeed ~216).
+    show the goal (``obs_size`` too narrow for it is refused: RodSpin needs ~155 pixels of
+    width, PuckSpeed ~220).
 
 """
 RodSpinEnv.__doc__ = RodSpinEnv.__doc__.format(

@@ -82,6 +82,7 @@ from spinstrike.physics.layout import (
     REC_COLUMNS,
     REC_J,
     REC_JT,
+    REC_WATCHED_J,
     STAT_COLUMNS,
     STAT_FALLBACK,
     STAT_WATCH,
@@ -249,6 +250,7 @@ def step_element(v, b, dt, fixed, rotation, contact_friction, table_friction, ja
     m = v.cpair.shape[1]  # the sums of the contacts beyond the records
     v.crec[b, m, REC_J] = 0.0
     v.crec[b, m, REC_JT] = 0.0
+    v.crec[b, m, REC_WATCHED_J] = 0.0
     v.clock[b] += dt
     _fixed_if(fixed, v, b, dt, rotation, flat, contact_friction, table_friction, jam, trace)
     _exact_unless(fixed, v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,

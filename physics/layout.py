@@ -114,6 +114,10 @@ MATERIAL_COLUMNS = len(MATERIAL)
 RECORD = Table("contact record", "time", "px", "py", "nx", "ny", "j", "jt", prefix="REC_")
 REC_TIME, REC_PX, REC_PY, REC_NX, REC_NY, REC_J, REC_JT = RECORD
 REC_COLUMNS = len(RECORD)
+#: the column of row M (the sums row, which has no time) that holds the sum of ``j`` over every
+#: contact of the watched pair in the step, stored in the records or not (``World.watch``,
+#: ``last_step.watched_impulse``)
+REC_WATCHED_J = REC_TIME
 
 #: per-element statistics of the last step (``world.last_step``); ``watch`` is no statistic but
 #: the pair (index, -1: none) whose contacts ``watched`` counts, every one of them, stored in

@@ -100,6 +100,7 @@ from spinstrike.physics.layout import (
     REC_PX,
     REC_PY,
     REC_TIME,
+    REC_WATCHED_J,
     RESTITUTION,
     SPIN_DECEL,
     STAT_CONTACTS,
@@ -341,10 +342,11 @@ class PymunkBackend:
             k = ctx[2]
             ctx[2] = k + 1
             b = ctx[0]
-            if p == stats[b, STAT_WATCH]:  # counted also where the records are full
-                stats[b, STAT_WATCHED] += 1
             nx, ny = n.x, n.y
             j, jt = -(jx * nx + jy * ny), -(jy * nx - jx * ny)  # along n and t = (-ny, nx)
+            if p == stats[b, STAT_WATCH]:  # counted and summed also where the records are full
+                stats[b, STAT_WATCHED] += 1
+                crec[b, M, REC_WATCHED_J] += j
             if k >= M:  # the records are full: summed in row M (layout.RECORD)
                 crec[b, M, REC_J] += j
                 crec[b, M, REC_JT] += jt

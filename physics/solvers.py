@@ -109,6 +109,7 @@ from spinstrike.physics.layout import (
     REC_PX,
     REC_PY,
     REC_TIME,
+    REC_WATCHED_J,
     RESTITUTION,
     SPIN_DECEL,
     STAT_CONTACTS,
@@ -213,8 +214,9 @@ def _record(p, t, px, py, nx, ny, j, jt, cpair, crec, stats):
         crec[m, REC_J] += j
         crec[m, REC_JT] += jt
     stats[STAT_CONTACTS] = k + 1
-    if p == stats[STAT_WATCH]:  # counted also where the records are full
+    if p == stats[STAT_WATCH]:  # counted and summed also where the records are full
         stats[STAT_WATCHED] += 1
+        crec[m, REC_WATCHED_J] += j
 
 
 @jit_inline
@@ -519,6 +521,21 @@ def _separate(S, Pm, hw, PA, PB, weighted, rotate, slop, listed, n_listed):
 
 
 @jit
+def _deepest(S, Pm, hw, PA, PB, listed, n_listed):
+    """The deepest overlap of any pair now (0 if none): of every pair, or of
+    ``listed[:n_listed]``, a superset of the pairs that overlap (:func:`_contact_pass`)."""
+    n = S.shape[0]
+    deepest = 0.0
+    for k in range(PA.shape[0] if listed is None else n_listed):
+        p = k if listed is None else listed[k]
+        a, b, wall = pair_bodies(p, PA, PB, n)
+        g = pair_geometry(S, Pm, a, b, wall, hw[HALF_W], hw[HALF_H])[0]
+        if -g > deepest:
+            deepest = -g
+    return deepest
+
+
+@jit
 def _cores_crossed(S, Pm, PA, PB, listed, n_listed):
     """Whether any two rods' cores cross (``contacts.cores_cross``): of every pair, or of
     ``listed[:n_listed]``, a superset of the pairs that overlap (:func:`_contact_pass`)."""
@@ -569,10 +586,13 @@ def _substep(S, Pm, F, hw, PA, PB, MAT, h, t, iterations, slop, rotation, flat, 
     sequential impulses on the pairs within ``slop`` and approaching (``iterations`` sweeps,
     then the block solve of a jam if ``jam``), then positional correction, repeated up to
     ``separate_sweeps`` times while a sweep still corrects an overlap deeper than ``slop``
-    (``rotate``: turning the bodies too, :func:`_separate`) or while it leaves two rods' cores
-    crossed. (A push of less than ``slop`` can cross bare rods that touch: one pair's correction
-    crossed two bare rods in a pile of twelve bodies by 4e-12 m, and the last sweep, which
-    corrected nothing deeper than ``slop``, handed them on crossed.)
+    (``rotate``: turning the bodies too, :func:`_separate`), or leaves one (:func:`_deepest`),
+    or leaves two rods' cores crossed. (A push of less than ``slop`` can cross bare rods that
+    touch: one pair's correction crossed two bare rods in a pile of twelve bodies by 4e-12 m,
+    and the last sweep, which corrected nothing deeper than ``slop``, handed them on crossed.
+    And a correction that turns a rod moves its far end farther than the overlap it corrects:
+    at a tolerance of 1 mm a mallet pressing a rod had it handed on 1.4 mm deep in a cushion by a
+    sweep that corrected nothing deeper than 1 mm, a state ``World.restore`` then refused.)
 
     ``rows``: None, every pass visits every pair; or a many-body world's scratch
     (:func:`_settle_rows`), and the passes visit the pairs that may be close enough to matter
@@ -588,8 +608,9 @@ def _substep(S, Pm, F, hw, PA, PB, MAT, h, t, iterations, slop, rotation, flat, 
                 cpair, crec, stats, iterations, jam, None, 0)
         for sweep in range(separate_sweeps):
             deepest, _ = _separate(S, Pm, hw, PA, PB, sweep == 0, rotate, slop, None, 0)
-            if deepest <= slop and (deepest == 0.0 or sweep + 1 == separate_sweeps
-                                    or not _cores_crossed(S, Pm, PA, PB, None, 0)):
+            if deepest <= slop and (deepest == 0.0 or sweep + 1 == separate_sweeps or (
+                    _deepest(S, Pm, hw, PA, PB, None, 0) <= slop
+                    and not _cores_crossed(S, Pm, PA, PB, None, 0))):
                 break
     else:
         pidx, box, order, seen, listed, margin = rows
@@ -606,8 +627,9 @@ def _substep(S, Pm, F, hw, PA, PB, MAT, h, t, iterations, slop, rotation, flat, 
                 n_listed = close_pairs(S, Pm, F, hw, slop + margin, 1.0, 0.0, pidx, box, order,
                                        seen, listed)
                 moved = 0.0
-            if deepest <= slop and (deepest == 0.0 or sweep + 1 == separate_sweeps
-                                    or not _cores_crossed(S, Pm, PA, PB, listed, n_listed)):
+            if deepest <= slop and (deepest == 0.0 or sweep + 1 == separate_sweeps or (
+                    _deepest(S, Pm, hw, PA, PB, listed, n_listed) <= slop
+                    and not _cores_crossed(S, Pm, PA, PB, listed, n_listed))):
                 break
     if trace is not None:  # the trace hook
         trace_state(trace, t, S)

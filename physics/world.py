@@ -89,6 +89,7 @@ from spinstrike.physics.layout import (
     REC_PX,
     REC_PY,
     REC_TIME,
+    REC_WATCHED_J,
     RESTITUTION,
     SPIN_DECEL,
     STAT_CONTACTS,
@@ -226,6 +227,7 @@ class StepStats:
             allow within a step (a force of 10^14 N on a 0.3 kg disk in a 20 ms step).
         watched: impulses applied to the pair :meth:`World.watch` names, every one (also where
             there were more contacts than ``max_contacts`` records); 0 when none is watched.
+        watched_impulse: the sum of those impulses along their normals (N s), every one.
     """
 
     events: np.ndarray
@@ -235,6 +237,7 @@ class StepStats:
     fallback: np.ndarray
     capped: np.ndarray
     watched: np.ndarray
+    watched_impulse: np.ndarray
 
 
 class SimulationError(SceneError):
@@ -924,11 +927,12 @@ class World:
             code = st[:, STAT_FALLBACK]
             fallback = (code == FALLBACK_SETTLED) | (code == FALLBACK_CAPPED)
             capped = code == FALLBACK_CAPPED
-            for a in (st, fallback, capped):  # st: and so its columns
+            watched_impulse = self._crec[:, self.max_contacts, REC_WATCHED_J].copy()
+            for a in (st, fallback, capped, watched_impulse):  # st: and so its columns
                 a.flags.writeable = False
             self.__dict__["_last_step"] = StepStats(
                 st[:, STAT_EVENTS], st[:, STAT_ITERATIONS], st[:, STAT_SUBSTEPS],
-                st[:, STAT_CONTACTS], fallback, capped, st[:, STAT_WATCHED])
+                st[:, STAT_CONTACTS], fallback, capped, st[:, STAT_WATCHED], watched_impulse)
         return self._last_step
 
     @property

@@ -573,7 +573,7 @@ def test_dict_mode_needs_a_goal():
     with pytest.raises(ConfigError, match="obs_mode: 'dict' needs goal='target'"):
         gym.make("SpinStrike/RodSpin-v0", obs_mode="dict", goal="max")
     # a control env has no goal argument: the message does not send the user to one
-    with pytest.raises(ConfigError, match="RodSpinControlTask has no goal: use 'vector' or "):
+    with pytest.raises(ConfigError, match="the RodSpinControl envs have no goal: use 'vector' or "):
         gym.make("SpinStrike/RodSpinControl-v0", obs_mode="dict")
 
 
@@ -934,7 +934,8 @@ def test_control_info_counts_every_hit_of_a_step_with_many_contacts():
 def test_a_watched_pair_counts_every_impulse_beyond_the_records(solver):
     """``World.watch(a, b)``: ``last_step.watched`` counts the pair's impulses also where a
     step made more contacts than ``max_contacts`` records (a world's own contact list keeps
-    the first ones)."""
+    the first ones), and ``last_step.watched_impulse`` sums them (the control envs'
+    ``info["hit_impulse"]``)."""
     env = gym.make("SpinStrike/RodSpinControl-v0")
     env.reset(seed=0)
     _pin_rod_against_the_right_cushion(env)
@@ -950,8 +951,12 @@ def test_a_watched_pair_counts_every_impulse_beyond_the_records(solver):
     for _ in range(3):
         c = full.step(0.02)
         small.step(0.02)
-        want = sum(1 for a, b in zip(c.body_a, c.body_b, strict=True) if {a, b} == pair)
+        mine = [{a, b} == pair for a, b in zip(c.body_a, c.body_b, strict=True)]
+        want = sum(mine)
         assert small.last_step.watched[0] == full.last_step.watched[0] == want
+        total = c.impulse[np.asarray(mine, bool)].sum() if want else 0.0
+        assert small.last_step.watched_impulse[0] == full.last_step.watched_impulse[0]
+        assert full.last_step.watched_impulse[0] == pytest.approx(total, rel=1e-12, abs=0.0)
         assert small.last_contacts.dropped[0] == max(0, len(c.batch) - 4)
         counts.append(want)
     assert max(counts) > 4  # hits beyond the small world's records

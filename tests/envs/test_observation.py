@@ -154,7 +154,9 @@ def test_pixels_too_narrow_for_the_goal_are_refused_and_wide_enough_show_it(env_
     """A strike env's pixels show the goal only in their caption, which SB3's usual 84 x 84 cut
     off before 'target': two tasks gave the same pixels, and a CNN trained on a task it could
     not see. Such an ``obs_size`` is refused, naming the width needed; at that width two
-    targets give different captions."""
+    targets give different captions, and every caption fits: drawn in a frame 80 pixels wider,
+    none reaches beyond the width (it measured the negative widest goal only, and a '+' is
+    wider: 28 of 100 RodSpin and 66 of 100 PuckSpeed captions were cut)."""
     import re
 
     with pytest.raises(spinstrike.envs.ConfigError, match=r"obs_size: \(84, 84\) is too narrow"
@@ -168,6 +170,10 @@ def test_pixels_too_narrow_for_the_goal_are_refused_and_wide_enough_show_it(env_
         goals.append(env.unwrapped.task.goal[0].copy())
         captions.append(obs[:20, width // 2:])  # the caption's right half: the target
     assert not np.array_equal(*goals) and not np.array_equal(*captions)
+    wide = gym.make(env_id, obs_mode="pixels", obs_size=(width + 80, 84))
+    for seed in range(100):
+        beyond = wide.reset(seed=seed)[0][:16, width:].reshape(-1, 3)
+        assert (beyond == beyond[0]).all(), seed
 
 
 @pytest.mark.parametrize("env_id", STRIKE_IDS)
@@ -273,8 +279,13 @@ def test_dict_rewards_are_the_vector_ones_even_beyond_the_goal_bound(env_id, tar
     included (narrow, slow targets: many random strikes land beyond it)."""
     from spinstrike.envs.config import ConfigError
 
-    with pytest.raises(ConfigError, match=r"reward_width: with obs_mode='dict' at most 0\.761"):
-        gym.make(env_id, obs_mode="dict", reward_width=5.0, **target)
+    # the bound is printed rounded down (0.76096 was printed 0.761, and 0.761 was refused "at
+    # most 0.761"): the printed value is taken
+    for width in (5.0, 0.761):
+        with pytest.raises(ConfigError,
+                           match=r"reward_width: with obs_mode='dict' at most 0\.7609 \(got"):
+            gym.make(env_id, obs_mode="dict", reward_width=width, **target)
+    gym.make(env_id, obs_mode="dict", reward_width=0.7609, **target)
     kw = dict(reward_width=0.76, **target)
     vec = gym.make_vec(env_id, num_envs=1024, vectorization_mode="vector_entry_point", **kw)
     dic = gym.make_vec(env_id, num_envs=1024, vectorization_mode="vector_entry_point",
