@@ -69,9 +69,9 @@ from spinstrike.physics.layout import (
 )
 
 __all__ = ["BOX_MARGIN", "NEAR_SLACK", "box_meets_wall", "boxes_meet", "close_pairs",
-           "element_rows", "empty_heap", "heap_remove", "heap_set", "near_time", "rows",
-           "sort_by_xmin", "sort_ints", "speed_bound", "stays_clear", "swept_box",
-           "watch_insert", "watch_remove"]
+           "element_rows", "empty_heap", "find_sorted", "heap_remove", "heap_set", "listed_pairs",
+           "near_time", "reachable_pairs", "rows", "sort_by_xmin", "sort_ints", "speed_bound",
+           "stays_clear", "swept_box", "watch_insert", "watch_remove"]
 
 #: share of a body's reach added to its swept box: pairs that pass closer than this are
 #: searched (a search of a pair grazing past by little more than the tolerance takes many
@@ -259,26 +259,50 @@ def speed_bound(S, Pm, F, i, T):
 
 
 @jit_uncounted
-def close_pairs(S, Pm, F, hw, pad, reaches, T, pidx, box, order, seen, out):
-    """The pairs (in pair order, into ``out``; returns how many) of the bodies whose boxes
-    overlap, and of a body and a cushion its box reaches (sweep and prune along x): each body's
-    box is its centre plus ``reaches`` times its reach (a bounding circle, whatever its angle),
-    ``pad`` and, for T > 0, its :func:`speed_bound` over T seconds. A pair left out is farther
-    apart than the sum of its bodies' widenings (a body and a cushion, than the body's); every
-    pair is listed when a box is not finite. ``seen``: scratch [N], zero on return."""
-    n = S.shape[0]
+def close_pairs(S, Pm, hw, pad, pidx, box, order, seen, out):
+    """The pairs whose gap may be at most ``pad`` now (:func:`listed_pairs` of each body's
+    centre plus its reach, a bounding circle whatever its angle, and ``pad``): a pair left out
+    is more than ``pad`` apart (two bodies more than ``2 pad``)."""
     finite = True
-    for i in range(n):
-        half = (Pm[i, HALF_LENGTH] + Pm[i, RADIUS]) * reaches + pad
-        if T > 0.0:
-            half += speed_bound(S, Pm, F, i, T) * T
-        half *= 1.0 + NEAR_SLACK
-        finite &= math.isfinite(half) and math.isfinite(S[i, X]) and math.isfinite(S[i, Y])
-        box[i, BOX_XMIN] = S[i, X] - half
-        box[i, BOX_XMAX] = S[i, X] + half
-        box[i, BOX_YMIN] = S[i, Y] - half
-        box[i, BOX_YMAX] = S[i, Y] + half
-    if not finite:  # (NaN boxes cannot be sorted; the passes find nothing to do there anyway)
+    for i in range(S.shape[0]):
+        finite &= _box(S, Pm, i, Pm[i, HALF_LENGTH] + Pm[i, RADIUS] + pad, box)
+    return listed_pairs(hw, pidx, box, order, seen, out, finite)
+
+
+@jit_uncounted
+def reachable_pairs(S, Pm, F, hw, T, pidx, box, order, seen, out):
+    """The pairs whose bodies (or a body and a cushion) could come within their reach of each
+    other within T seconds (:func:`listed_pairs` of each body's centre plus twice its reach and
+    its :func:`speed_bound` over T): every pair left out is farther apart than the reaches and
+    flights of its bodies."""
+    finite = True
+    for i in range(S.shape[0]):
+        finite &= _box(S, Pm, i, 2.0 * (Pm[i, HALF_LENGTH] + Pm[i, RADIUS])
+                       + speed_bound(S, Pm, F, i, T) * T, box)
+    return listed_pairs(hw, pidx, box, order, seen, out, finite)
+
+
+@jit_inline
+def _box(S, Pm, i, half, box):
+    """Body i's box, its centre plus ``half`` (widened by ``NEAR_SLACK`` for round-off), into
+    ``box[i]``; whether it is finite."""
+    half *= 1.0 + NEAR_SLACK
+    box[i, BOX_XMIN] = S[i, X] - half
+    box[i, BOX_XMAX] = S[i, X] + half
+    box[i, BOX_YMIN] = S[i, Y] - half
+    box[i, BOX_YMAX] = S[i, Y] + half
+    return math.isfinite(half) and math.isfinite(S[i, X]) and math.isfinite(S[i, Y])
+
+
+@jit_uncounted
+def listed_pairs(hw, pidx, box, order, seen, out, finite):
+    """The pairs (in pair order, into ``out``; returns how many) of the bodies whose ``box``es
+    overlap, and of a body and a cushion its box reaches (sweep and prune along x, the bodies
+    re-sorted from ``order``); every pair when a box is not ``finite`` (NaN boxes cannot be
+    sorted; the passes find nothing to do there anyway). ``seen``: scratch [N], zero on
+    return."""
+    n = order.shape[0]
+    if not finite:
         for p in range(out.shape[0]):
             out[p] = p
         return out.shape[0]
@@ -392,7 +416,7 @@ def heap_remove(heap, hpos, cnt, toi, p):
 
 
 @jit_inline
-def _find(watch, size, p):
+def find_sorted(watch, size, p):
     """First index of the sorted ``watch[:size]`` whose pair is >= p."""
     lo = 0
     hi = size
@@ -412,7 +436,7 @@ def watch_insert(watch, watched, cnt, p):
         return
     watched[p] = 1
     size = cnt[CAL_WATCH_SIZE]
-    k = _find(watch, size, p)
+    k = find_sorted(watch, size, p)
     for m in range(size, k, -1):
         watch[m] = watch[m - 1]
     watch[k] = p
@@ -426,7 +450,7 @@ def watch_remove(watch, watched, cnt, p):
         return
     watched[p] = 0
     size = cnt[CAL_WATCH_SIZE]
-    k = _find(watch, size, p)
+    k = find_sorted(watch, size, p)
     for m in range(k, size - 1):
         watch[m] = watch[m + 1]
     cnt[CAL_WATCH_SIZE] = size - 1

@@ -43,9 +43,11 @@ from spinstrike.physics.calendar import (
     close_pairs,
     element_rows,
     empty_heap,
+    find_sorted,
     heap_remove,
     heap_set,
     near_time,
+    reachable_pairs,
     sort_by_xmin,
     sort_ints,
     speed_bound,
@@ -459,7 +461,7 @@ def _share(im, ii, c, equal):
 
 
 @jit
-def _separate(S, Pm, hw, PA, PB, weighted, rotate, slop, listed, n_listed):
+def _separate(S, Pm, hw, PA, PB, weighted, rotate, slop, rows, n_listed, moved):
     """Push overlapping pairs apart along the normal, in proportion to their inverse masses
     (``weighted``), or in equal shares between the movable bodies of a pair.
 
@@ -467,9 +469,17 @@ def _separate(S, Pm, hw, PA, PB, weighted, rotate, slop, listed, n_listed):
     are pushed ``slop / 2`` beyond touching: pushed to a gap of exactly 0, their cores still
     touch, and round-off can leave them crossed (a settle left two bare rods crossed by 3e-17 m).
 
-    One sweep in pair order (every pair, or ``listed[:n_listed]``, a superset of the pairs that
-    overlap: :func:`_contact_pass`); returns the deepest overlap it corrected (0 if none) and the
-    sum of the overlaps it corrected, a bound on how far it moved any body's centre. A sweep can
+    One sweep in pair order; returns the deepest overlap it corrected (0 if none), the pair
+    list's length and how far it may have moved a body since the list was made. ``rows``: None,
+    every pair; or a many-body world's scratch (:func:`_settle_rows`), whose list
+    ``listed[:n_listed]`` holds every pair within ``slop + margin`` when it was made, bodies
+    having moved by at most ``moved`` since (the sum of the overlaps corrected bounds how far a
+    correction moves a body's centre). Before a pair is visited with ``moved`` beyond the
+    margin, the list is made again and the sweep goes on from the pair after the last one it
+    visited: every pair it skips overlaps nothing when the sweep over every pair would have
+    visited it, and the outcome is the same bit for bit. (Checked only between sweeps, the fixed
+    solver's single sweep in an 80-body e = 0 pile pushed bodies farther than the margin and
+    skipped pairs that had come to overlap.) A sweep can
     push a body into a third one (a puck pressed between the mallet and a cushion), so callers
     that must leave no overlap repeat it (``_substep``'s ``separate_sweeps``). Repeated
     sweeps use equal shares: with inverse-mass shares a light body pinned between a heavy one
@@ -484,9 +494,23 @@ def _separate(S, Pm, hw, PA, PB, weighted, rotate, slop, listed, n_listed):
     """
     n = S.shape[0]
     deepest = 0.0
-    moved = 0.0
-    for k in range(PA.shape[0] if listed is None else n_listed):
-        p = k if listed is None else listed[k]
+    count = PA.shape[0] if rows is None else n_listed
+    k = 0
+    last = -1
+    while k < count:
+        if rows is None:
+            p = k
+        else:
+            pidx, box, order, seen, listed, margin = rows
+            if moved > margin:
+                count = close_pairs(S, Pm, hw, slop + margin, pidx, box, order, seen, listed)
+                moved = 0.0
+                k = find_sorted(listed, count, last + 1)
+                if k >= count:
+                    break
+            p = listed[k]
+        k += 1
+        last = p
         a, b, wall = pair_bodies(p, PA, PB, n)
         g, nx, ny, oax, oay, _, obx, oby, _, _ = pair_geometry(S, Pm, a, b, wall, hw[HALF_W],
                                                                hw[HALF_H])
@@ -517,7 +541,7 @@ def _separate(S, Pm, hw, PA, PB, weighted, rotate, slop, listed, n_listed):
                     S[b, Y] += ny * depth * tb
                     if rb > 0.0:
                         S[b, ANGLE] += depth * rb / cb
-    return deepest, moved
+    return deepest, count, moved
 
 
 @jit
@@ -607,25 +631,22 @@ def _substep(S, Pm, F, hw, PA, PB, MAT, h, t, iterations, slop, rotation, flat, 
         _sweeps(S, Pm, hw, PA, PB, MAT, slop, 0.0, t, rotation, flat, contact_friction, changed,
                 cpair, crec, stats, iterations, jam, None, 0)
         for sweep in range(separate_sweeps):
-            deepest, _ = _separate(S, Pm, hw, PA, PB, sweep == 0, rotate, slop, None, 0)
+            deepest, _, _ = _separate(S, Pm, hw, PA, PB, sweep == 0, rotate, slop, None, 0, 0.0)
             if deepest <= slop and (deepest == 0.0 or sweep + 1 == separate_sweeps or (
                     _deepest(S, Pm, hw, PA, PB, None, 0) <= slop
                     and not _cores_crossed(S, Pm, PA, PB, None, 0))):
                 break
     else:
         pidx, box, order, seen, listed, margin = rows
-        n_listed = close_pairs(S, Pm, F, hw, slop + margin, 1.0, 0.0, pidx, box, order, seen,
-                               listed)
+        n_listed = close_pairs(S, Pm, hw, slop + margin, pidx, box, order, seen, listed)
         _sweeps(S, Pm, hw, PA, PB, MAT, slop, 0.0, t, rotation, flat, contact_friction, changed,
                 cpair, crec, stats, iterations, jam, listed, n_listed)
         moved = 0.0
         for sweep in range(separate_sweeps):
-            deepest, by = _separate(S, Pm, hw, PA, PB, sweep == 0, rotate, slop, listed,
-                                    n_listed)
-            moved += by
-            if moved > margin:
-                n_listed = close_pairs(S, Pm, F, hw, slop + margin, 1.0, 0.0, pidx, box, order,
-                                       seen, listed)
+            deepest, n_listed, moved = _separate(S, Pm, hw, PA, PB, sweep == 0, rotate, slop,
+                                                 rows, n_listed, moved)
+            if moved > margin:  # (for the checks below, which read the list)
+                n_listed = close_pairs(S, Pm, hw, slop + margin, pidx, box, order, seen, listed)
                 moved = 0.0
             if deepest <= slop and (deepest == 0.0 or sweep + 1 == separate_sweeps or (
                     _deepest(S, Pm, hw, PA, PB, listed, n_listed) <= slop
@@ -825,7 +846,7 @@ def _settle_substeps(S, Pm, F, hw, PA, PB, T, settle_substep, rows):
             h = _pair_substep(S, Pm, F, hw, PA, PB, T, p, h)
     else:
         pidx, box, order, seen, listed, _ = rows
-        for k in range(close_pairs(S, Pm, F, hw, 0.0, 2.0, T, pidx, box, order, seen, listed)):
+        for k in range(reachable_pairs(S, Pm, F, hw, T, pidx, box, order, seen, listed)):
             h = _pair_substep(S, Pm, F, hw, PA, PB, T, listed[k], h)
     steps = T / h
     return steps if steps >= 1.0 else 1.0  # not rounded nor capped (see _settle); NaN: 1
