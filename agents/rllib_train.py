@@ -39,7 +39,7 @@ from spinstrike.agents.train import (
     finish_run,
     plot_learning_curve,
 )
-from spinstrike.envs.config import resolve_scene
+from spinstrike.envs import scene_as_read
 
 __all__ = ["load_rllib_policy", "module_policy", "ppo_config", "train_rllib"]
 
@@ -175,8 +175,8 @@ def train_rllib(env_id: str, *, config: str | Path | None = None, seed: int = 0,
     cfg = load_agent_config("ppo", env_id, config, overrides)
     if env_kwargs:
         cfg.env_kwargs = {**cfg.env_kwargs, **env_kwargs}
-    if "scene" in cfg.env_kwargs:  # config.yml records the scene, not a relative path
-        cfg.env_kwargs["scene"] = resolve_scene(cfg.env_kwargs["scene"])
+    # config.yml records the scene (the variant's too), not a path to a file that may change
+    cfg.env_kwargs = scene_as_read(env_id, cfg.env_kwargs)
     if cfg.normalize:
         raise AgentConfigError("normalize: not supported with --backend rllib")
     _refuse_render_mode(cfg.env_kwargs)

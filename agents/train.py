@@ -730,10 +730,10 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
         # a bad argument first, before "out exists"
         cfg.policy = cfg.raw["policy"] = _policy_for(cfg, check_env_kwargs(env_id,
                                                                             cfg.env_kwargs))
-        if "scene" in cfg.env_kwargs:  # config.yml records the scene, not a relative path
-            from spinstrike.envs.config import resolve_scene
+        # config.yml records the scene (the variant's too), not a path to a file that may change
+        from spinstrike.envs import scene_as_read
 
-            cfg.env_kwargs["scene"] = resolve_scene(cfg.env_kwargs["scene"])
+        cfg.env_kwargs = scene_as_read(env_id, cfg.env_kwargs)
         work = _work_dir(run_dir, resume, force)
     # what is not given: as the run's first command asked (resumed), else the default
     finish = {key: value if value is not None else recorded.get(key, FINISH[key])

@@ -23,7 +23,8 @@ import gymnasium as gym
 
 from spinstrike.envs.config import ConfigError
 
-__all__ = ["ENV_IDS", "ConfigError", "base_id", "describe", "native_vector", "variant_kwargs"]
+__all__ = ["ENV_IDS", "ConfigError", "base_id", "describe", "native_vector", "scene_as_read",
+           "variant_kwargs"]
 
 #: registered ids and a one-line description each
 ENV_IDS: dict[str, str] = {
@@ -129,6 +130,23 @@ def variant_kwargs(env_id: str) -> dict:
     if spec.max_episode_steps is not None:
         kwargs["max_episode_steps"] = spec.max_episode_steps
     return kwargs
+
+
+def scene_as_read(env_id: str, env_kwargs: dict) -> dict:
+    """``env_kwargs`` with the scene ``env_id``'s env is made with read in where it is a file:
+    the argument's, else the one a variant registers (``variant_kwargs``). A run's
+    ``config.yml`` records these, so a later edit of the file, or a run rebuilt in another
+    folder, changes nothing (a variant registered with ``scene="my_table.yaml"`` recorded no
+    scene, and ``evaluate`` silently rebuilt the table the file held then)."""
+    from spinstrike.envs.config import resolve_scene
+
+    out = dict(env_kwargs)
+    scene = out.get("scene", variant_kwargs(env_id).get("scene"))
+    if scene is not None:
+        read = resolve_scene(scene)
+        if "scene" in out or read is not scene:
+            out["scene"] = read
+    return out
 
 
 def native_vector(env_id: str) -> tuple[str, dict]:

@@ -432,8 +432,10 @@ def _drop_parameters_of_dropped_effects(data: dict, effects: list[str]) -> None:
                           if isinstance(b, dict) else b for b in data["bodies"]]
 
 
-def _check_bodies(data: dict, body_overrides: dict[str, dict]) -> None:
-    """The scene's bodies are the env's own (``body_overrides`` names them), each once."""
+def _check_bodies(data: dict, body_overrides: dict[str, dict],
+                  shapes: Mapping[str, tuple[str, str]] = MappingProxyType({})) -> None:
+    """The scene's bodies are the env's own (``body_overrides`` names them), each once, of the
+    shapes the task needs (``shapes``: name -> (shape, why))."""
     names = [b["name"] for b in data.get("bodies", [])]
     for name in names:
         if names.count(name) > 1:
@@ -447,7 +449,11 @@ def _check_bodies(data: dict, body_overrides: dict[str, dict]) -> None:
             f"scene: bodies: {extra} are not this env's: it places, observes and rewards only "
             f"{sorted(body_overrides)}, so other bodies would be moved at every reset (build "
             f"larger scenes with spinstrike.physics.World)")
-    for body in data.get("bodies", []):
+    for i, body in enumerate(data.get("bodies", [])):
+        shape, why = shapes.get(body["name"], (body.get("shape"), ""))
+        if body.get("shape") is not None and body.get("shape") != shape:
+            raise ConfigError(f"scene: bodies[{i}].shape: this env's {body['name']!r} must be a "
+                              f"{shape}: {why} (got {body.get('shape')!r})")
         pinned = [flag for flag in ("static", "pivot") if body.get(flag)]
         if pinned:  # refused here, not by every reset ("pivots cannot move")
             raise ConfigError(
@@ -469,15 +475,20 @@ def _check_needs(effects: list[str], needs: Mapping[str, str], refuses: Mapping[
 
 def build_scene(default: str, cfg: EnvConfig, body_overrides: dict[str, dict],
                 pair: tuple[str, str], needs: Mapping[str, str] = MappingProxyType({}),
-                refuses: Mapping[str, str] = MappingProxyType({})) -> Scene:
+                refuses: Mapping[str, str] = MappingProxyType({}),
+                shapes: Mapping[str, tuple[str, str]] = MappingProxyType({})) -> Scene:
     """Packaged (or user) scene with the env's overrides applied, validated once. ``pair``:
     the task's pair (target and striker or mallet), whose material ``restitution`` and
     ``friction`` set even where the scene names that pair (as ``randomize`` does). ``needs``:
     effects the task cannot do without, with why (a ConfigError where one is left out);
     ``refuses``: effects it cannot take, with why (checked before the scene is validated, whose
-    errors would otherwise ask for what the effect needs)."""
+    errors would otherwise ask for what the effect needs); ``shapes``: the shape each of the
+    task's bodies must have, with why (a RodSpin "rod" given as a disk earned 0 for every
+    action)."""
     data = load_packaged_scene(default) if cfg.scene is None else _scene_data(cfg.scene)
-    effects = list(cfg.effects) if cfg.effects is not None else list(data.get("effects", []))
+    # a scene that leaves ``effects`` out has the schema's default (rotation), as in World
+    effects = (list(cfg.effects) if cfg.effects is not None
+               else list(data.get("effects", Scene.model_fields["effects"].default)))
     if cfg.friction and "contact_friction" not in effects:
         effects.append("contact_friction")
     if cfg.table_friction and "table_friction" not in effects:
@@ -508,7 +519,7 @@ def build_scene(default: str, cfg: EnvConfig, body_overrides: dict[str, dict],
     data["materials"] = mats
     if cfg.table_friction is not None:
         data["table"] = dict(data.get("table", {}), friction=cfg.table_friction)
-    _check_bodies(data, body_overrides)
+    _check_bodies(data, body_overrides, shapes)
     _check_needs(effects, needs, refuses,
                  "effects" if cfg.effects is not None else "scene.effects")
     bodies = {b["name"]: b for b in data.get("bodies", [])}

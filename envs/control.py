@@ -51,6 +51,7 @@ class _ControlTask(Task):
     ACTIONS = ("force_x", "force_y")
     OBS_CLIPPED = True
     UNIFORMS = len(ControlConfig.RANDOMIZABLE) + 5
+    SHAPES = {"mallet": ("disk", "the agent drives a mallet disk (its angle is not observed)")}
     NEEDS = {"walls": "its mallet and target play on a walled table (the observation and the "
                       "resets are scaled to the cushions)"}
 
@@ -58,7 +59,8 @@ class _ControlTask(Task):
         super().__init__(cfg, batch_size, single)
         self.render_fps = int(round(1.0 / cfg.dt))
         overrides = {"mallet": {"mass": cfg.mallet_mass}, self.TARGET: {"mass": cfg.target_mass}}
-        scene = build_scene(self.SCENE, cfg, overrides, (self.TARGET, "mallet"), self.NEEDS)
+        scene = build_scene(self.SCENE, cfg, overrides, (self.TARGET, "mallet"), self.NEEDS,
+                            shapes=self.SHAPES)
         self.world = build_world(scene, batch_size, CONTROL_CONTACTS)
         w = self.world
         if not w.walls or not w.driven[w.index("mallet")]:
@@ -240,6 +242,9 @@ class _ControlTask(Task):
 class RodSpinControlTask(_ControlTask):
     TARGET = "rod"
     SCENE = "rod_control"
+    SHAPES = {**_ControlTask.SHAPES,
+              "rod": ("rod", "its reward is a rod's spin (a disk turns only by contact friction) "
+                             "and its observation a rod's")}
     NEEDS = {**_ControlTask.NEEDS,
              "rotation": "its reward is the rod's spin, which a scene without rotation never "
                          "changes (reward 0 for every action)"}

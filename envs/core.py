@@ -92,6 +92,8 @@ class Task(ABC):
     NEEDS: ClassVar[dict[str, str]] = {}
     #: effects the task cannot take, each with why
     REFUSES: ClassVar[dict[str, str]] = {}
+    #: the shape each of the task's bodies must have in a scene, with why (``build_scene``)
+    SHAPES: ClassVar[dict[str, tuple[str, str]]] = {}
 
     def __init__(self, cfg: EnvConfig, batch_size: int, single: bool = False) -> None:
         self.cfg = cfg

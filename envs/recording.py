@@ -32,13 +32,16 @@ __all__ = ["RecordEveryFrame", "VideoWriter", "tile"]
 
 #: file extensions :class:`VideoWriter` writes
 FORMATS = (".mp4", ".gif")
+#: the most frames per second a GIF keeps (viewers play a frame under 20 ms as 100 ms)
+GIF_MAX_FPS = 50.0
 
 
 class VideoWriter:
     """Write frames (``(H, W, 3)`` uint8, all of one size) to ``path``: ``.mp4`` (H.264, yuv420p,
     streamed to ffmpeg; an odd width or height is padded by one pixel, which yuv420p needs) or
     ``.gif`` (Pillow, looping, written on :meth:`close`; Pillow merges identical consecutive
-    frames into one of their summed duration).
+    frames into one of their summed duration; above 50 fps only every k-th frame is kept, so
+    that each lasts 20 ms or more and viewers play it in real time).
 
     The frames go to ``<stem>.partial<suffix>`` beside ``path``, renamed to ``path`` by
     :meth:`close`: a recording stopped half way (Ctrl-C, an error) leaves no truncated video
@@ -116,10 +119,13 @@ class VideoWriter:
         if self._gif:
             from PIL import Image
 
-            images = [Image.fromarray(f) for f in self._gif]
+            # viewers show a GIF frame shorter than 20 ms for 100 ms (a 500 fps recording, a
+            # --dt of 0.002 s, played 10x slow): above 50 fps keep every k-th frame only
+            k = max(1, math.ceil(self.fps / GIF_MAX_FPS - 1e-9))
+            images = [Image.fromarray(f) for f in self._gif[::k]]
             # a GIF counts time in hundredths of a second: round the frames' cumulative times
             # to those, so that the whole lasts what it should (30 fps: 30, 30, 40, 30...)
-            ends = np.round(np.arange(len(images) + 1) * 100 / self.fps) * 10
+            ends = np.round(np.arange(len(images) + 1) * 100 * k / self.fps) * 10
             images[0].save(self._partial, save_all=True, append_images=images[1:], loop=0,
                            duration=np.diff(ends).astype(int).tolist(), optimize=True)
             self._gif = []

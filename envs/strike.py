@@ -84,7 +84,7 @@ class _StrikeTask(Task):
     def __init__(self, cfg, batch_size: int, single: bool = False) -> None:
         super().__init__(cfg, batch_size, single)
         scene = build_scene(self.SCENE, cfg, self._body_overrides(cfg),
-                            (self.TARGET, "striker"), self.NEEDS, self.REFUSES)
+                            (self.TARGET, "striker"), self.NEEDS, self.REFUSES, self.SHAPES)
         self.world = build_world(self._park_striker(scene), batch_size)
         w = self.world
         self._check_free_table(cfg)
@@ -155,6 +155,8 @@ class _StrikeTask(Task):
             self.restore(saved[1])
 
     GOAL_WIDTH: ClassVar[int] = 1
+    SHAPES = {"striker": ("disk", "the action launches a striker disk (its angle is neither set "
+                                  "nor observed)")}
     #: checked before the scene (which, given walls, asked for a table size first)
     REFUSES = {"walls": "a strike env measures the strike once no further contact can happen, "
                         "on an unbounded table, and cushions would turn the target first (it was "
@@ -525,6 +527,9 @@ class StrikeClip:
 class RodSpinTask(_StrikeTask):
     TARGET = "rod"
     SCENE = "rod_spin"
+    SHAPES = {**_StrikeTask.SHAPES,
+              "rod": ("rod", "its reward, observation, oracle and best_reward are a rod's (a "
+                             "struck disk turns only by contact friction)")}
     NEEDS = {"rotation": "its reward is the rod's spin, which a scene without rotation never "
                          "changes (reward 0 for every action)"}
     CONFIG = RodSpinConfig
@@ -654,6 +659,8 @@ class RodSpinTask(_StrikeTask):
 class PuckSpeedTask(_StrikeTask):
     TARGET = "puck"
     SCENE = "puck_speed"
+    SHAPES = {**_StrikeTask.SHAPES,
+              "puck": ("disk", "its oracle and best_reward invert a disk's closed forms")}
     CONFIG = PuckSpeedConfig
     LAYOUT = (
         ObsField("target_vx", -1.0, 1.0, "target velocity x / max of `target_speed`"),

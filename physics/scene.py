@@ -19,8 +19,10 @@ Example::
 
 from __future__ import annotations
 
+import difflib
 import math
 import re
+import typing
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -522,9 +524,52 @@ def _field_errors(err: ValidationError) -> Iterator[tuple[str, str, str]]:
             field, sep, rest = msg.partition(": ")
             if sep and _FIELD.fullmatch(field):  # our validators say "<field>: <message>"
                 loc, msg = (f"{loc}.{field}" if loc else field), rest
-        elif "input" in e and not isinstance(e["input"], dict):
+        elif e["type"] == "extra_forbidden":
+            msg = _unknown_field(e["loc"])
+        elif e["type"] == "tuple_type":  # a tuple field is a list in YAML and JSON
+            msg = "Input should be a list"
+        if (e["type"] not in ("union_tag_invalid", "union_tag_not_found", "value_error")
+                and "input" in e and not isinstance(e["input"], dict)):
             got = f" (got {e['input']!r})"
         yield loc or "scene", msg, got
+
+
+def _models_in(annotation: Any) -> list[type[BaseModel]]:
+    """The scene models a field's type holds (``tuple[Body, ...]`` -> [Body])."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    return [m for arg in typing.get_args(annotation) for m in _models_in(arg)]
+
+
+#: each scene section's model, by the name a user writes it under
+_SECTIONS = {"the scene's top level": Scene, "table": Table, "materials": Materials,
+             "materials.pairs[]": PairMaterial, "bodies[]": Body,
+             **{f"solver (mode {m.model_fields['mode'].default})": m
+                for m in (ExactSolver, FixedSolver, PymunkSolver)}}
+
+
+def _unknown_field(loc: tuple) -> str:
+    """What an unknown key at ``loc`` should have been: the fields allowed there, the nearest
+    spelling, or the sections that do have a field of that name (``gravity`` is the table's)."""
+    models: list[type[BaseModel]] = [Scene]
+    for part in loc[:-1]:
+        if isinstance(part, int):
+            continue
+        if part in SOLVERS:  # the member of the solver union pydantic tried
+            models = [m for m in _SECTIONS.values() if m.model_fields.get("mode") is not None
+                      and m.model_fields["mode"].default == part]
+            continue
+        models = [m for model in models if part in model.model_fields
+                  for m in _models_in(model.model_fields[part].annotation)]
+    if len(models) != 1:
+        return "unknown field"
+    key, allowed = str(loc[-1]), list(models[0].model_fields)
+    msg = f"unknown field; allowed: {allowed}"
+    owners = [name for name, m in _SECTIONS.items() if key in m.model_fields]
+    if owners:
+        return f"{msg} ({key!r} is a field of {' and '.join(owners)})"
+    near = difflib.get_close_matches(key, allowed, n=1)
+    return f"{msg} (did you mean {near[0]!r}?)" if near else msg
 
 
 #: the package that ships the scenes (``configs/scenes/*.yaml`` in the repository)
@@ -551,7 +596,7 @@ def packaged_scene(name: str) -> dict[str, Any]:
     if name not in names:
         raise SceneError(f"scene: {name!r} is neither a file nor a packaged scene's name "
                          f"(packaged: {names})")
-    return yaml.safe_load(resources.files(SCENES_PACKAGE).joinpath(f"{name}.yaml").read_text())
+    return load_yaml(resources.files(SCENES_PACKAGE).joinpath(f"{name}.yaml").read_text())
 
 
 class _StrictLoader(yaml.SafeLoader):
@@ -577,9 +622,20 @@ class _StrictLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep)
 
 
+# YAML 1.2's floats that YAML 1.1 (PyYAML) reads as strings: an exponent without a dot
+# (``1e-9``, ``2E3``, ``-5e+2``); ``tolerance: 1e-9`` was refused as "not a number (got '1e-9')"
+_StrictLoader.yaml_implicit_resolvers = {
+    k: list(v) for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()}
+_StrictLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float", re.compile(r"^[-+]?[0-9][0-9_]*[eE][-+]?[0-9]+$"),
+    list("-+0123456789"))
+
+
 def load_yaml(text: str):
-    """``yaml.safe_load``, but a key given twice in a mapping is a ``yaml.YAMLError``: scene
-    files, hyperparameter files and the CLI's ``--env-kwargs`` are read with it."""
+    """``yaml.safe_load``, but a key given twice in a mapping is a ``yaml.YAMLError``, and a
+    number with an exponent and no dot (``1e-9``) is a float, as YAML 1.2 reads it (PyYAML's
+    YAML 1.1 reads a string): scene files, hyperparameter files and the CLI's
+    ``--env-kwargs`` are read with it."""
     return yaml.load(text, Loader=_StrictLoader)  # noqa: S506 (a SafeLoader)
 
 

@@ -687,13 +687,14 @@ class World:
         return self._dt
 
     def get_state(self, parameters: bool = False) -> dict[str, np.ndarray]:
-        """A copy of the full physical state (state arrays, forces, time), for ``restore``.
+        """A copy of the full physical state (state arrays, forces, time), for ``restore``, with
+        the bodies' names (``bodies``: ``restore`` refuses a snapshot of other bodies).
 
         ``parameters=True`` adds the per-element parameters an edit changes (masses, moments,
         sizes, materials, the table's friction and size), so that ``restore`` also undoes an
         edit: what a snapshot of a randomised episode needs (an env's ``get_physics_state``)."""
         snap = {"state": self._state.copy(), "forces": self._forces.copy(),
-                "time": self._time.copy()}
+                "time": self._time.copy(), "bodies": np.array(self.names)}
         if parameters:
             snap |= {key: getattr(self, name).copy() for key, name in _PARAMETER_ARRAYS}
         return snap
@@ -714,6 +715,11 @@ class World:
                              f"{[key for key, _ in _PARAMETER_ARRAYS]})")
         if with_params:
             names += _PARAMETER_ARRAYS
+        # (a snapshot saved before the names were recorded has none)
+        theirs = [str(n) for n in np.ravel(snapshot.get("bodies", self.names))]
+        if theirs != list(self.names):
+            raise SceneError(f"snapshot: another scene's (its bodies are {theirs}; this world's "
+                             f"are {list(self.names)})")
         arrays = {}
         for key, name in names:
             mine = getattr(self, name)

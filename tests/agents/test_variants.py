@@ -199,3 +199,54 @@ def test_one_hyperparameter_file_for_the_lab_and_the_shipped_envs(lab, capsys):
         assert main(["train", "--env", f"{MODULE}:{VARIANT}", "--out", "typo", *common]) == 2
         assert f"unknown env id {typo!r}" in capsys.readouterr().err
     assert not (lab / "typo").exists()
+
+
+def test_the_readmes_variant_is_the_batched_env_under_make_vec(user_module):
+    """The README's ``mylab.py``, as written there: ``gym.make_vec`` of it is the native vector
+    env with the variant's arguments and takes ``autoreset_mode=`` (registered without a
+    ``vector_entry_point`` it was a SyncVectorEnv, which passed ``autoreset_mode`` to the env and
+    the env refused it); its elements are the single envs ``gym.make`` makes, bit for bit."""
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    block = readme.split("```python\n# mylab.py", 1)[1].split("```", 1)[0]
+    user_module("spinstrike_readme_lab", "# mylab.py" + block)
+    variant = "spinstrike_readme_lab:MyLab/BouncyRod-v0"
+    vec = gym.make_vec(variant, 3, autoreset_mode="same_step")
+    assert type(vec).__name__ == "RodSpinVectorEnv"
+    assert vec.metadata["autoreset_mode"] == gym.vector.AutoresetMode.SAME_STEP
+    assert np.all(vec.unwrapped.world.restitution("rod", "striker") == 0.95)
+    sync = gym.make_vec(variant, 3, vectorization_mode="sync",
+                        vector_kwargs={"autoreset_mode": gym.vector.AutoresetMode.SAME_STEP})
+    actions = np.array([[0.3, -0.2, 0.9], [-0.7, 0.4, 0.1], [0.0, 0.0, -1.0]], np.float32)
+    for v in (vec, sync):
+        v.reset(seed=11)
+    for a, b in zip(vec.step(actions), sync.step(actions), strict=True):
+        if isinstance(a, np.ndarray):
+            assert np.array_equal(a, b)
+
+
+def test_a_variants_scene_file_is_recorded_with_the_run(user_module, capsys):
+    """A variant registered with ``scene="table.yaml"``: its run's ``config.yml`` recorded no
+    scene, so after the file was edited ``evaluate`` silently rebuilt the edited table. The
+    run records the scene as read; evaluating after an edit gives the same numbers."""
+    table = Path("table.yaml")
+    source = (Path(__file__).resolve().parents[2] / "configs" / "scenes" / "rod_control.yaml")
+    table.write_text(source.read_text())
+    user_module("spinstrike_scene_lab", (
+        "import gymnasium as gym\n"
+        "gym.register('SceneLab/Table-v0', entry_point='spinstrike.envs.control:RodSpinControlEnv',"
+        " kwargs={'scene': 'table.yaml'}, max_episode_steps=20)\n"))
+    variant = "spinstrike_scene_lab:SceneLab/Table-v0"
+    assert main(["train", "--env", variant, "--timesteps", "128", "--n-envs", "2",
+                 "--eval-episodes", "2", "--no-video", "--no-progress", "--out", "run"]) == 0
+    recorded = yaml.safe_load(Path("run/config.yml").read_text())
+    assert recorded["hyperparameters"][recorded["env"]]["env_kwargs"]["scene"] == \
+        yaml.safe_load(source.read_text())
+    capsys.readouterr()
+    evaluate = ["evaluate", "run", "--episodes", "3", "--no-save", "--json"]
+    assert main(evaluate) == 0
+    before = capsys.readouterr().out
+    table.write_text(source.read_text().replace("size: [1.2, 0.8]", "size: [3.0, 2.0]")
+                     .replace("mass: 0.1}", "mass: 2.0}"))
+    assert yaml.safe_load(table.read_text()) != yaml.safe_load(source.read_text())
+    assert main(evaluate) == 0
+    assert capsys.readouterr().out == before

@@ -694,3 +694,32 @@ def test_a_state_put_back_is_framed_as_it_was():
     env.set_physics_state(after)
     panel = env.task.frame(0).panel
     assert "after the strike" in panel[0] and panel[2] == f"reward {reward:.3f}"
+
+
+def test_a_fast_gif_keeps_frames_viewers_play_in_real_time(tmp_path, capsys):
+    """``record --scene ... --dt 0.002`` wrote GIF frames of 0 and 10 ms, which viewers play as
+    100 ms (10x slow). A GIF above 50 fps keeps every k-th frame: each lasts 20 ms or more and
+    the whole lasts the scene's time; an mp4 keeps every frame."""
+    from PIL import Image
+
+    gif = tmp_path / "fast.gif"
+    assert main(["record", "--scene", "break", "--seconds", "0.2", "--dt", "0.002", "--size",
+                 "160x90", "--out", str(gif)]) == 0
+    assert "101 frames at 500 fps" in capsys.readouterr().out
+    with Image.open(gif) as im:
+        durations = []
+        for k in range(im.n_frames):
+            im.seek(k)
+            durations.append(im.info["duration"])
+    assert min(durations) >= 20 and sum(durations) == 220  # 101 frames of 2 ms, 10 per kept frame
+    assert _gif_milliseconds(gif) == 220
+    for fps in (30, 50, 60, 144):
+        with VideoWriter(tmp_path / f"{fps}.gif", fps) as w:
+            for k in range(fps):  # one second, every frame different
+                w.write(np.full((4, 4, 3), k, np.uint8))
+        with Image.open(tmp_path / f"{fps}.gif") as im:
+            got = []
+            for k in range(im.n_frames):
+                im.seek(k)
+                got.append(im.info["duration"])
+        assert min(got) >= 20 and abs(sum(got) - 1000) <= 20, (fps, got)

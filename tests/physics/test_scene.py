@@ -60,7 +60,8 @@ INVALID = [
     (_set("bodies.0.position", [math.nan, 0.0]), ["bodies[0].position", "finite"]),
     (_set("bodies.0.velocity", [0.0, math.inf]), ["bodies[0].velocity", "finite"]),
     (_set("bodies.0.shape", "triangle"), ["bodies[0].shape", "'disk' or 'rod'"]),
-    (_set("bodies.0.colour", "red"), ["bodies[0].colour", "Extra inputs"]),
+    (_set("bodies.0.colour", "red"),
+     ["bodies[0].colour", "unknown field; allowed: ['name', 'shape'"]),
     (_drop("bodies.1.mass"), ["bodies[1].mass", "required"]),
     (_drop("bodies.1.radius"), ["bodies[1].radius", "radius > 0"]),
     (_set("materials.restitution", 1.5), ["materials.restitution", "less than or equal to 1"]),
@@ -77,7 +78,8 @@ INVALID = [
     (_set("solver", {"mode": "exact", "tolerance": 0.0}), ["solver.tolerance", "greater than 0"]),
     (_set("solver", {"mode": "fixed", "substeps": 0}),
      ["solver.substeps", "greater than or equal to 1"]),
-    (_set("solver", {"mode": "fixed", "tolerance": 1e-9}), ["solver.tolerance", "Extra inputs"]),
+    (_set("solver", {"mode": "fixed", "tolerance": 1e-9}),
+     ["solver.tolerance", "unknown field", "'tolerance' is a field of solver (mode exact)"]),
     (_set("bodies.1.name", "rod"), ["bodies", "used twice"]),
     (_set("bodies.1.name", "wall_left"), ["bodies[1].name", "reserved"]),
     (_set("bodies.1.position", [0.7, 0.0]), ["bodies[1].position", "inside the table"]),
@@ -96,7 +98,7 @@ INVALID = [
      ["materials.pairs[1].restitution", "'rod'-'wall_left' already has"]),
     (_set("materials.pairs", [{"bodies": ["rod", "striker"]}]),
      ["materials.pairs[0]", "neither restitution nor friction"]),
-    (_set("unknown_key", 1), ["unknown_key", "Extra inputs"]),
+    (_set("unknown_key", 1), ["unknown_key", "unknown field; allowed: ['table', 'effects'"]),
     # pydantic's wording, said as the scene's: a solver block without its mode; a union's
     # members (a number, or 'thin_rod') in one message, not one field path per member
     (_set("solver", {"tolerance": 1e-6}), ["solver: needs 'mode', one of 'exact', 'fixed'"]),

@@ -322,11 +322,25 @@ def test_another_scenes_snapshot_is_refused():
     rod, puck = gym.make("SpinStrike/RodSpinControl-v0"), gym.make("SpinStrike/PuckSpeedControl-v0")
     rod.reset(seed=0)
     puck.reset(seed=0)
+    for a, b in ((rod, puck), (puck, rod)):
+        with pytest.raises(SceneError, match=re.escape(
+                f"snapshot: another scene's (its bodies are {list(a.unwrapped.world.names)}; "
+                f"this world's are {list(b.unwrapped.world.names)})")):
+            b.unwrapped.set_physics_state(a.unwrapped.get_physics_state())
+    # a plain World.get_state() (no parameters) of two bodies into another scene of two bodies
+    # was restored silently; a snapshot saved before the names were recorded is still checked by
+    # its parameters
+    with pytest.raises(SceneError, match="another scene's"):
+        puck.unwrapped.world.restore(rod.unwrapped.world.get_state())
+    old = rod.unwrapped.get_physics_state()
+    del old["world"]["bodies"]
     with pytest.raises(SceneError, match="a disk has no length.*another scene's snapshot"):
-        puck.unwrapped.set_physics_state(rod.unwrapped.get_physics_state())
+        puck.unwrapped.set_physics_state(old)
     # the other way round it read as a bad value only ("a rod's half length must be > 0 m")
+    old = puck.unwrapped.get_physics_state()
+    del old["world"]["bodies"]
     with pytest.raises(SceneError, match="half length must be > 0 m.*another scene's snapshot"):
-        rod.unwrapped.set_physics_state(puck.unwrapped.get_physics_state())
+        rod.unwrapped.set_physics_state(old)
 
 
 def test_a_pymunk_snapshot_keeps_its_overlap_and_an_exact_world_refuses_it():

@@ -262,7 +262,8 @@ def test_bad_env_arguments_are_one_config_error(env_id, kw, names):
 @pytest.mark.parametrize(("solver", "message"), [
     ({"mode": "rk4"}, "solver: unknown mode 'rk4'; allowed: 'exact', 'fixed', 'pymunk'"),
     ("rk4", "solver: unknown mode 'rk4'"),
-    ({"mode": "exact", "tolerence": 1e-10}, "solver.tolerence: Extra inputs are not permitted"),
+    ({"mode": "exact", "tolerence": 1e-10},
+     "solver.tolerence: unknown field; allowed: ['mode', 'tolerance'"),
     ({"mode": "fixed", "substeps": 0}, "solver.substeps: Input should be greater than or equal"),
 ])
 def test_a_bad_solver_argument_is_named_as_given(solver, message):
