@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from spinstrike import envs
-from spinstrike.agents.config import ALGOS, load_agent_config
+from spinstrike.agents.config import ALGOS, env_file_name, load_agent_config
 from spinstrike.benchmarks import cpu_model
 
 __all__ = ["main"]
@@ -57,16 +57,8 @@ def _machine() -> str:
             f"torch {torch.__version__}, stable-baselines3 {stable_baselines3.__version__}")
 
 
-def _env_name(env_id: str) -> str:
-    """An env's part of file names: the shipped ids' name (``RodSpin-v0``); another namespace's
-    id keeps its namespace (``MyLab-RodSpin-v0``: a variant named like a shipped env had its
-    run and plot taken for the shipped env's)."""
-    namespace, _, name = env_id.rpartition(":")[2].rpartition("/")
-    return name if namespace in ("", "SpinStrike") else f"{namespace}-{name}"
-
-
 def _name(algo: str, env_id: str, tag: str, seed: int) -> str:
-    return f"{algo}-{_env_name(env_id)}{tag}-s{seed}"
+    return f"{algo}-{env_file_name(env_id)}{tag}-s{seed}"
 
 
 def _commit() -> str:
@@ -258,6 +250,8 @@ DEFAULT_ENVS = [e for e in envs.ENV_IDS if e != "SpinStrike/PuckSpeed-v0"]
 
 
 def main(argv: list[str] | None = None) -> int:
+    from spinstrike.agents.cli import _at_least, _train_seed
+
     p = argparse.ArgumentParser(prog="spinstrike baselines",
                                 description=" ".join(__doc__.split("\n\n")[0].split()))
     p.add_argument("--envs", nargs="+", default=DEFAULT_ENVS, metavar="ID",
@@ -265,7 +259,7 @@ def main(argv: list[str] | None = None) -> int:
                         "gym.register in a module of your own, as 'module:Namespace/Name-vN' "
                         "(default: the shipped ids but PuckSpeed-v0)")
     p.add_argument("--algos", nargs="+", default=list(ALGOS), choices=ALGOS)
-    p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4])
+    p.add_argument("--seeds", nargs="+", type=_train_seed, default=[0, 1, 2, 3, 4])
     p.add_argument("--quick", action="store_true",
                    help="one seed, a tenth of each budget and of SAC's and TD3's "
                         "learning_starts (a smoke test: its runs and report go to "
@@ -286,7 +280,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--imitate", metavar="TEACHER", default=None,
                    help="also train PPO started from TEACHER by DAgger on each control env "
                         "(spinstrike train --imitate; a row of its own)")
-    p.add_argument("--planner-episodes", type=int, default=20,
+    p.add_argument("--planner-episodes", type=_at_least(0), default=20,
                    help="episodes of the CEM planner on each control env (0: none)")
     args = p.parse_args(argv)
     from spinstrike.agents.config import AgentConfigError, check_env_id
@@ -349,7 +343,7 @@ def main(argv: list[str] | None = None) -> int:
         if control[env_id] and args.planner_episodes > 0:
             rows.append(_planner_row(env_id, args.planner_episodes, reference))
         plot = _curves(env_id, root, args.algos, seeds,
-                       doc.parent / "baselines" / f"{_env_name(env_id)}.png",
+                       doc.parent / "baselines" / f"{env_file_name(env_id)}.png",
                        args.imitate if control[env_id] else None)
         table[env_id] = rows
         lines += [f"## {env_id}", "",

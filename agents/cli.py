@@ -81,7 +81,8 @@ def _policy(args):
     if args.run_dir and given:
         raise AgentConfigError(f"{', '.join(given)}: a run is evaluated and filmed with its own "
                                f"agent on the env it was trained on (its config.yml); "
-                               f"{' and '.join(given)} go without a run directory")
+                               f"{' and '.join(given)} {'go' if len(given) > 1 else 'goes'} "
+                               f"without a run directory")
     if args.run_dir:
         from spinstrike.agents.evaluate import load_model_policy
 
@@ -98,6 +99,11 @@ def _policy(args):
             out = run.with_name(run.name.removesuffix(".partial"))
             raise AgentConfigError(f"run_dir: {run} is an interrupted run (checkpoints, no "
                                    f"model.zip yet): `spinstrike train --resume --out {out}` "
+                                   f"finishes it")
+        partial = run.with_name(run.name + ".partial")
+        if missing and not run.exists() and partial.is_dir():
+            raise AgentConfigError(f"run_dir: {run} does not exist, but {partial} does: an "
+                                   f"interrupted run; `spinstrike train --resume --out {run}` "
                                    f"finishes it")
         if missing:
             raise AgentConfigError(f"run_dir: {run} has no {' or '.join(missing)} (not a run)")
@@ -176,6 +182,7 @@ def cmd_train(args) -> int:
         _check_env_id(args.env)
     if not args.no_eval and args.eval_episodes is not None:
         _check_episodes("--eval-episodes", args.eval_episodes)
+    _refuse_unused(args)
     if args.backend == "rllib":
         if args.imitate:
             from spinstrike.agents.config import AgentConfigError
@@ -195,8 +202,11 @@ def cmd_train(args) -> int:
                            env_kwargs=_kwargs(args.env_kwargs),
                            torch_threads=args.torch_threads or None,
                            command="spinstrike " + shlex.join(args.argv),
-                           imitate=args.imitate, imitate_rounds=args.imitate_rounds,
-                           imitate_episodes=args.imitate_episodes)
+                           imitate=args.imitate,
+                           imitate_rounds=20 if args.imitate_rounds is None
+                           else args.imitate_rounds,
+                           imitate_episodes=16 if args.imitate_episodes is None
+                           else args.imitate_episodes)
         except KeyboardInterrupt:  # Ctrl-C: train() said how to go on; no traceback (as SIGTERM)
             return 128 + 2  # SIGINT
     print(f"run: {result['run_dir']}  ({result['timesteps']} steps, {result['wall_time']:.1f} s)")
@@ -208,6 +218,29 @@ def cmd_train(args) -> int:
     if "video" in result:
         print(f"video: {result['video']}")
     return 0
+
+
+def _refuse_unused(args) -> None:
+    """A flag that the rest of the command line turns off is refused (it was accepted and
+    ignored: ``--imitate-rounds 3`` without ``--imitate``, ``--num-env-runners`` on SB3)."""
+    from spinstrike.agents.config import AgentConfigError
+
+    unused = []
+    if args.backend != "rllib":
+        unused += [(flag, value, "--backend rllib's") for flag, value in (
+            ("--num-env-runners", args.num_env_runners), ("--address", args.address))]
+    if not args.imitate:
+        unused += [(flag, value, "--imitate's") for flag, value in (
+            ("--imitate-rounds", args.imitate_rounds),
+            ("--imitate-episodes", args.imitate_episodes))]
+    if args.no_eval and not args.resume:  # (resuming, the record's contradictions are said)
+        unused.append(("--eval-episodes", args.eval_episodes,
+                       "the final evaluation's, which --no-eval leaves out"))
+    for flag, value, whose in unused:
+        if value is not None:
+            raise AgentConfigError(f"{flag}: {whose}, not given (got {value!r})")
+    if args.num_env_runners is None:
+        args.num_env_runners = 2
 
 
 def _train_rllib(args) -> dict:
@@ -356,6 +389,9 @@ def _record_scene(args) -> int:
     for flag, value in (("--seconds", args.seconds), ("--dt", args.dt)):
         if not (math.isfinite(value) and value > 0):
             raise AgentConfigError(f"{flag}: must be a number > 0 (got {value})")
+    if args.dt > args.seconds:  # one step of --dt was filmed: 5 s simulated for --seconds 3
+        raise AgentConfigError(f"--dt: a frame per step of {args.dt:g} s is longer than the "
+                               f"--seconds {args.seconds:g} to film; give a smaller --dt")
     out = args.out or f"{Path(str(args.scene)).stem}.mp4"
     _check_video_out(out)
     world = physics.World(args.scene)
@@ -411,15 +447,17 @@ def cmd_baselines(args) -> int:
     return int(baselines_main(args.rest) or 0)
 
 
-def _at_least(low: int, note: str = ""):
-    """An argparse type: an integer >= ``low`` (``note`` added to the message)."""
+def _at_least(low: int, note: str = "", high: int | None = None):
+    """An argparse type: an integer >= ``low`` (and <= ``high``; ``note`` added to the
+    message)."""
     def parse(text: str) -> int:
         try:
             value = int(text)
         except ValueError:
             value = low - 1
-        if value < low:
-            raise argparse.ArgumentTypeError(f"must be an integer >= {low}{note} (got {text!r})")
+        if value < low or (high is not None and value > high):
+            within = f">= {low}" if high is None else f"from {low} to {high}"
+            raise argparse.ArgumentTypeError(f"must be an integer {within}{note} (got {text!r})")
         return value
 
     return parse
@@ -428,6 +466,9 @@ def _at_least(low: int, note: str = ""):
 #: a seed (a negative one was numpy's or Gymnasium's traceback); PyTorch threads; a number of
 #: envs (0 was refused naming the hyperparameter file's n_envs, not the flag)
 _seed = _at_least(0)
+#: a training run's seed: SB3 seeds numpy's legacy generator, which takes 32 bits (a larger one
+#: was refused as if the hyperparameter file were wrong)
+_train_seed = _at_least(0, " (SB3 seeds numpy's 32-bit generator)", high=2**32 - 1)
 _threads = _at_least(0, ", 0 for torch's default")
 _n_envs = _at_least(1)
 
@@ -491,7 +532,7 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--algo", choices=ALGOS, help="default ppo (resuming: the run's)")
     t.add_argument("--env", help=f"default {DEFAULT_ENV} (resuming: the run's)")
     t.add_argument("--config", help="hyperparameter YAML (default: configs/agents/<algo>.yml)")
-    t.add_argument("--seed", type=_seed, help="default 0 (resuming: the run's)")
+    t.add_argument("--seed", type=_train_seed, help="default 0 (resuming: the run's)")
     t.add_argument("--timesteps", type=_step_count, help="override n_timesteps, e.g. 2e6 as "
                    "in an rl-zoo3 file (resuming: a new budget for the run, recorded in its "
                    "config.yml)")
@@ -522,14 +563,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="PPO: start the policy from a teacher's behaviour by DAgger before "
                         "training (planner | reactive-planner | chase-and-hit; "
                         "agents/imitate.py)")
-    t.add_argument("--imitate-rounds", type=int, default=20,
+    t.add_argument("--imitate-rounds", type=int, default=None,
                    help="DAgger rounds (default 20; round 0 is the teacher's)")
-    t.add_argument("--imitate-episodes", type=int, default=16,
+    t.add_argument("--imitate-episodes", type=int, default=None,
                    help="episodes per DAgger round (default 16)")
     t.add_argument("--backend", choices=("sb3", "rllib"), default="sb3",
                    help="sb3 (default) or rllib: PPO with Ray RLlib (the rllib extra; "
                         "docs/rllib.md)")
-    t.add_argument("--num-env-runners", type=int, default=2,
+    t.add_argument("--num-env-runners", type=int, default=None,
                    help="rllib: env runner processes (default 2)")
     t.add_argument("--address", help="rllib: a running Ray cluster's address (default: a "
                                      "local Ray)")
@@ -639,6 +680,13 @@ def main(argv: list[str] | None = None) -> int:
         return 128 + 2
     except (AgentConfigError, ConfigError, SceneError) as exc:
         print("error: " + " ".join(str(exc).split()), file=sys.stderr)  # on one line
+        return 2
+    except OSError as exc:  # a path that cannot be written (a file where a folder goes, ...)
+        if exc.filename is None:
+            raise
+        where = (" (a file, where the path needs a folder)"
+                 if isinstance(exc, (FileExistsError, NotADirectoryError)) else "")
+        print(f"error: {exc.filename}: {exc.strerror}{where}", file=sys.stderr)
         return 2
     except ModuleNotFoundError as exc:  # an optional dependency: name the extra, not a traceback
         top = (exc.name or "").split(".")[0]

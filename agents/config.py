@@ -25,7 +25,7 @@ from typing import Any
 
 import yaml
 
-__all__ = ["ALGOS", "SCHEDULE_KEYS", "AgentConfigError", "RunConfig", "algo_class",
+__all__ = ["ALGOS", "SCHEDULE_KEYS", "AgentConfigError", "RunConfig", "algo_class", "env_file_name",
            "check_env_id", "is_run_record", "load_agent_config", "recorded_agent_config",
            "yaml_problem"]
 
@@ -36,7 +36,7 @@ RESERVED = ("n_timesteps", "policy", "n_envs", "normalize", "env_kwargs")
 #: ``action_noise``: both or neither (alone, rl-zoo3 passes ``noise_std`` on to the algorithm,
 #: which refuses it, and fails on a ``noise_type`` without ``noise_std``)
 NOISE = ("noise_type", "noise_std")
-NOISE_TYPES = ("normal",)
+NOISE_TYPES = ("normal", "ornstein-uhlenbeck")
 #: constructor arguments a file may not set, and what to do instead: the command line sets them
 #: (given twice, SB3 raised a TypeError), the run folder fixes them, or SB3 needs an object
 NOT_IN_FILE = {
@@ -97,6 +97,14 @@ class RunConfig:
         """The entry as written in the hyperparameter file, with overrides (saved with a run)."""
         return {self.env_id: dict(self.raw, env_kwargs=self.env_kwargs) if self.env_kwargs
                 else dict(self.raw)}
+
+
+def env_file_name(env_id: str) -> str:
+    """An env's part of file names: the shipped ids' name (``RodSpin-v0``); another namespace's
+    id keeps its namespace (``MyLab-RodSpin-v0``: a variant named like a shipped env had its
+    run and plot taken for the shipped env's)."""
+    namespace, _, name = env_id.rpartition(":")[2].rpartition("/")
+    return name if namespace in ("", "SpinStrike") else f"{namespace}-{name}"
 
 
 def packaged_config_path(algo: str) -> Path:

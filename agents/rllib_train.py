@@ -31,7 +31,12 @@ from typing import Any
 import numpy as np
 import yaml
 
-from spinstrike.agents.config import AgentConfigError, RunConfig, load_agent_config
+from spinstrike.agents.config import (
+    AgentConfigError,
+    RunConfig,
+    env_file_name,
+    load_agent_config,
+)
 from spinstrike.agents.train import (
     TrainResult,
     _refuse_render_mode,
@@ -180,8 +185,9 @@ def train_rllib(env_id: str, *, config: str | Path | None = None, seed: int = 0,
     if cfg.normalize:
         raise AgentConfigError("normalize: not supported with --backend rllib")
     _refuse_render_mode(cfg.env_kwargs)
-    if not isinstance(seed, int) or seed < 0:
-        raise AgentConfigError(f"seed: must be an integer >= 0 (got {seed!r})")
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
+        raise AgentConfigError(f"seed: must be an integer from 0 to 2**32 - 1, as the SB3 "
+                               f"backend's (got {seed!r})")
     if not isinstance(num_env_runners, int) or num_env_runners < 0:
         raise AgentConfigError(f"num_env_runners: must be an integer >= 0 "
                                f"(got {num_env_runners!r})")
@@ -194,7 +200,7 @@ def train_rllib(env_id: str, *, config: str | Path | None = None, seed: int = 0,
     # built once (as the SB3 backend does: its errors come before the run folder's)
     algo_config = ppo_config(cfg, seed, num_env_runners)
     _compile_kernels(env_id, cfg.env_kwargs)
-    name = f"ppo-rllib-{env_id.split('/')[-1]}-s{seed}"
+    name = f"ppo-rllib-{env_file_name(env_id)}-s{seed}"
     run_dir = Path(out) if out is not None else Path("runs") / name
     work = _work_dir(run_dir, False, force)
     started = False

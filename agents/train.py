@@ -43,6 +43,7 @@ from spinstrike.agents.config import (
     AgentConfigError,
     RunConfig,
     algo_class,
+    env_file_name,
     load_agent_config,
     recorded_agent_config,
 )
@@ -95,18 +96,24 @@ def _model_kwargs(cfg: RunConfig, env) -> dict[str, Any]:
     (both given, checked by the config) built into ``action_noise``."""
     kwargs = dict(cfg.model_kwargs)
     if "noise_type" in kwargs:
-        from stable_baselines3.common.noise import NormalActionNoise
+        from stable_baselines3.common.noise import (
+            NormalActionNoise,
+            OrnsteinUhlenbeckActionNoise,
+        )
 
-        kwargs.pop("noise_type")
+        kind = {"normal": NormalActionNoise,
+                "ornstein-uhlenbeck": OrnsteinUhlenbeckActionNoise}[kwargs.pop("noise_type")]
         std = float(kwargs.pop("noise_std"))
         n = env.action_space.shape[0]
-        kwargs["action_noise"] = NormalActionNoise(np.zeros(n), std * np.ones(n))
+        kwargs["action_noise"] = kind(np.zeros(n), std * np.ones(n))
     return kwargs
 
 
 def default_run_dir(algo: str, env_id: str, seed: int) -> Path:
-    """``runs/<algo>-<env>-s<seed>``: where a run goes without ``out``."""
-    return Path("runs") / f"{algo}-{env_id.split('/')[-1]}-s{seed}"
+    """``runs/<algo>-<env>-s<seed>``: where a run goes without ``out`` (a variant's name keeps
+    its namespace, :func:`env_file_name`: ``MyLab/RodSpin-v0`` trained into the shipped
+    ``RodSpin-v0``'s folder, which ``--force`` would have replaced)."""
+    return Path("runs") / f"{algo}-{env_file_name(env_id)}-s{seed}"
 
 
 def _checkpoint_steps(ckpt: Path) -> int:
@@ -180,6 +187,15 @@ def _recorded_run(work: Path, given: dict[str, Any], config, timesteps,
             raise AgentConfigError(f"timesteps: must be an integer >= 1 (got {timesteps!r})")
         cfg.n_timesteps = cfg.raw["n_timesteps"] = timesteps
     return algo, cfg, seed, meta.get("finish") or {}
+
+
+def recorded_budget(work: Path) -> int | None:
+    """The budget (``n_timesteps``) ``work/config.yml`` records, or None."""
+    meta = yaml.safe_load((work / "config.yml").read_text())
+    try:
+        return int(meta["hyperparameters"][meta["env"]]["n_timesteps"])
+    except (KeyError, TypeError, ValueError):
+        return None
 
 
 def _same_entry(cfg: RunConfig, config) -> bool:
@@ -271,9 +287,15 @@ def _work_dir(run_dir: Path, resume: bool, force: bool) -> Path:
             raise AgentConfigError(f"out: {path} is a file, not a run directory; choose "
                                    "another --out")
     if not resume and force and run_dir.exists() and any(run_dir.iterdir()) \
-            and not (run_dir / "config.yml").is_file():
-        raise AgentConfigError(f"out: {run_dir} is not a run directory (no config.yml) and not "
-                               "empty; --force replaces a run only: choose another --out")
+            and not _is_run(run_dir):
+        raise AgentConfigError(f"out: {run_dir} is not a run directory (no config.yml recording "
+                               "a run's algo and env) and not empty; --force replaces a run "
+                               "only: choose another --out")
+    here = Path.cwd().resolve()
+    if not resume and force and run_dir.exists() and (
+            run_dir.resolve() == here or run_dir.resolve() in here.parents):
+        raise AgentConfigError(f"out: {run_dir} holds the working folder; --force would delete "
+                               "the folder you are in: choose another --out")
     if resume:
         work = run_dir if run_dir.exists() else partial
         if not (work / "config.yml").exists():
@@ -282,6 +304,10 @@ def _work_dir(run_dir: Path, resume: bool, force: bool) -> Path:
             raise AgentConfigError(f"resume: {run_dir} has no checkpoint to resume from")
         return work
     if run_dir.exists() and not force:
+        if any(run_dir.iterdir()) and not _is_run(run_dir):  # --force would refuse it too
+            raise AgentConfigError(f"out: {run_dir} exists and is not a run directory (no "
+                                   "config.yml recording a run's algo and env): choose "
+                                   "another --out")
         raise AgentConfigError(f"out: {run_dir} exists; pass --force to replace it or "
                                "--resume to continue it")
     ckpt = _latest_checkpoint(partial) if partial.exists() else None
@@ -289,9 +315,25 @@ def _work_dir(run_dir: Path, resume: bool, force: bool) -> Path:
         raise AgentConfigError(f"out: {partial} holds an interrupted run (checkpoint at "
                                f"{_checkpoint_steps(ckpt)} steps); pass --resume to continue it "
                                "or --force to start over")
+    if partial.exists() and any(partial.iterdir()) and not _is_run(partial) \
+            and not (partial / "command.txt").is_file():
+        # a run's own .partial holds its command (written first) or its record; any other
+        # folder of that name is not ours to delete
+        raise AgentConfigError(f"out: {partial} exists and holds no run (the folder a run "
+                               "trains in before it is renamed); move it or choose another --out")
     if partial.exists():
         shutil.rmtree(partial)
     return partial
+
+
+def _is_run(folder: Path) -> bool:
+    """Whether ``folder`` is a run directory: its ``config.yml`` records an algo and an env (a
+    project folder with a ``config.yml`` of its own was replaced by ``--force``)."""
+    try:
+        meta = yaml.safe_load((folder / "config.yml").read_text())
+    except (OSError, yaml.YAMLError):
+        return False
+    return isinstance(meta, dict) and "algo" in meta and "env" in meta
 
 
 def _resume_model(cls, algo: str, cfg: RunConfig, work: Path, env, device: str):
@@ -536,6 +578,14 @@ def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, 
         if remaining > 0:
             model.learn(remaining, callback=[callbacks, bar] if bar else callbacks,
                         reset_num_timesteps=not resume)
+    except ValueError as exc:
+        # torch's distributions refuse a NaN or infinite parameter: the updates diverged (a
+        # learning rate of 1e30 ended in a hundred-line traceback naming a Normal's scale)
+        if "invalid values" not in str(exc) and "nan" not in str(exc).lower():
+            raise
+        raise AgentConfigError(f"training diverged by step {model.num_timesteps}: the "
+                               f"policy's parameters are no longer finite ({str(exc)[:80]}...); "
+                               f"lower the learning_rate ({cfg.source}, {cfg.env_id})") from None
     finally:
         if getattr(bar, "pbar", None) is not None:
             bar.pbar.close()
@@ -647,8 +697,20 @@ def _new_run(algo: str, env_id: str, config, seed: int | None, timesteps: int | 
     if env_kwargs:
         cfg.env_kwargs = {**cfg.env_kwargs, **env_kwargs}
     seed = 0 if seed is None else seed
-    if not isinstance(seed, int) or seed < 0:
-        raise AgentConfigError(f"seed: must be an integer >= 0 (got {seed!r})")
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
+        raise AgentConfigError(f"seed: must be an integer from 0 to 2**32 - 1 (SB3 seeds "
+                               f"numpy's 32-bit generator; got {seed!r})")
+    freq = cfg.model_kwargs.get("train_freq")
+    if isinstance(freq, tuple) and len(freq) == 2 and str(freq[1]).startswith("episode") \
+            and cfg.n_envs > 1:  # SB3 asserted it inside learn(): a traceback
+        raise AgentConfigError(f"train_freq: {list(freq)} trains once per episode, which SB3 "
+                               f"does with one env only (n_envs is {cfg.n_envs}): give "
+                               f"--n-envs 1, or a train_freq in steps ({cfg.source})")
+    starts = cfg.model_kwargs.get("learning_starts")
+    if isinstance(starts, (int, float)) and starts >= cfg.n_timesteps:
+        print(f"warning: learning_starts is {starts:g} and the budget {cfg.n_timesteps} steps: "
+              f"{algo.upper()} makes no update in this run, and its agent is the untrained "
+              f"policy ({cfg.source})", file=sys.stderr)
     return cfg, seed
 
 
@@ -713,9 +775,12 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
         env_id = cfg.env_id
         done = _latest_checkpoint(work)
         done = _checkpoint_steps(done) if done is not None else 0
-        if timesteps is not None and timesteps <= done:
+        # the recorded budget given again is the same command, not a new budget (interrupted in
+        # its final evaluation, or a budget SB3 rounds up to whole rollouts, it was refused)
+        if timesteps is not None and timesteps <= done and timesteps != recorded_budget(work):
             raise AgentConfigError(f"timesteps: {work} has trained {done} steps; a new budget "
-                                   f"must exceed them (got {timesteps})")
+                                   f"must exceed them (got {timesteps}; the recorded budget, "
+                                   f"{recorded_budget(work)}, continues the run as recorded)")
     else:
         recorded = {}
         if algo is None or env_id is None:

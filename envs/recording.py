@@ -61,6 +61,10 @@ class VideoWriter:
             raise ValueError(f"fps: must be a number > 0 (got {fps!r})")
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._partial = self.path.with_name(f"{self.path.stem}.partial{self.path.suffix}")
+        # a place that cannot be written fails here, an OSError naming it (ffmpeg failed at the
+        # first frame with a broken pipe; a GIF only at the end)
+        with open(self._partial, "wb"):
+            pass
         self.fps = fps
         #: frames written so far
         self.frames = 0
@@ -129,7 +133,9 @@ class VideoWriter:
             images[0].save(self._partial, save_all=True, append_images=images[1:], loop=0,
                            duration=np.diff(ends).astype(int).tolist(), optimize=True)
             self._gif = []
-        if self._partial.exists():
+        if self.frames == 0:  # (the file the constructor opened to see it can write there)
+            self._partial.unlink(missing_ok=True)
+        elif self._partial.exists():
             os.replace(self._partial, self.path)
 
     def abort(self) -> None:

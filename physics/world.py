@@ -13,7 +13,9 @@ are reported as bodies ``N..N+3`` (``WALL_NAMES``).
 Every array a world exposes is read-only, and its attributes cannot be rebound: a value the
 kernels use changes only through a validated change (:meth:`World.edit`, or the setters
 ``set_body``, ``set_material``, ``set_table``, ``set_state``, ``set_force``, ``reset``), so
-what a user reads is what the kernels simulate.
+what a user reads is what the kernels simulate. (The one exception is :attr:`World.buffers`,
+the kernels' own packed buffers, which compiled batch kernels take and write: see
+:meth:`World.run`.)
 """
 
 from __future__ import annotations
@@ -810,7 +812,8 @@ class World:
 
     @property
     def buffers(self) -> Buffers:
-        """The packed buffers compiled batch kernels take first (see :meth:`run`)."""
+        """The packed buffers compiled batch kernels take first (see :meth:`run`): writable,
+        as the kernels write them; a write outside a kernel skips every check an edit makes."""
         return Buffers(self._fbuf, self._ibuf)
 
     def run(self, kernel: BatchKernel, *args: Any, dt: float | None = None) -> Any:
@@ -856,7 +859,7 @@ class World:
     def _set_dt(self, dt: Any) -> None:
         if isinstance(dt, bool) or not isinstance(dt, (int, float, np.integer, np.floating)):
             # float() took "0.1" and True (a 1 s step); one dt for every element
-            raise SceneError(f"dt: must be a number of seconds, one for every element (got "
+            raise SceneError(f"dt: must be one number of seconds, the same for all elements (got "
                              f"{dt!r} of type {type(dt).__name__})")
         value = float(dt)
         if not (math.isfinite(value) and value >= 0.0):

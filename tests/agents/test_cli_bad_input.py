@@ -150,8 +150,46 @@ CASES = [
     ("force-on-a-folder-that-is-no-run",
      lambda t: ["train", "--force", "--out", _text(t, "mine/notes.txt", "precious") and
                 str(t / "mine")],
-     ["out:", "mine is not a run directory (no config.yml) and not empty",
-      "--force replaces a run only"]),
+     ["out:", "mine is not a run directory (no config.yml recording a run's algo and env) and "
+              "not empty", "--force replaces a run only"]),
+    # a project folder with a config.yml of its own was replaced, results and all
+    ("force-on-a-project-with-a-config-yml",
+     lambda t: ["train", "--force", "--out", _text(t, "proj/config.yml", "name: mylab\n") and
+                _text(t, "proj/results.csv", "1,2") and str(t / "proj")],
+     ["out:", "proj is not a run directory (no config.yml recording a run's algo and env)"]),
+    ("imitate-rounds-without-imitate",  # accepted and ignored
+     lambda t: ["train", "--imitate-rounds", "3"],
+     ["--imitate-rounds: --imitate's, not given (got 3)"]),
+    ("num-env-runners-on-sb3",
+     lambda t: ["train", "--num-env-runners", "5", "--address", "1.2.3.4:6379"],
+     ["--num-env-runners: --backend rllib's, not given (got 5)"]),
+    ("eval-episodes-with-no-eval",
+     lambda t: ["train", "--no-eval", "--eval-episodes", "3"],
+     ["--eval-episodes: the final evaluation's, which --no-eval leaves out"]),
+    ("train-freq-per-episode-with-many-envs",  # SB3's AssertionError inside learn(), before
+     lambda t: ["train", "--algo", "sac", "--n-envs", "2", "--config",
+                _config(t, "ep.yml", {"n_timesteps": 100, "train_freq": [1, "episode"]})],
+     ["train_freq: [1, 'episode'] trains once per episode", "one env only (n_envs is 2)",
+      "--n-envs 1"]),
+    ("learning-rate-diverges",  # torch's hundred-line traceback about a Normal's scale
+     lambda t: ["train", "--no-progress", "--config", _config(t, "div.yml", {
+         "n_timesteps": 512, "n_envs": 2, "n_steps": 64, "batch_size": 64,
+         "learning_rate": 1e30})],
+     ["training diverged by step", "lower the learning_rate", "div.yml"]),
+    ("record-scene-dt-beyond-seconds",  # simulated and filmed 5 s
+     lambda t: ["record", "--scene", "break", "--dt", "5", "--seconds", "3"],
+     ["--dt: a frame per step of 5 s is longer than the --seconds 3 to film"]),
+    ("out-exists-and-is-no-run",  # said "pass --force to replace it", which then refused
+     lambda t: ["train", "--out", _text(t, "notes/a.txt", "x") and str(t / "notes")],
+     ["out:", "notes exists and is not a run directory", "choose another --out"]),
+    ("record-under-a-file",  # FileExistsError, a traceback
+     lambda t: ["record", "--random", "--env", ENV, "--episodes", "1", "--out",
+                _text(t, "afile", "x") + "/x.mp4"],
+     ["afile: File exists (a file, where the path needs a folder)"]),
+    ("record-where-nothing-can-be-written",  # ffmpeg's broken pipe at the first frame
+     lambda t: ["record", "--random", "--env", ENV, "--episodes", "1", "--out",
+                "/proc/spinstrike-nope.mp4"],
+     ["/proc/spinstrike-nope.partial.mp4:"]),
     # a file: failed after training, and the trained model was deleted with the .partial
     ("force-on-a-file",
      lambda t: ["train", "--force", "--out", _text(t, "afile", "x")],
@@ -391,7 +429,7 @@ def test_bad_input_is_one_error_line_and_writes_nothing(build, words, sandbox, c
     # SB3 trained on the CPU without a word when no CUDA device was there
     pytest.param(["train", "--device", "cuda"], "--device", "sees no cuda device here",
                  marks=pytest.mark.skipif(torch.cuda.is_available(), reason="CUDA is here")),
-    (["train", "--seed", "-1"], "--seed", "must be an integer >= 0 (got '-1')"),
+    (["train", "--seed", "-1"], "--seed", "must be an integer from 0 to 4294967295"),
     (["evaluate", "--oracle", "--env", ENV, "--seed", "-1"], "--seed", "(got '-1')"),
     (["record", "--oracle", "--env", ENV, "--seed", "-3"], "--seed", "(got '-3')"),
     # --oracle --random filmed the random policy silently
@@ -399,12 +437,18 @@ def test_bad_input_is_one_error_line_and_writes_nothing(build, words, sandbox, c
      "not allowed with argument --oracle"),
     (["evaluate", "--planner", "--oracle", "--env", ENV], "--oracle",
      "not allowed with argument --planner"),
+    # beyond SB3's 32-bit seeds: blamed the hyperparameter file; baselines left an empty folder
+    (["train", "--seed", str(2**32)], "--seed", "from 0 to 4294967295"),
+    (["baselines", "--quick", "--seeds", "0", str(2**40)], "--seeds", "from 0 to 4294967295"),
+    (["baselines", "--quick", "--planner-episodes", "-2"], "--planner-episodes",
+     "'-2'"),  # read as 0
 ], ids=["algo-not-in-list", "bench-unknown", "episodes-not-an-int", "timesteps-not-whole",
         "timesteps-zero", "timesteps-negative", "n-envs-zero",
         "cache-clear-and-prune", "device-unknown", "torch-threads-negative",
         "device-cuda-not-here", "train-seed-negative",
         "evaluate-seed-negative", "record-seed-negative", "record-oracle-and-random",
-        "evaluate-planner-and-oracle"])
+        "evaluate-planner-and-oracle", "train-seed-beyond-32-bits",
+        "baselines-seed-beyond-32-bits", "baselines-planner-episodes-negative"])
 def test_argparse_rejects_choices_with_status_2(argv, argument, value, sandbox, capsys):
     with pytest.raises(SystemExit) as exc:
         main(argv)
@@ -545,3 +589,40 @@ def test_a_run_whose_env_changed_since_training_is_refused_on_evaluation(sandbox
     assert "Traceback" not in err
     [line] = [x for x in err.splitlines() if "error:" in x]
     assert "run_dir: run's model does not take SpinStrike/PuckSpeed-v1's observations" in line
+
+
+def test_a_folder_named_like_a_runs_work_folder_is_not_deleted(sandbox, capsys):
+    """``train --out backup`` deleted a folder ``backup.partial`` of the user's (no run's:
+    neither a run's record nor its command) without ``--force``; refused, and kept."""
+    _text(sandbox, "backup.partial/data.txt", "precious")
+    for force in ([], ["--force"]):
+        assert main(["train", "--out", "backup", "--timesteps", "64", *force]) == 2
+        line = capsys.readouterr().err.strip()
+        assert line.startswith("error: out: backup.partial exists and holds no run"), line
+        assert (sandbox / "backup.partial" / "data.txt").read_text() == "precious"
+
+
+def test_force_does_not_replace_the_folder_you_are_in(sandbox, capsys, monkeypatch):
+    """``train --force --out "$PWD"`` in a run directory deleted the working folder."""
+    run = Path(_fake_run(sandbox, "done"))
+    monkeypatch.chdir(run)
+    for out in (".", str(run), str(sandbox)):
+        before = _tree(sandbox)
+        assert main(["train", "--force", "--out", out, "--timesteps", "64"]) == 2
+        line = capsys.readouterr().err.strip()
+        assert line.startswith("error: out:"), line
+        assert _tree(sandbox) == before
+    assert main(["train", "--force", "--out", str(run), "--timesteps", "64"]) == 2
+    assert "holds the working folder; --force would delete the folder you are in" in \
+        capsys.readouterr().err
+
+
+def test_evaluating_a_run_that_is_still_partial_says_how_to_finish_it(sandbox, capsys):
+    """``evaluate runs/x`` where only ``runs/x.partial`` (an interrupted run) exists said
+    "has no model.zip or config.yml (not a run)"."""
+    Path(_interrupted(sandbox)).rename(sandbox / "run.partial")
+    for command in ("evaluate", "record"):
+        assert main([command, "run"]) == 2
+        line = capsys.readouterr().err.strip()
+        assert line == ("error: run_dir: run does not exist, but run.partial does: an "
+                        "interrupted run; `spinstrike train --resume --out run` finishes it"), line

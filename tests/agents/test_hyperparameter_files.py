@@ -91,3 +91,31 @@ def test_every_shipped_ppo_entry_fills_its_mini_batches():
         rollout = entry.get("n_steps", 2048) * entry.get("n_envs", 1)
         batch = entry.get("batch_size", 64)
         assert rollout % batch == 0, (env_id, rollout, batch)
+
+
+@pytest.mark.parametrize("kind", ["normal", "ornstein-uhlenbeck"])
+def test_rl_zoo3s_action_noise_types_reach_the_model(tmp_path, monkeypatch, kind):
+    """rl-zoo3's ``noise_type: ornstein-uhlenbeck`` was refused (allowed: ['normal'])."""
+    from stable_baselines3 import TD3
+    from stable_baselines3.common.noise import (
+        NormalActionNoise,
+        OrnsteinUhlenbeckActionNoise,
+    )
+
+    monkeypatch.chdir(tmp_path)
+    entry = ("  n_timesteps: 64\n  n_envs: 1\n  learning_starts: 32\n  batch_size: 16\n"
+             f"  noise_type: {kind}\n  noise_std: 0.3\n")
+    assert _train(tmp_path, entry, "--algo", "td3") == 0
+    noise = TD3.load(tmp_path / "run" / "model.zip", device="cpu").action_noise
+    want = {"normal": NormalActionNoise, "ornstein-uhlenbeck": OrnsteinUhlenbeckActionNoise}
+    assert type(noise) is want[kind] and noise._sigma.tolist() == [0.3] * 3
+
+
+def test_a_budget_within_learning_starts_is_warned_of(tmp_path, monkeypatch, capsys):
+    """SAC on a budget below its ``learning_starts`` (the control envs' 10000) made no update
+    and reported the untrained policy as its agent, with nothing said."""
+    monkeypatch.chdir(tmp_path)
+    assert _train(tmp_path, "  n_timesteps: 64\n  n_envs: 1\n  learning_starts: 100\n",
+                  "--algo", "sac") == 0
+    assert "warning: learning_starts is 100 and the budget 64 steps: SAC makes no update" in \
+        capsys.readouterr().err

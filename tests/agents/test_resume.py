@@ -290,3 +290,27 @@ def test_a_runs_record_given_as_config_brings_its_algo_and_env(tmp_path):
                  "--no-video", "--no-progress"]) == 0
     made = yaml.safe_load((tmp_path / "run" / "config.yml").read_text())
     assert (made["algo"], made["env"]) == ("sac", env_id)
+
+
+def test_the_same_command_with_resume_continues_the_recorded_budget(tmp_path, monkeypatch,
+                                                                     capsys):
+    """The README: "The same command with ``--resume`` works too". Where the run had trained
+    its budget (rounded up to whole rollouts by SB3, or stopped in its final evaluation), the
+    recorded budget given again was refused as a new one "must exceed" the steps trained."""
+    config = _tiny_config(tmp_path / "tiny.yml")
+    run = tmp_path / "run"
+    args = ["train", "--algo", "ppo", "--env", ENV, "--config", str(config), "--timesteps", "100",
+            "--no-progress", "--no-video", "--eval-episodes", "2", "--out", str(run)]
+    assert main(args) == 0
+    steps = yaml.safe_load((run / "config.yml").read_text())["runs"][-1]["timesteps"]
+    assert steps == 256  # one rollout of 4 envs x 64 steps
+    capsys.readouterr()
+    assert main([*args, "--resume"]) == 0, capsys.readouterr().err
+    record = yaml.safe_load((run / "config.yml").read_text())
+    assert record["hyperparameters"][ENV]["n_timesteps"] == 100
+    assert [r["timesteps"] for r in record["runs"]] == [256, 256]
+    # a new budget still has to exceed what was trained, and the message names the recorded one
+    assert main([*args[:-2], "--timesteps", "200", "--out", str(run), "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert "has trained 256 steps; a new budget must exceed them (got 200; the recorded " \
+           "budget, 100, continues the run as recorded)" in err

@@ -250,3 +250,15 @@ def test_a_variants_scene_file_is_recorded_with_the_run(user_module, capsys):
     assert yaml.safe_load(table.read_text()) != yaml.safe_load(source.read_text())
     assert main(evaluate) == 0
     assert capsys.readouterr().out == before
+
+
+def test_a_variants_default_run_folder_keeps_its_namespace(user_module):
+    """``train --env mylab:MyLab/RodSpin-v0`` went to ``runs/ppo-RodSpin-v0-s0``, the shipped
+    env's folder (which ``--force`` then replaced); it goes where ``baselines`` names it."""
+    user_module("spinstrike_same_name_lab", (
+        "import gymnasium as gym\n"
+        "gym.register('SameLab/RodSpin-v0', entry_point='spinstrike.envs.strike:RodSpinEnv',"
+        " kwargs={'restitution': 0.5})\n"))
+    assert main(["train", "--env", "spinstrike_same_name_lab:SameLab/RodSpin-v0", "--timesteps",
+                 "64", "--n-envs", "2", "--no-eval", "--no-video", "--no-progress"]) == 0
+    assert [p.name for p in Path("runs").iterdir()] == ["ppo-SameLab-RodSpin-v0-s0"]

@@ -157,10 +157,10 @@ def _world(**kw):
     (lambda w: w.set_material("p", "m", friction=0.5), "contact_friction"),
     (lambda w: w.set_state(velocities=[[1.0, 0.0]], body="p", env=[3]), "env"),
     # accepted before: a string, a boolean (a 1 s step), None (the last dt again), an array
-    (lambda w: w.step("0.1"), "dt: must be a number of seconds"),
-    (lambda w: w.step(True), "dt: must be a number of seconds"),
-    (lambda w: w.step(None), "dt: must be a number of seconds"),
-    (lambda w: w.step(np.array([0.01])), "one for every element"),
+    (lambda w: w.step("0.1"), "dt: must be one number of seconds"),
+    (lambda w: w.step(True), "dt: must be one number of seconds"),
+    (lambda w: w.step(None), "dt: must be one number of seconds"),
+    (lambda w: w.step(np.array([0.01])), "one number of seconds, the same for all elements"),
     (lambda w: w.set_body("p", mass=1e-320), "p.mass: too small or large for float64"),
     (lambda w: w.set_body("p", radius=1e300), "p.inertia (of this mass and size)"),
 ], ids=lambda x: x if isinstance(x, str) else "")
