@@ -230,7 +230,7 @@ class _ControlTask(Task):
         return Frame(bodies, half, walls=True, trails=trails, markers=markers, smooth=True,
                      gauge=Gauge(self.GAUGE, self._gauge_value(target), None, 0.0,
                                  self.GAUGE_TOP),
-                     panel=[f"{self.TITLE}   t = {w.time[b]:5.2f} s   real time (x1)",
+                     panel=[f"{self.title}   t = {w.time[b]:5.2f} s   real time (x1)",
                             f"{name} {spin}   {speed}",
                             f"reward {self.tbuf[b, fast.T_REWARD]:+.3f} (step){ret}"])
 

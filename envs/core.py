@@ -98,6 +98,8 @@ class Task(ABC):
     def __init__(self, cfg: EnvConfig, batch_size: int, single: bool = False) -> None:
         self.cfg = cfg
         self.batch_size = batch_size
+        #: the name on video frames: ``TITLE``, or the id the env was made with (a variant's)
+        self.title = self.TITLE
         #: the exact shape ``step`` accepts: ``(A,)`` behind a single env, else ``(B, A)``
         self.action_shape = ((len(self.ACTIONS),) if single
                              else (batch_size, len(self.ACTIONS)))
@@ -329,6 +331,11 @@ class _SpecOfScene:
     @spec.setter
     def spec(self, value) -> None:
         self._spec = _spec_as_made(value, self.cfg)
+        if value is not None and "task" in self.__dict__:
+            # frames name the id made (a variant's), not its env class's
+            name = value.name if value.version is None else f"{value.name}-v{value.version}"
+            self.task.title = name if value.namespace in (None, "SpinStrike") \
+                else f"{value.namespace}/{name}"
 
 
 class SpinStrikeEnv(_SpecOfScene, gym.Env):

@@ -451,7 +451,7 @@ class _StrikeTask(Task):
                      gauge=self._gauge(b, target), smooth=True,
                      zoom=self._zoom(b, self.world.state.positions[b] if S is None
                                      else S[:, X:Y + 1]) if zoom is None else zoom,
-                     panel=[f"{self.TITLE}   {when}", self._achieved(b, target), score])
+                     panel=[f"{self.title}   {when}", self._achieved(b, target), score])
 
     def frame(self, b: int, decorate: bool = True) -> Frame:
         if not decorate:  # the pixel observation (its pixels are a contract: keep it plain)

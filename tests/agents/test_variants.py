@@ -262,3 +262,28 @@ def test_a_variants_default_run_folder_keeps_its_namespace(user_module):
     assert main(["train", "--env", "spinstrike_same_name_lab:SameLab/RodSpin-v0", "--timesteps",
                  "64", "--n-envs", "2", "--no-eval", "--no-video", "--no-progress"]) == 0
     assert [p.name for p in Path("runs").iterdir()] == ["ppo-SameLab-RodSpin-v0-s0"]
+
+
+def test_a_variants_frames_are_titled_with_its_id(user_module):
+    """A variant's video frames were captioned with its env class's id ("RodSpinControl-v0");
+    they name the id it was made with, in ``gym.make``, ``gym.make_vec`` and a pickled copy."""
+    import pickle
+
+    user_module("spinstrike_title_lab", (
+        "import gymnasium as gym\n"
+        "gym.register('TitleLab/Big-v0', entry_point='spinstrike.envs.control:RodSpinControlEnv',"
+        " vector_entry_point='spinstrike.envs.control:RodSpinControlVectorEnv',"
+        " max_episode_steps=10)\n"))
+    variant = "spinstrike_title_lab:TitleLab/Big-v0"
+    frames = {}
+    for env_id in (variant, "SpinStrike/RodSpinControl-v0"):
+        env = gym.make(env_id, render_mode="rgb_array")
+        env.reset(seed=3)
+        frames[env_id] = env.render()
+    assert gym.make(variant).unwrapped.task.title == "TitleLab/Big-v0"
+    assert gym.make("SpinStrike/RodSpinControl-v0").unwrapped.task.title == "RodSpinControl-v0"
+    differ = np.any(frames[variant] != frames["SpinStrike/RodSpinControl-v0"], axis=(1, 2))
+    assert differ.any() and differ.mean() < 0.1  # the caption's rows only: the same scene
+    assert gym.make_vec(variant, 2).unwrapped.task.title == "TitleLab/Big-v0"
+    copy = pickle.loads(pickle.dumps(gym.make(variant).unwrapped))
+    assert copy.task.title == "TitleLab/Big-v0"
