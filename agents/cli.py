@@ -209,7 +209,10 @@ def cmd_train(args) -> int:
                            else args.imitate_episodes)
         except KeyboardInterrupt:  # Ctrl-C: train() said how to go on; no traceback (as SIGTERM)
             return 128 + 2  # SIGINT
-    print(f"run: {result['run_dir']}  ({result['timesteps']} steps, {result['wall_time']:.1f} s)")
+    sessions = result.get("sessions", 1)
+    print(f"run: {result['run_dir']}  ({result['timesteps']} steps, {result['wall_time']:.1f} s"
+          + (f"; {result['total_wall_time']:.0f} s in {sessions} sessions" if sessions > 1
+             else "") + ")")
     from spinstrike.agents.evaluate import policy_label
 
     control = "Control" in _check_env_id(result.get("env") or args.env)

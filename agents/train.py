@@ -54,7 +54,9 @@ OFF_POLICY = ("sac", "td3")
 
 
 class TrainResult(dict):
-    """``run_dir``, ``env``, ``timesteps``, ``wall_time`` and (if evaluated) ``evaluations``."""
+    """``run_dir``, ``env``, ``timesteps``, ``wall_time`` (this session's), ``sessions`` and
+    ``total_wall_time`` (every stretch of training, interrupted ones too) and (if evaluated)
+    ``evaluations``."""
 
 
 def _versions() -> dict[str, str]:
@@ -840,6 +842,7 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
                          wall_time=wall)
     runs = _record_segment(run_dir, int(model.num_timesteps), wall)
     total = sum(r["wall_time_s"] for r in runs)
+    result.update(sessions=len(runs), total_wall_time=total)
     policy = None
     if evaluate or video:
         from spinstrike.agents.evaluate import load_model_policy

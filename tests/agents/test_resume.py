@@ -306,6 +306,8 @@ def test_the_same_command_with_resume_continues_the_recorded_budget(tmp_path, mo
     assert steps == 256  # one rollout of 4 envs x 64 steps
     capsys.readouterr()
     assert main([*args, "--resume"]) == 0, capsys.readouterr().err
+    # the run line counts both sessions, as the summary does (it showed the last one's only)
+    assert " s in 2 sessions)" in capsys.readouterr().out
     record = yaml.safe_load((run / "config.yml").read_text())
     assert record["hyperparameters"][ENV]["n_timesteps"] == 100
     assert [r["timesteps"] for r in record["runs"]] == [256, 256]
