@@ -141,7 +141,9 @@ def load_model_policy(run_dir: str | Path) -> tuple[Policy, dict]:
     meta = read_run_config(run_dir)
     try:
         model = algo_class(meta["algo"]).load(run_dir / "model.zip", device="cpu")
-    except (ValueError, KeyError, EOFError, OSError) as exc:  # not a zip, not an SB3 model
+    # not a zip, not an SB3 model; another algorithm's (AttributeError: a PPO policy has no
+    # actor for TD3, TypeError: its arguments)
+    except (ValueError, KeyError, EOFError, OSError, AttributeError, TypeError) as exc:
         raise AgentConfigError(f"model.zip: {run_dir / 'model.zip'} could not be loaded as a "
                                f"{meta['algo']} model ({exc})") from None
     norm = None

@@ -626,3 +626,22 @@ def test_evaluating_a_run_that_is_still_partial_says_how_to_finish_it(sandbox, c
         line = capsys.readouterr().err.strip()
         assert line == ("error: run_dir: run does not exist, but run.partial does: an "
                         "interrupted run; `spinstrike train --resume --out run` finishes it"), line
+
+
+@pytest.mark.parametrize("algo", ["td3", "sac"])
+def test_a_model_of_another_algorithm_is_one_error_line(sandbox, capsys, algo):
+    """A run whose model.zip is another algorithm's than its config.yml records (a PPO model
+    under a TD3 record): an AttributeError or TypeError deep in SB3's load."""
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+
+    import spinstrike  # noqa: F401
+
+    run = Path(_fake_run(sandbox, "mixed", yaml.safe_dump(
+        {"algo": algo, "env": ENV, "seed": 0, "hyperparameters": {ENV: {"n_timesteps": 64}}})))
+    PPO("MlpPolicy", gym.make(ENV), n_steps=64, batch_size=64).save(run / "model.zip")
+    for command in ("evaluate", "record"):
+        assert main([command, str(run)]) == 2
+        line = capsys.readouterr().err.strip()
+        assert line.startswith(f"error: model.zip: {run / 'model.zip'} could not be loaded as "
+                               f"a {algo} model"), line
