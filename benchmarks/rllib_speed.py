@@ -107,7 +107,9 @@ def measure(env_id: str, runners: int, envs: int, steps: int, repeats: int,
         config = configure(config, env_id)
     else:
         config = config.environment(env_id)
-    config = config.training(train_batch_size_per_learner=runners * envs * 4, minibatch_size=128,
+    batch = runners * envs * 4
+    # (a fixed minibatch of 128 was refused by RLlib below 32 runners x envs)
+    config = config.training(train_batch_size_per_learner=batch, minibatch_size=min(128, batch),
                              num_epochs=1)
     algo = config.build_algo()
     try:

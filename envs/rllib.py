@@ -151,7 +151,11 @@ def resolve(env_id: str, env_config: Any = None) -> tuple[str, dict]:
                           "them without it. Register the variant with the shipped env's "
                           f"classes and keyword arguments (entry_point={shipped.entry_point!r}, "
                           "kwargs={...}), or train it with the SB3 backend")
-    return base, {**variant_kwargs(env_id), **config}
+    registered = variant_kwargs(env_id)
+    # gym.register(..., kwargs={"config": {...}}), the env's own config form: flat here, as
+    # env_config is (it was refused as an unknown key 'config')
+    nested = registered.pop("config", None) or {}
+    return base, {**nested, **registered, **config}
 
 
 def _env_class(env_id: str, vector: bool = False) -> type:
@@ -165,6 +169,11 @@ def check_env_config(env_id: str, env_config: Any = None, *, vector: bool = Fals
     ``ConfigError`` naming a bad key or value. ``vector``: for the native vector env (also when
     ``env_config`` holds ``num_envs``), whose ``render_mode`` can only be ``"rgb_array"``.
     ``env_id``: as :func:`resolve` takes it. Returns the parsed config."""
+    return _checked_env(env_id, env_config, vector)[0]
+
+
+def _checked_env(env_id: str, env_config: Any, vector: bool) -> tuple[EnvConfig, tuple]:
+    """:func:`check_env_config`, and the env's (observation space, action space)."""
     env_id, env_config = resolve(env_id, env_config)
     cfg, args = _split(env_config)
     value = args.get("num_envs")
@@ -186,9 +195,11 @@ def check_env_config(env_id: str, env_config: Any = None, *, vector: bool = Fals
         env_class(config=cfg)
     try:
         env.reset(seed=0)
+        spaces = (getattr(env, "single_observation_space", env.observation_space),
+                  getattr(env, "single_action_space", env.action_space))
     finally:
         env.close()
-    return parsed
+    return parsed, spaces
 
 
 def _creator(env_id: str, init_file: str):
@@ -259,12 +270,40 @@ def _check_default_encoders(cfg: EnvConfig) -> None:
                           f"{sizes} pixels only; " + hint.format(what="converts them"))
 
 
-def _check_algorithm_env(config, where: str) -> bool:
+def _read_scene(env_config: Any) -> None:
+    """A ``scene`` file path in ``env_config`` read in place (as :func:`configure` reads the
+    main one): the runners, whose working folder may be another, then hold the scene itself (a
+    relative path in an evaluation ``env_config`` failed in every runner, an ``IndexError`` in
+    the driver)."""
+    if isinstance(env_config, dict) and "scene" in env_config:
+        env_config["scene"] = resolve_scene(env_config["scene"])
+
+
+def _check_algorithm_env(config, where: str) -> tuple | None:
     """Check one ``AlgorithmConfig``'s env and ``env_config`` as its runners will make them;
-    ``where`` names it in the message. False: the env is not a SpinStrike env (not checked)."""
+    ``where`` names it in the message. Returns the env's (observation space, action space), or
+    None where the env is not a SpinStrike env (not checked)."""
     env = config.env
     if not isinstance(env, str):
-        return False
+        return None
+    vector = str(getattr(config.gym_env_vectorize_mode, "value", config.gym_env_vectorize_mode))
+    if env.startswith(PREFIX) and env.removeprefix(PREFIX) in ENV_IDS:
+        # RLlib makes it itself (gym.make / gym.make_vec with env_config as keyword arguments,
+        # importing the package from the id): its env_config is the env's arguments, plus
+        # Gymnasium's autoreset_mode for a vector env, which must be RLlib's NEXT_STEP
+        env_config = dict(config.env_config or {})
+        mode = env_config.pop("autoreset_mode", None)
+        if mode is not None:
+            from spinstrike.envs.core import parse_autoreset_mode
+
+            if parse_autoreset_mode(mode) != AutoresetMode.NEXT_STEP:
+                raise ConfigError(f"{where}: autoreset_mode {mode!r}: RLlib's runners assume "
+                                  f"NEXT_STEP (in another mode they take each episode's last "
+                                  f"or first step for the wrong one); leave it out")
+        try:
+            return _checked_env(env, env_config, vector == "vector_entry_point")[1]
+        except ConfigError as exc:
+            raise ConfigError(f"{where}: {exc}") from None
     if env not in ENV_IDS:
         try:
             shipped, env_config = resolve(env, config.env_config)
@@ -273,21 +312,29 @@ def _check_algorithm_env(config, where: str) -> bool:
         raise ConfigError(f"{where}: env {env!r}: RLlib's runners make only the shipped ids "
                           f"(registered by register_envs); use {shipped!r} with env_config "
                           f"{env_config!r} (what spinstrike.envs.rllib.resolve gives)")
-    vector = str(getattr(config.gym_env_vectorize_mode, "value", config.gym_env_vectorize_mode))
     try:
-        check_env_config(env, config.env_config, vector=vector == "vector_entry_point")
+        return _checked_env(env, config.env_config, vector == "vector_entry_point")[1]
     except ConfigError as exc:
         raise ConfigError(f"{where}: {exc}") from None
-    return True
 
 
-def _check_evaluation(config) -> bool:
+def _check_evaluation(config, spaces: tuple | None) -> tuple | None:
     """Check the env of ``config``'s evaluation runners, when ``.evaluation(evaluation_config=
-    ...)`` changes it (RLlib merges that env_config over the main one)."""
+    ...)`` changes it (RLlib merges that env_config over the main one), reading a scene file
+    it names; its spaces must be the training env's (``spaces``): the evaluation runners run
+    the trained module (a Dict observation failed there with RLlib's ``IndexError``, another
+    env's vector after the first training iteration)."""
     override = config.evaluation_config  # a dict of overrides or a whole AlgorithmConfig
     if not override or isinstance(override, dict) and not {"env", "env_config"} & set(override):
-        return False
-    return _check_algorithm_env(config.get_evaluation_config_object(), "evaluation_config")
+        return None
+    _read_scene(override.get("env_config") if isinstance(override, dict)
+                else getattr(override, "env_config", None))
+    theirs = _check_algorithm_env(config.get_evaluation_config_object(), "evaluation_config")
+    if theirs is not None and spaces is not None and theirs != spaces:
+        raise ConfigError(f"evaluation_config: its env's spaces (observations {theirs[0]}, "
+                          f"actions {theirs[1]}) are not the training env's ({spaces[0]}, "
+                          f"{spaces[1]}); the evaluation runners run the trained module")
+    return theirs
 
 
 def check_config(config) -> None:
@@ -304,8 +351,9 @@ def check_config(config) -> None:
             allowed; or a variant id (``"module:Namespace/Name-vN"``) set directly, which the
             runners cannot make.
     """
+    _read_scene(config.env_config)
     ours = _check_algorithm_env(config, "env_config")
-    if _check_evaluation(config) or ours:
+    if _check_evaluation(config, ours) is not None or ours is not None:
         register_envs()
 
 
@@ -322,11 +370,16 @@ def configure(config, env_id: str, env_config: dict | None = None, *,
     encode (``"dict"``, ``"pixels"``) is refused here; pass False with your own RLModule, or a
     connector that turns the observations into what it takes. Returns ``config``."""
     env_id, env_config = resolve(env_id, env_config)
-    if "scene" in env_config:
-        # the scene itself, read now: the config (its pickles, the runners, a checkpoint) held
-        # the path, which another folder could not open and a later edit changed
-        env_config["scene"] = resolve_scene(env_config["scene"])
-    parsed = check_env_config(env_id, env_config, vector=vectorize)
+    # the scene itself, read now: the config (its pickles, the runners, a checkpoint) held the
+    # path, which another folder could not open and a later edit changed
+    _read_scene(env_config)
+    if num_envs_per_env_runner is not None and (
+            isinstance(num_envs_per_env_runner, bool)
+            or not isinstance(num_envs_per_env_runner, numbers.Integral)
+            or num_envs_per_env_runner < 1):  # 2.7 was 2, True was 1, "8" was 8
+        raise ConfigError(f"num_envs_per_env_runner: must be an int >= 1 (got "
+                          f"{num_envs_per_env_runner!r})")
+    parsed, spaces = _checked_env(env_id, env_config, vectorize)
     if "num_envs" in env_config:  # RLlib replaces it (it was ignored where given alone)
         per = ("" if num_envs_per_env_runner is None
                else f" ({num_envs_per_env_runner}; the CLI's --n-envs)")
@@ -341,5 +394,6 @@ def configure(config, env_id: str, env_config: dict | None = None, *,
     if num_envs_per_env_runner is not None:
         runners["num_envs_per_env_runner"] = int(num_envs_per_env_runner)
     config.env_runners(**runners)
-    _check_evaluation(config)  # set before this call: RLlib merges its env_config over this one
+    # set before this call: RLlib merges its env_config over this one
+    _check_evaluation(config, spaces)
     return config

@@ -154,10 +154,12 @@ def test_the_evaluation_runners_env_config_is_checked_in_the_driver(local_ray):
                 gym_env_vectorize_mode="vector_entry_point"))
     with pytest.raises(ConfigError, match=r"^env_config: restitution"):
         check_config(PPOConfig().environment(STRIKE, env_config={"restitution": -1}))
-    with pytest.raises(ConfigError, match=r"evaluation_config: env 'spinstrike:.*use "
-                                          r"'SpinStrike/RodSpin-v0'"):
-        check_config(configure(PPOConfig(), STRIKE).evaluation(
-            evaluation_config={"env": "spinstrike:" + STRIKE}))
+    # the prefixed id RLlib makes itself (gym.make imports the package): checked, not refused
+    check_config(configure(PPOConfig(), STRIKE).evaluation(
+        evaluation_config={"env": "spinstrike:" + STRIKE}))
+    with pytest.raises(ConfigError, match=r"^evaluation_config: restitutoin: unknown argument"):
+        check_config(configure(PPOConfig(), STRIKE).evaluation(evaluation_config={
+            "env": "spinstrike:" + STRIKE, "env_config": {"restitutoin": 0.5}}))
     check_config(PPOConfig().environment("CartPole-v1"))  # not ours: left to RLlib
 
     good = evaluating(tiny(configure(PPOConfig(), STRIKE, {"restitution": 0.5,
@@ -177,6 +179,64 @@ def test_the_evaluation_runners_env_config_is_checked_in_the_driver(local_ray):
         assert "evaluation" in algo.train()
     finally:
         algo.stop()
+
+
+def test_check_config_checks_what_the_runners_will_make(tmp_path, monkeypatch, user_module):
+    """Found by a walk of RLlib from a user's side; each passed ``check_config`` (or was refused
+    by it wrongly) and then failed in the runners with RLlib's ``IndexError``, or not at all:
+
+    * the ``spinstrike:`` id in a plain ``config.environment(...)`` (documented; RLlib makes it
+      with ``gym.make``) was refused, and the message hid the typo in its env_config; its
+      ``autoreset_mode`` other than NEXT_STEP lost data silently;
+    * a scene file named by a relative path outside ``configure``'s env_config stayed a path,
+      which runners in another folder could not open;
+    * an evaluation env with other spaces (``obs_mode: dict``, another env) than the module
+      trained on;
+    * a variant registered with ``kwargs={"config": {...}}`` was refused (``config``: unknown);
+    * ``num_envs_per_env_runner=2.7`` was silently 2."""
+    from spinstrike.envs.config import load_packaged_scene
+
+    prefixed = "spinstrike:" + STRIKE
+    check_config(PPOConfig().environment(prefixed, env_config={"restitution": 0.5}))
+    with pytest.raises(ConfigError, match=r"^env_config: restitutoin: unknown argument"):
+        check_config(PPOConfig().environment(prefixed, env_config={"restitutoin": 0.5}))
+    with pytest.raises(ConfigError, match=r"^env_config: autoreset_mode 'same_step': RLlib's "
+                                          r"runners assume NEXT_STEP"):
+        check_config(PPOConfig().environment(prefixed, env_config={"autoreset_mode": "same_step"})
+                     .env_runners(gym_env_vectorize_mode="vector_entry_point"))
+    check_config(PPOConfig().environment(prefixed, env_config={"autoreset_mode": "next_step"})
+                 .env_runners(gym_env_vectorize_mode="vector_entry_point"))
+
+    scene = load_packaged_scene("rod_control")
+    scene["bodies"] = [dict(b, length=0.25) if b["name"] == "rod" else b for b in scene["bodies"]]
+    monkeypatch.chdir(tmp_path)
+    Path("s.yaml").write_text(yaml.safe_dump(scene))
+    plain = PPOConfig().environment(CONTROL, env_config={"scene": "s.yaml"})
+    evaluated = configure(PPOConfig(), CONTROL).evaluation(
+        evaluation_config={"env_config": {"scene": "s.yaml"}})
+    for config in (plain, evaluated):
+        check_config(config)
+    assert plain.env_config["scene"] == scene
+    assert evaluated.evaluation_config["env_config"]["scene"] == scene
+    assert pickle.loads(pickle.dumps(evaluated)).get_evaluation_config_object() \
+        .env_config["scene"] == scene
+
+    for override, seen in (({"env_config": {"obs_mode": "dict"}}, "Dict"),
+                           ({"env": "SpinStrike/PuckSpeed-v1"}, "Box")):
+        with pytest.raises(ConfigError, match=rf"^evaluation_config: its env's spaces "
+                                              rf"\(observations {seen}.*are not the training "
+                                              rf"env's"):
+            check_config(configure(PPOConfig(), STRIKE).evaluation(evaluation_config=override))
+
+    user_module("spinstrike_rllib_config_lab", (
+        "import gymnasium as gym\n"
+        "gym.register('ConfigLab/Rod-v0', entry_point='spinstrike.envs.strike:RodSpinEnv',"
+        " kwargs={'config': {'restitution': 0.3}}, max_episode_steps=1)\n"))
+    config = configure(PPOConfig(), "spinstrike_rllib_config_lab:ConfigLab/Rod-v0")
+    assert config.env_config == {"restitution": 0.3, "max_episode_steps": 1}
+    for bad in (2.7, True, "8", 0):
+        with pytest.raises(ConfigError, match=r"^num_envs_per_env_runner: must be an int >= 1"):
+            configure(PPOConfig(), STRIKE, num_envs_per_env_runner=bad)
 
 
 def test_configure_holds_the_scene_a_path_names_not_the_path(tmp_path, monkeypatch):
