@@ -344,12 +344,15 @@ def check_config(config) -> None:
     that ``env_config`` over the main one); registers the ids with RLlib when either env is a
     SpinStrike id. :func:`configure` does this for what is set when it is called; call this
     after setting the evaluation afterwards. Without it a bad key fails in the runners, and
-    ``build_algo()`` reports only ``IndexError: list index out of range``.
+    ``build_algo()`` reports only ``IndexError: list index out of range``. A ``scene`` file path
+    in either env_config is read in place (the runners may start in another folder); the
+    ``"spinstrike:..."`` id RLlib makes itself is checked too.
 
     Raises:
         ConfigError: naming ``env_config`` or ``evaluation_config``, the key and what is
-            allowed; or a variant id (``"module:Namespace/Name-vN"``) set directly, which the
-            runners cannot make.
+            allowed; an evaluation env whose spaces are not the training env's; an
+            ``autoreset_mode`` other than NEXT_STEP; or a variant id
+            (``"module:Namespace/Name-vN"``) set directly, which the runners cannot make.
     """
     _read_scene(config.env_config)
     ours = _check_algorithm_env(config, "env_config")
