@@ -203,10 +203,10 @@ def cmd_train(args) -> int:
                            torch_threads=args.torch_threads or None,
                            command="spinstrike " + shlex.join(args.argv),
                            imitate=args.imitate,
-                           imitate_rounds=20 if args.imitate_rounds is None
-                           else args.imitate_rounds,
-                           imitate_episodes=16 if args.imitate_episodes is None
-                           else args.imitate_episodes)
+                           # given only: train()'s own defaults otherwise
+                           **{k: v for k, v in (("imitate_rounds", args.imitate_rounds),
+                                                ("imitate_episodes", args.imitate_episodes))
+                              if v is not None})
         except KeyboardInterrupt:  # Ctrl-C: train() said how to go on; no traceback (as SIGTERM)
             return 128 + 2  # SIGINT
     sessions = result.get("sessions", 1)
@@ -242,8 +242,6 @@ def _refuse_unused(args) -> None:
     for flag, value, whose in unused:
         if value is not None:
             raise AgentConfigError(f"{flag}: {whose}, not given (got {value!r})")
-    if args.num_env_runners is None:
-        args.num_env_runners = 2
 
 
 def _train_rllib(args) -> dict:
@@ -254,8 +252,9 @@ def _train_rllib(args) -> dict:
         raise AgentConfigError(f"--algo: --backend rllib trains ppo only (got {args.algo!r})")
     if args.resume:
         raise AgentConfigError("--resume: not supported with --backend rllib")
-    if args.num_env_runners < 0:
-        raise AgentConfigError(f"--num-env-runners: must be >= 0 (got {args.num_env_runners})")
+    runners = 2 if args.num_env_runners is None else args.num_env_runners
+    if runners < 0:
+        raise AgentConfigError(f"--num-env-runners: must be >= 0 (got {runners})")
     for flag, value, default in (("--device", args.device, "cpu"),
                                  ("--torch-threads", args.torch_threads, 1)):
         if value != default:  # was accepted and ignored
@@ -265,7 +264,7 @@ def _train_rllib(args) -> dict:
     from spinstrike.agents.train import FINISH
 
     return train_rllib(args.env, config=args.config, seed=args.seed, timesteps=args.timesteps,
-                       out=args.out, n_envs=args.n_envs, num_env_runners=args.num_env_runners,
+                       out=args.out, n_envs=args.n_envs, num_env_runners=runners,
                        address=args.address, force=args.force, evaluate=not args.no_eval,
                        eval_episodes=FINISH["eval_episodes"] if args.eval_episodes is None
                        else args.eval_episodes,

@@ -44,6 +44,7 @@ from spinstrike.agents.config import (
     RunConfig,
     algo_class,
     env_file_name,
+    is_run_record,
     load_agent_config,
     recorded_agent_config,
 )
@@ -329,13 +330,14 @@ def _work_dir(run_dir: Path, resume: bool, force: bool) -> Path:
 
 
 def _is_run(folder: Path) -> bool:
-    """Whether ``folder`` is a run directory: its ``config.yml`` records an algo and an env (a
-    project folder with a ``config.yml`` of its own was replaced by ``--force``)."""
+    """Whether ``folder`` is a run directory: its ``config.yml`` is a run's record
+    (:func:`~spinstrike.agents.config.is_run_record`) naming its env (a project folder with a
+    ``config.yml`` of its own was replaced by ``--force``)."""
     try:
         meta = yaml.safe_load((folder / "config.yml").read_text())
     except (OSError, yaml.YAMLError):
         return False
-    return isinstance(meta, dict) and "algo" in meta and "env" in meta
+    return is_run_record(meta) and "env" in meta
 
 
 def _resume_model(cls, algo: str, cfg: RunConfig, work: Path, env, device: str):
@@ -779,10 +781,11 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
         done = _checkpoint_steps(done) if done is not None else 0
         # the recorded budget given again is the same command, not a new budget (interrupted in
         # its final evaluation, or a budget SB3 rounds up to whole rollouts, it was refused)
-        if timesteps is not None and timesteps <= done and timesteps != recorded_budget(work):
+        budget = recorded_budget(work)
+        if timesteps is not None and timesteps <= done and timesteps != budget:
             raise AgentConfigError(f"timesteps: {work} has trained {done} steps; a new budget "
                                    f"must exceed them (got {timesteps}; the recorded budget, "
-                                   f"{recorded_budget(work)}, continues the run as recorded)")
+                                   f"{budget}, continues the run as recorded)")
     else:
         recorded = {}
         if algo is None or env_id is None:

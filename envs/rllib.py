@@ -286,12 +286,12 @@ def _check_algorithm_env(config, where: str) -> tuple | None:
     env = config.env
     if not isinstance(env, str):
         return None
-    vector = str(getattr(config.gym_env_vectorize_mode, "value", config.gym_env_vectorize_mode))
+    env_config = config.env_config
     if env.startswith(PREFIX) and env.removeprefix(PREFIX) in ENV_IDS:
         # RLlib makes it itself (gym.make / gym.make_vec with env_config as keyword arguments,
         # importing the package from the id): its env_config is the env's arguments, plus
         # Gymnasium's autoreset_mode for a vector env, which must be RLlib's NEXT_STEP
-        env_config = dict(config.env_config or {})
+        env_config = dict(env_config or {})
         mode = env_config.pop("autoreset_mode", None)
         if mode is not None:
             from spinstrike.envs.core import parse_autoreset_mode
@@ -300,20 +300,17 @@ def _check_algorithm_env(config, where: str) -> tuple | None:
                 raise ConfigError(f"{where}: autoreset_mode {mode!r}: RLlib's runners assume "
                                   f"NEXT_STEP (in another mode they take each episode's last "
                                   f"or first step for the wrong one); leave it out")
-        try:
-            return _checked_env(env, env_config, vector == "vector_entry_point")[1]
-        except ConfigError as exc:
-            raise ConfigError(f"{where}: {exc}") from None
-    if env not in ENV_IDS:
+    elif env not in ENV_IDS:
         try:
             shipped, env_config = resolve(env, config.env_config)
         except ConfigError:
-            return False  # another library's env
+            return None  # another library's env
         raise ConfigError(f"{where}: env {env!r}: RLlib's runners make only the shipped ids "
                           f"(registered by register_envs); use {shipped!r} with env_config "
                           f"{env_config!r} (what spinstrike.envs.rllib.resolve gives)")
+    vector = str(getattr(config.gym_env_vectorize_mode, "value", config.gym_env_vectorize_mode))
     try:
-        return _checked_env(env, config.env_config, vector == "vector_entry_point")[1]
+        return _checked_env(env, env_config, vector == "vector_entry_point")[1]
     except ConfigError as exc:
         raise ConfigError(f"{where}: {exc}") from None
 

@@ -541,11 +541,13 @@ def _models_in(annotation: Any) -> list[type[BaseModel]]:
     return [m for arg in typing.get_args(annotation) for m in _models_in(arg)]
 
 
+#: each solver mode's model
+_SOLVER_MODELS = {m.model_fields["mode"].default: m for m in (ExactSolver, FixedSolver,
+                                                               PymunkSolver)}
 #: each scene section's model, by the name a user writes it under
 _SECTIONS = {"the scene's top level": Scene, "table": Table, "materials": Materials,
              "materials.pairs[]": PairMaterial, "bodies[]": Body,
-             **{f"solver (mode {m.model_fields['mode'].default})": m
-                for m in (ExactSolver, FixedSolver, PymunkSolver)}}
+             **{f"solver (mode {mode})": m for mode, m in _SOLVER_MODELS.items()}}
 
 
 def _unknown_field(loc: tuple) -> str:
@@ -556,8 +558,7 @@ def _unknown_field(loc: tuple) -> str:
         if isinstance(part, int):
             continue
         if part in SOLVERS:  # the member of the solver union pydantic tried
-            models = [m for m in _SECTIONS.values() if m.model_fields.get("mode") is not None
-                      and m.model_fields["mode"].default == part]
+            models = [_SOLVER_MODELS[part]]
             continue
         models = [m for model in models if part in model.model_fields
                   for m in _models_in(model.model_fields[part].annotation)]

@@ -227,6 +227,9 @@ def test_check_config_checks_what_the_runners_will_make(tmp_path, monkeypatch, u
                                               rf"\(observations {seen}.*are not the training "
                                               rf"env's"):
             check_config(configure(PPOConfig(), STRIKE).evaluation(evaluation_config=override))
+    # another library's env is left to RLlib: no spaces to compare the evaluation env's with
+    check_config(PPOConfig().environment("CartPole-v1").evaluation(
+        evaluation_config={"env": STRIKE}))
 
     user_module("spinstrike_rllib_config_lab", (
         "import gymnasium as gym\n"
