@@ -20,9 +20,11 @@ with status 2, before anything is written.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
+import re
 import shlex
 import sys
 from pathlib import Path
@@ -154,11 +156,11 @@ def _train_defaults(args) -> None:
     args.seed = 0 if args.seed is None else args.seed
 
 
-def _run_record(path: str | None) -> dict:
+def _run_record(path: str | None, full: bool = False) -> dict:
     """The algo and env of a run's ``config.yml`` given as ``--config`` (empty for a
     hyperparameter file, or anything unreadable: the loader says what is wrong with it). Left
     out on the command line, they were the defaults' (ppo, RodSpin-v0), and a run of another env
-    was refused for having no entry for RodSpin-v0."""
+    was refused for having no entry for RodSpin-v0. ``full``: the whole record."""
     if path is None:
         return {}
     import yaml
@@ -171,6 +173,8 @@ def _run_record(path: str | None) -> dict:
         return {}
     if not is_run_record(data):
         return {}
+    if full:
+        return data
     return {k: data[k] for k in ("algo", "env") if isinstance(data.get(k), str)}
 
 
@@ -210,9 +214,16 @@ def cmd_train(args) -> int:
         except KeyboardInterrupt:  # Ctrl-C: train() said how to go on; no traceback (as SIGTERM)
             return 128 + 2  # SIGINT
     sessions = result.get("sessions", 1)
-    print(f"run: {result['run_dir']}  ({result['timesteps']} steps, {result['wall_time']:.1f} s"
-          + (f"; {result['total_wall_time']:.0f} s in {sessions} sessions" if sessions > 1
-             else "") + ")")
+    if "complete" in result:  # --resume of a run that has trained its budget
+        print(f"run: {result['run_dir']} has trained its budget ({result['timesteps']} steps): "
+              + ("nothing to do" if not result["complete"] else
+                 f"wrote its missing {' and '.join(NAMES[k] for k in result['complete'])}")
+              + "; --timesteps N above it trains further")
+    else:
+        print(f"run: {result['run_dir']}  ({result['timesteps']} steps, "
+              f"{result['wall_time']:.1f} s" + (f"; {result['total_wall_time']:.0f} s in "
+                                                 f"{sessions} sessions" if sessions > 1 else "")
+              + ")")
     from spinstrike.agents.evaluate import policy_label
 
     control = "Control" in _check_env_id(result.get("env") or args.env)
@@ -221,6 +232,10 @@ def cmd_train(args) -> int:
     if "video" in result:
         print(f"video: {result['video']}")
     return 0
+
+
+#: what ``train``'s finish writes
+NAMES = {"evaluate": "summary", "video": "video"}
 
 
 def _refuse_unused(args) -> None:
@@ -286,8 +301,14 @@ def cmd_evaluate(args) -> int:
     if out is not None:  # the run's own title (algorithm, seed, steps, time) stays on top
         old = out / "summary.md"
         title = old.read_text().splitlines()[0] if old.is_file() else ""
-        header = (f"{title if title.startswith('#') else header}\n\nRe-evaluated by "
-                  f"`spinstrike evaluate`: {args.episodes} episodes from seed {args.seed}.")
+        again = title.startswith("#")
+        if not again:  # a --no-eval run has no summary: its record has the title
+            from spinstrike.agents.train import run_title
+
+            record = _run_record(str(out / "config.yml"), full=True)
+            title = run_title(record) if record else header
+        header = (f"{title}\n\n{'Re-evaluated' if again else 'Evaluated'} by `spinstrike "
+                  f"evaluate`: {args.episodes} episodes from seed {args.seed}.")
     text = summarise(results, out, header)
     if args.json:  # stdout is the JSON alone, for a pipe
         print(json.dumps({r.policy: {"mean": r.mean, "std": r.std, "episodes": r.episodes,
@@ -647,6 +668,42 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _dispatch(args) -> int:
+    if args.command in ("evaluate", "record"):
+        from spinstrike.agents.imitate import _sigterm_exits
+
+        # SIGTERM as Ctrl-C: the unfinished video is removed (a *.partial.mp4 was left)
+        with _sigterm_exits():
+            return args.func(args)
+    return args.func(args)
+
+
+@contextlib.contextmanager
+def _deprecations_once():
+    """Gymnasium's deprecation of an env id (``PuckSpeed-v0``), once and as plain text. Its
+    "once" filter forgets what it showed whenever a library changes the warning filters (SB3
+    and the recorder do), so a run printed it four times, in terminal colour codes."""
+    import warnings
+
+    shown = set()
+    show = warnings.showwarning
+
+    def showwarning(message, category, filename, lineno, file=None, line=None):
+        text = re.sub(r"\x1b\[[0-9;]*m", "", str(message))
+        if not issubclass(category, DeprecationWarning) or "gymnasium" not in filename:
+            return show(message, category, filename, lineno, file, line)
+        if text not in shown:
+            shown.add(text)
+            print(f"warning: {text.removeprefix('WARN: ')}", file=sys.stderr)
+        return None
+
+    warnings.showwarning = showwarning
+    try:
+        yield
+    finally:
+        warnings.showwarning = show
+
+
 def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
@@ -670,13 +727,8 @@ def main(argv: list[str] | None = None) -> int:
     if os.getcwd() not in sys.path and "" not in sys.path:
         sys.path.append(os.getcwd())
     try:
-        if args.command in ("evaluate", "record"):
-            from spinstrike.agents.imitate import _sigterm_exits
-
-            # SIGTERM as Ctrl-C: the unfinished video is removed (a *.partial.mp4 was left)
-            with _sigterm_exits():
-                return args.func(args)
-        return args.func(args)
+        with _deprecations_once():
+            return _dispatch(args)
     except KeyboardInterrupt:  # evaluate, record: no traceback (train returns 130 itself)
         print(f"spinstrike {args.command}: interrupted", file=sys.stderr)
         return 128 + 2

@@ -43,6 +43,7 @@ from spinstrike.agents.train import (
     _work_dir,
     finish_run,
     plot_learning_curve,
+    run_title,
 )
 from spinstrike.envs import scene_as_read
 
@@ -232,7 +233,7 @@ def train_rllib(env_id: str, *, config: str | Path | None = None, seed: int = 0,
             ray.shutdown()
     result = TrainResult(run_dir=str(run_dir), timesteps=steps, wall_time=wall)
     return finish_run(result, policy, env_id, run_dir, cfg.env_kwargs,
-                      f"## PPO (RLlib) on {env_id} (seed {seed}, {steps} steps, {wall:.0f} s)",
+                      run_title(yaml.safe_load((run_dir / "config.yml").read_text())),
                       evaluate=evaluate, eval_episodes=eval_episodes, video=video)
 
 

@@ -810,6 +810,8 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
               for key, value in (("evaluate", evaluate), ("eval_episodes", eval_episodes),
                                  ("video", video))}
     evaluate, eval_episodes, video = finish["evaluate"], finish["eval_episodes"], finish["video"]
+    if resume and work == run_dir and done >= cfg.n_timesteps:
+        return _complete_run(run_dir, algo, env_id, seed, done, cfg.env_kwargs, finish)
     from spinstrike.agents.imitate import _sigterm_exits
 
     start = time.time()
@@ -844,18 +846,48 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
     result = TrainResult(run_dir=str(run_dir), env=env_id, timesteps=int(model.num_timesteps),
                          wall_time=wall)
     runs = _record_segment(run_dir, int(model.num_timesteps), wall)
-    total = sum(r["wall_time_s"] for r in runs)
-    result.update(sessions=len(runs), total_wall_time=total)
+    return _finish_sb3(result, runs, run_dir, algo, env_id, seed, cfg.env_kwargs, finish)
+
+
+def _finish_sb3(result: TrainResult, runs: list[dict], run_dir: Path, algo: str, env_id: str,
+                seed: int, env_kwargs: dict, finish: dict) -> TrainResult:
+    """``finish_run`` for an SB3 run of ``runs`` (``config.yml``'s stretches of training)."""
+    result.update(sessions=len(runs), total_wall_time=sum(r["wall_time_s"] for r in runs))
     policy = None
-    if evaluate or video:
+    if finish["evaluate"] or finish["video"]:
         from spinstrike.agents.evaluate import load_model_policy
 
         policy, _ = load_model_policy(run_dir)
-    return finish_run(result, policy, env_id, run_dir,
-                      cfg.env_kwargs, f"## {algo.upper()} on {env_id} (seed {seed}, "
-                      f"{model.num_timesteps} steps, {total:.0f} s"
-                      f"{f' in {len(runs)} sessions' if len(runs) > 1 else ''})",
-                      evaluate=evaluate, eval_episodes=eval_episodes, video=video)
+    return finish_run(result, policy, env_id, run_dir, env_kwargs,
+                      run_title({"algo": algo, "env": env_id, "seed": seed, "runs": runs}),
+                      evaluate=finish["evaluate"], eval_episodes=finish["eval_episodes"],
+                      video=finish["video"])
+
+
+def run_title(meta: dict) -> str:
+    """A run's summary title from its ``config.yml`` record: algorithm, env, seed, steps and
+    the time of every stretch of training."""
+    runs = meta.get("runs") or []
+    total = sum(r["wall_time_s"] for r in runs)
+    label = "PPO (RLlib)" if meta.get("backend") == "rllib" else str(meta["algo"]).upper()
+    return (f"## {label} on {meta['env']} (seed {meta['seed']}, "
+            f"{runs[-1]['timesteps'] if runs else 0} steps, {total:.0f} s"
+            f"{f' in {len(runs)} sessions' if len(runs) > 1 else ''})")
+
+
+def _complete_run(run_dir: Path, algo: str, env_id: str, seed: int, steps: int,
+                  env_kwargs: dict, finish: dict) -> TrainResult:
+    """``--resume`` of a run that has trained its budget: it trains nothing, and writes only
+    what its finish asks and it lacks (stopped during its final evaluation or video); it
+    re-loaded the last checkpoint, saved it again as a new session, and evaluated and filmed
+    the run again."""
+    runs = (yaml.safe_load((run_dir / "config.yml").read_text()) or {}).get("runs") or []
+    missing = {"evaluate": finish["evaluate"] and not (run_dir / "summary.md").is_file(),
+               "video": finish["video"] and not (run_dir / "rollout.mp4").is_file()}
+    result = TrainResult(run_dir=str(run_dir), env=env_id, timesteps=steps, wall_time=0.0,
+                         complete=[key for key, value in missing.items() if value])
+    return _finish_sb3(result, runs, run_dir, algo, env_id, seed, env_kwargs,
+                       {**finish, **missing})
 
 
 def _record_segment(run_dir: Path, timesteps: int, wall: float,

@@ -448,3 +448,17 @@ def test_puck_targets_slower_than_a_centred_strike_are_reached_off_centre(env_id
         _, reward, _, _, info = env.step(oracle(env, obs))
         assert info["best_reward"] == 1.0
         assert reward == pytest.approx(1.0, abs=1e-6)
+
+
+def test_evaluate_of_a_no_eval_run_titles_the_summary_with_the_run(tmp_path, capsys):
+    """``spinstrike evaluate RUN`` of a run trained with ``--no-eval`` wrote a summary headed by
+    the env alone: the run's algorithm, seed, steps and time came from the old summary only."""
+    run = tmp_path / "run"
+    assert main(["train", "--algo", "ppo", "--env", "SpinStrike/RodSpin-v0", "--timesteps",
+                 "256", "--n-envs", "2", "--seed", "3", "--no-eval", "--no-video",
+                 "--no-progress", "--out", str(run)]) == 0
+    assert not (run / "summary.md").exists()
+    assert main(["evaluate", str(run), "--episodes", "2"]) == 0
+    lines = (run / "summary.md").read_text().splitlines()
+    assert lines[0].startswith("## PPO on SpinStrike/RodSpin-v0 (seed 3, 256 steps, "), lines
+    assert lines[2] == "Evaluated by `spinstrike evaluate`: 2 episodes from seed 1000."

@@ -3,6 +3,7 @@ checkers, determinism, the oracle, bad actions, and the reason it exists (v0's h
 wraps at +-pi, where the best action jumps from one end of the box to the other)."""
 
 import math
+import subprocess
 import warnings
 
 import gymnasium as gym
@@ -128,3 +129,17 @@ def test_v0_heading_wraps_where_v1_is_continuous():
         actions[env_id] = np.abs(out[0] - out[1]).max()
         env.close()
     assert actions[V0] > 1.9 and actions[V1] < 0.05, actions
+
+
+def test_the_cli_says_v0_is_out_of_date_once_in_plain_text(tmp_path):
+    """``spinstrike train --env SpinStrike/PuckSpeed-v0`` printed Gymnasium's deprecation four
+    times, in terminal colour codes (its "once" filter forgets whenever a library changes the
+    warning filters). Through the console script, as a user runs it: once, plain."""
+    out = subprocess.run(["spinstrike", "train", "--algo", "ppo", "--env", V0, "--timesteps",
+                          "256", "--n-envs", "2", "--eval-episodes", "2", "--no-progress",
+                          "--out", str(tmp_path / "run")],
+                         capture_output=True, text=True, timeout=600, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert out.stderr.count("PuckSpeed-v0 is out of date") == 1, out.stderr
+    assert "\x1b[" not in out.stderr and "warning: The environment" in out.stderr
+    assert (tmp_path / "run" / "rollout.mp4").is_file()

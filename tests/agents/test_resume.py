@@ -305,12 +305,26 @@ def test_the_same_command_with_resume_continues_the_recorded_budget(tmp_path, mo
     steps = yaml.safe_load((run / "config.yml").read_text())["runs"][-1]["timesteps"]
     assert steps == 256  # one rollout of 4 envs x 64 steps
     capsys.readouterr()
+    before = _tree(run)
     assert main([*args, "--resume"]) == 0, capsys.readouterr().err
-    # the run line counts both sessions, as the summary does (it showed the last one's only)
-    assert " s in 2 sessions)" in capsys.readouterr().out
+    # a run that has trained its budget trains nothing and re-writes nothing (it re-saved its
+    # checkpoint as a new session, and evaluated and filmed again)
+    assert f"run: {run} has trained its budget (256 steps): nothing to do; --timesteps N " \
+           "above it trains further" in capsys.readouterr().out
+    assert _tree(run) == before
     record = yaml.safe_load((run / "config.yml").read_text())
     assert record["hyperparameters"][ENV]["n_timesteps"] == 100
-    assert [r["timesteps"] for r in record["runs"]] == [256, 256]
+    assert [r["timesteps"] for r in record["runs"]] == [256]
+    # stopped during its final evaluation: it writes what is missing, and only that
+    (run / "summary.md").unlink()
+    (run / "summary.json").unlink()
+    before = _tree(run)
+    assert main([*args, "--resume"]) == 0
+    assert "wrote its missing summary;" in capsys.readouterr().out
+    assert {path for path in _tree(run) if path not in before} == {
+        run.joinpath(name).relative_to(run) for name in ("summary.md", "summary.json")}
+    assert all(_tree(run)[path] == mtime for path, mtime in before.items())
+    assert "(seed 0, 256 steps, " in (run / "summary.md").read_text().splitlines()[0]
     # a new budget still has to exceed what was trained, and the message names the recorded one
     assert main([*args[:-2], "--timesteps", "200", "--out", str(run), "--resume"]) == 2
     err = capsys.readouterr().err
