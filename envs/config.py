@@ -310,8 +310,9 @@ def episode_limit(value: Any, registered: int | None,
         return registered
     if (isinstance(value, bool) or not isinstance(value, numbers.Integral)  # np.int64 too
             or (value < 1 and value != -1)):
+        limit = "none" if registered is None else registered
         raise ConfigError(f"{field}: must be an int >= 1, -1 (no limit) or None (the "
-                          f"registered limit, {registered}) (got {value!r})")
+                          f"registered limit, {limit}) (got {value!r})")
     return None if value == -1 else int(value)
 
 

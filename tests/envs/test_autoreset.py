@@ -372,9 +372,13 @@ def test_max_episode_steps_reads_as_gymnasium_reads_it(env_id, limit):
 
 
 @pytest.mark.parametrize("bad", [0, -2, 2.5, "10", True])
-def test_a_bad_max_episode_steps_names_the_argument(bad):
-    with pytest.raises(ConfigError, match=r"max_episode_steps: must be an int >= 1, -1"):
-        gym.make_vec("SpinStrike/RodSpinControl-v0", num_envs=2, max_episode_steps=bad)
+@pytest.mark.parametrize(("env_id", "limit"), [("SpinStrike/RodSpinControl-v0", "250"),
+                                               ("SpinStrike/RodSpin-v0", "none")])
+def test_a_bad_max_episode_steps_names_the_argument(bad, env_id, limit):
+    # a strike env's registered limit read "None", as if it were the value to give
+    with pytest.raises(ConfigError, match=r"max_episode_steps: must be an int >= 1, -1 \(no "
+                       rf"limit\) or None \(the registered limit, {limit}\) \(got "):
+        gym.make_vec(env_id, num_envs=2, max_episode_steps=bad)
 
 
 @pytest.mark.parametrize("bad", [2.5, "2", 0, True])
