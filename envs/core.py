@@ -368,6 +368,9 @@ class SpinStrikeEnv(_SpecOfScene, gym.Env):
         self._started = False
         #: the last step ended the episode (terminated): the next must be a reset
         self._ended = False
+        #: the parameters this env was made with (masses, sizes, materials, table), which the
+        #: next reset puts back after :meth:`set_physics_state` brought in a snapshot's
+        self._own = None
         if self.cfg.obs_mode == "dict":
             self.compute_reward = self._goal_reward
 
@@ -407,6 +410,9 @@ class SpinStrikeEnv(_SpecOfScene, gym.Env):
         # setter) or winds back (its bit_generator.state) draws the next episodes; the same
         # numbers as a vector env's element, which draws them in blocks (envs.rng)
         uniforms = self.np_random.random((1, self.TASK.UNIFORMS))
+        if self._own is not None:  # a snapshot's parameters last until the episode ends
+            self.task.world.restore(self._own)
+            self._own = None
         info = self.task.reset(np.zeros(1, dtype=np.int64), uniforms)
         self._started = True
         self._ended = False
@@ -447,8 +453,15 @@ class SpinStrikeEnv(_SpecOfScene, gym.Env):
                 "task": self.task.snapshot()}
 
     def set_physics_state(self, state: dict) -> None:
-        """Put back a state from :meth:`get_physics_state` (then ``step`` continues from it)."""
+        """Put back a state from :meth:`get_physics_state` (then ``step`` continues from it).
+
+        Its parameters (masses, sizes, materials, the table: another env's, or edited for a
+        what-if) hold until the next :meth:`reset`, which starts an episode of this env's own
+        task again (they stayed: every later episode ran on the snapshot's task, and
+        ``reset(seed=s)`` no longer repeated a fresh env's)."""
+        own = self._own if self._own is not None else self.task.world.get_state(parameters=True)
         self.task.world.restore(state["world"])
+        self._own = own
         self.task.restore(state["task"])
         self._started = True
         self._ended = False

@@ -18,7 +18,8 @@ from pathlib import Path
 
 import pytest
 
-README = Path(__file__).resolve().parent.parent / "README.md"
+ROOT = Path(__file__).resolve().parent.parent
+README = ROOT / "README.md"
 
 
 def _blocks() -> list[str]:
@@ -50,3 +51,25 @@ def test_readme_example_runs_outside_the_repository(code, tmp_path):
     done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
                           text=True, timeout=600, env=env)
     assert done.returncode == 0, done.stderr[-3000:]
+
+
+def _cells(row: str) -> int:
+    """The cells GitHub's Markdown finds in a table row: an unescaped ``|`` splits one, inside
+    a code span too."""
+    return len(re.split(r"(?<!\\)\|", row.strip().strip("|")))
+
+
+@pytest.mark.parametrize("doc", ["README.md",
+                                 *sorted(p.name for p in (ROOT / "docs").glob("*.md"))])
+def test_every_table_row_has_the_header_s_cells(doc):
+    """The README's env table lost its rewards on GitHub: ``|w*|`` inside a code span split
+    the cell (8 cells in a row of 4), and the rest of the row was dropped."""
+    path = ROOT / doc if doc == "README.md" else ROOT / "docs" / doc
+    header = None
+    for number, line in enumerate(path.read_text().splitlines(), 1):
+        if not line.startswith("|"):
+            header = None
+            continue
+        if header is None:
+            header = _cells(line)
+        assert _cells(line) == header, f"{doc}:{number}: {_cells(line)} cells, header {header}"

@@ -367,6 +367,48 @@ def test_copies_and_saved_states_keep_the_episodes_randomised_parameters(env_id)
             break
 
 
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_a_snapshot_s_parameters_last_until_the_next_reset(env_id):
+    """``set_physics_state`` with a snapshot of an env made with other arguments (or one edited
+    for a what-if) kept its masses and materials for every later episode: ``reset(seed=3)`` ran
+    the snapshot's task, not a fresh env's (found by a new user replaying saved states). Now its
+    episode runs on them, and the next reset is this env's own task again, bit for bit."""
+    mass = "mallet_mass" if "Control" in env_id else "striker_mass"
+    other_kwargs = {mass: 0.4, "target_mass": 0.35, "restitution": 0.55}
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*PuckSpeed-v0 is out of date")
+        env, other, fresh = gym.make(env_id), gym.make(env_id, **other_kwargs), gym.make(env_id)
+    actions = _actions(env.action_space, 6, seed=4)
+    env.reset(seed=0)
+    other.reset(seed=1)
+    snap = other.unwrapped.get_physics_state()
+    env.unwrapped.set_physics_state(snap)
+    np.testing.assert_array_equal(env.unwrapped.world.mass, other.unwrapped.world.mass)
+    assert np.array_equal(env.unwrapped.step(actions[0])[0], other.unwrapped.step(actions[0])[0])
+    edited = env.unwrapped.get_physics_state()  # and a what-if on an edited snapshot
+    edited["world"]["mass"] = edited["world"]["mass"] * 1.5
+    env.unwrapped.set_physics_state(edited)
+    copied = pickle.loads(pickle.dumps(env.unwrapped))  # a copy taken in that episode
+    for e in (env, copied):
+        runs = []
+        for run in (e, fresh):
+            obs, _ = run.reset(seed=3)
+            rows = [obs]
+            for a in actions:
+                obs, reward, terminated, *_ = run.step(a)
+                rows.append((obs, reward))
+                if terminated:
+                    break
+            runs.append(rows)
+        assert str(runs[0]) == str(runs[1])
+        for name in ("mass", "inertia", "radius", "half_length"):
+            np.testing.assert_array_equal(getattr(e.unwrapped.world, name),
+                                          getattr(fresh.unwrapped.world, name))
+        state, own = (x.unwrapped.world.get_state(parameters=True) for x in (e, fresh))
+        for key in set(own) - {"time"}:  # (the clock counts the env's steps since it was made)
+            np.testing.assert_array_equal(state[key], own[key], err_msg=key)
+
+
 def test_physics_state_replay():
     env = gym.make("SpinStrike/PuckSpeedControl-v0")
     env.reset(seed=2)
