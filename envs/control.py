@@ -57,7 +57,9 @@ class _ControlTask(Task):
 
     def __init__(self, cfg, batch_size: int, single: bool = False) -> None:
         super().__init__(cfg, batch_size, single)
-        self.render_fps = int(round(1.0 / cfg.dt))
+        # real time: 1 / dt (an int where it is one; rounded, dt = 0.4 s played at 0.8x)
+        fps = 1.0 / cfg.dt
+        self.render_fps = round(fps) if abs(fps - round(fps)) < 1e-9 * fps else fps
         overrides = {"mallet": {"mass": cfg.mallet_mass}, self.TARGET: {"mass": cfg.target_mass}}
         scene = build_scene(self.SCENE, cfg, overrides, (self.TARGET, "mallet"), self.NEEDS,
                             shapes=self.SHAPES)

@@ -84,7 +84,7 @@ class Task(ABC):
     UNIFORMS: ClassVar[int]
     #: the env's name on its video frames
     TITLE: ClassVar[str] = ""
-    render_fps: ClassVar[int] = 50
+    render_fps: ClassVar[float] = 50
     #: ``observe`` returns values already clipped to the layout's bounds
     OBS_CLIPPED: ClassVar[bool] = False
     #: effects the task cannot do without, each with why (``config.build_scene`` refuses a

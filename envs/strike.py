@@ -948,8 +948,9 @@ class PuckSpeedV1Env(PuckSpeedEnv):
     The task of ``PuckSpeed-v0`` (same scene, observation, reward, randomisation and info) with
     a different action: v0 gives the strike's heading as an angle (``pi * a``), which wraps at
     +-pi, so the best action for a target heading near +-pi jumps from one end of the box to the
-    other and a smooth policy fails there (PPO scored about 0 on those episodes and 0.75 of the
-    oracle overall). v1 gives the striker's velocity as a vector, continuous in the target.
+    other and a smooth policy fails there (PPO, seed 0, shipped config, scored 0.16 on the
+    targets within 30 degrees of -x and 0.85 elsewhere, over 300 episodes). v1 gives the
+    striker's velocity as a vector, continuous in the target.
 
     ## Action Space
     ``Box(-1, 1, (3,), float32)``: ``offset`` of the striker's line from the puck's centre (as a

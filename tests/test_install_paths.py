@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import venv
@@ -108,3 +109,52 @@ def test_wheel_editable_uninstall_and_a_read_only_install(tmp_path):
         assert not list(package.rglob("*.nbi"))
     finally:
         _freeze(package, False)
+
+
+#: the core dependencies at the lowest versions ``pyproject.toml`` allows (checked against it)
+FLOORS = {"numpy": "1.26.0", "numba": "0.62.0", "pyyaml": "6.0", "pydantic": "2.5.0",
+          "gymnasium": "1.1.0", "pymunk": "6.6.0", "platformdirs": "3.0.0", "filelock": "4.2.1"}
+LOWEST = """
+import gymnasium as gym, numpy as np
+import spinstrike
+from gymnasium.utils.env_checker import check_env
+for env_id in spinstrike.envs.ENV_IDS:
+    env = gym.make(env_id)
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    check_env(env.unwrapped, skip_render_check=True)
+    for mode in ("next_step", "same_step"):
+        vec = gym.make_vec(env_id, num_envs=4, vectorization_mode="vector_entry_point",
+                           autoreset_mode=mode)
+        vec.reset(seed=0)
+        for _ in range(300):
+            vec.step(vec.action_space.sample())
+print("ok")
+"""
+
+
+def test_the_lowest_declared_versions_of_the_core_dependencies_work(tmp_path):
+    """``gymnasium>=1.0`` and ``numba>=0.60`` were declared, but the envs import Gymnasium
+    1.1's ``AutoresetMode`` and the kernel cache numba 0.62's ``UserWideCacheLocator``: an
+    install that kept the older ones broke on the first ``gym.make`` (found by a docs walk).
+    The core dependencies at their floors, the package without its extras: every env makes,
+    steps, passes Gymnasium's checker and runs vectorised in both autoreset modes."""
+    import tomllib
+    from packaging.version import Version
+
+    declared = {re.split(r"[<>=!~ ]", dep)[0].lower(): dep for dep in
+                tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["dependencies"]}
+    assert set(declared) == set(FLOORS)
+    for name, version in FLOORS.items():
+        floor = re.search(r">=\s*([0-9.]+)", declared[name])
+        assert floor and Version(floor.group(1)) == Version(version), (declared[name], version)
+    env_dir = tmp_path / "venv"
+    venv.create(env_dir, with_pip=True)
+    py = str(env_dir / "bin" / "python")
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
+    env.update(SPINSTRIKE_CACHE_DIR=str(tmp_path / "kernels"), SPINSTRIKE_QUIET="1")
+    _sh([py, "-m", "pip", "install", "-q", *(f"{k}=={v}" for k, v in FLOORS.items())], env,
+        tmp_path)
+    _sh([py, "-m", "pip", "install", "-q", "--no-deps", str(REPO)], env, tmp_path)
+    _sh([py, "-m", "pip", "check"], env, tmp_path)
+    assert _sh([py, "-c", LOWEST], env, tmp_path, timeout=1800).strip().endswith("ok")

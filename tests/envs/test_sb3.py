@@ -107,15 +107,17 @@ def _pair(env_id, n_envs=2, seed=0, **env_kwargs):
     return dummy, native
 
 
-@pytest.mark.parametrize("dt", [0.02, 0.05])
+@pytest.mark.parametrize("dt", [0.02, 0.05, 0.4])
 def test_adapter_forwards_render_fps_to_vecvideorecorder(dt, tmp_path):
     """SB3's VecVideoRecorder read no ``render_fps`` from the adapter's metadata and filmed at
-    its 30 fps fallback; DummyVecEnv forwards the env's (50 at dt=0.02, 20 at dt=0.05)."""
+    its 30 fps fallback; DummyVecEnv forwards the env's (50 at dt=0.02, 20 at dt=0.05, 2.5 at
+    dt=0.4: real time, where it was rounded to 2 and played at 0.8x)."""
     from stable_baselines3.common.vec_env import VecVideoRecorder
 
     dummy, native = _pair(CONTROL, render_mode="rgb_array", dt=dt)
     fps = gym.make(CONTROL, dt=dt).metadata["render_fps"]
     assert native.metadata["render_fps"] == dummy.metadata["render_fps"] == fps
+    assert fps * dt == pytest.approx(1.0, rel=1e-12)
     recorders = [VecVideoRecorder(v, str(tmp_path / name), lambda step: False)
                  for name, v in (("dummy", dummy), ("native", native))]
     assert [r.frames_per_sec for r in recorders] == [fps, fps]

@@ -446,7 +446,7 @@ def parse_readme(text: str) -> tuple[list[tuple[str, dict[str, tuple[str, str] |
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=DOC)
-    parser.add_argument("--full", action="store_true", help="also the 10^6-step run (~3 min)")
+    parser.add_argument("--full", action="store_true", help="also the 10^6-step run (~30 s)")
     parser.add_argument("--readme", type=Path, default=None,
                         help="README whose stability section to rewrite (default: README.md "
                              "when --out is the default document, else none)")
