@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 import threading
 import warnings
 from dataclasses import dataclass
@@ -905,7 +906,7 @@ class World:
             f"other in this step (last_step.capped): speeds and forces this large for the "
             f"bodies' sizes (now up to {speeds.max():.3g} m/s, body {fastest!r}, its centre's "
             f"speed and its spin times its half-length; forces set up to {force:.3g} N) need a "
-            f"shorter step ({self.dt:g} s now)", RuntimeWarning, stacklevel=3)
+            f"shorter step ({self.dt:g} s now)", RuntimeWarning, stacklevel=_caller_level())
 
     @property
     def backend(self):
@@ -945,7 +946,7 @@ class World:
             f"{_few(elements)} ended the step with the centre off the table: "
             f"Chipmunk's discrete contacts let them through a cushion (the exact solver cannot "
             f"tunnel; more substeps make it rarer). Warned once per world",
-            RuntimeWarning, stacklevel=5)
+            RuntimeWarning, stacklevel=_caller_level())
 
     @property
     def last_step(self) -> StepStats:
@@ -1011,6 +1012,23 @@ class World:
         orbital = r[..., 0] * v[..., 1] - r[..., 1] * v[..., 0]
         return (self._finite_mass() * orbital).sum(-1) + (
             self._finite_inertia() * self._state[..., OMEGA]).sum(-1)
+
+
+#: the folders of SpinStrike's own modules (installed: spinstrike/physics, ...; a checkout:
+#: physics/, envs/, ...), whose frames a warning skips to name the user's line
+_OWN = tuple(os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), name)
+             + os.sep for name in ("physics", "envs", "agents", "benchmarks", "spinstrike"))
+
+
+def _caller_level() -> int:
+    """The ``stacklevel`` of the first frame outside SpinStrike's modules, for a warning
+    issued by the function that calls this: the user's ``world.step`` or ``env.step`` line,
+    however many of ours lie between (a fixed level named ``world.step``'s own line)."""
+    level, frame = 1, sys._getframe(1)
+    while frame is not None and frame.f_code.co_filename.startswith(_OWN):
+        frame = frame.f_back
+        level += 1
+    return level
 
 
 def _few(elements: np.ndarray, shown: int = 8) -> str:

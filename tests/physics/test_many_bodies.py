@@ -195,7 +195,8 @@ def test_a_large_world_gets_events_enough_to_stay_exact():
     """``max_events`` was 1000 a step whatever the number of bodies: 256 pucks in a box at
     e = 1 make ~1200 events a 0.01 s step, so every step ran out and was settled by fixed
     substeps (not exact, and 4x slower), with nothing to tell but ``last_step.fallback``. The
-    default is now 1000 or 20 per body, whichever is more; a value given is kept as given."""
+    default is now 10,000 (1000 until 2026-11-28) or 20 per body, whichever is more; a value
+    given is kept as given."""
     world = physics.World(_puck_gas(16))
     assert world.n_bodies == 256 and world.solver.max_events is None
     e0 = world.kinetic_energy()[0]
