@@ -57,7 +57,8 @@ OFF_POLICY = ("sac", "td3")
 class TrainResult(dict):
     """``run_dir``, ``env``, ``timesteps``, ``wall_time`` (this session's), ``sessions`` and
     ``total_wall_time`` (every stretch of training, interrupted ones too) and (if evaluated)
-    ``evaluations``."""
+    ``evaluations``; ``complete``, for a ``resume`` of a run that had trained its budget (it
+    trained nothing): what it wrote of its finish (``"evaluate"``, ``"video"``), if anything."""
 
 
 def _versions() -> dict[str, str]:
