@@ -117,7 +117,10 @@ class ExactSolver(_Model):
     Attributes:
         tolerance: gap (m) within which two approaching bodies are in contact. The time of impact
             is found to this gap, so it sets the accuracy. Smaller costs more root-finding
-            iterations per collision. Default 1e-9 m; allowed (0, 1e-2].
+            iterations per collision. Default 1e-9 m; allowed (0, 1e-2]. One below what
+            float64 resolves at the scene's coordinates (~2e-16 of them: ~1e-16 m on a 1 m
+            table) cannot be met: its searches stall and the steps are settled (flagged in
+            ``fallback``), with results as at the resolution.
         max_events: events (impacts and checkpoints) per batch element per ``step`` before the
             rest of the step is integrated by the fixed-step contact solver (the element is then
             flagged in ``world.last_step.fallback``). Default (None): 10,000, or
