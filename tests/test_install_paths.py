@@ -139,8 +139,9 @@ def test_the_lowest_declared_versions_of_the_core_dependencies_work(tmp_path):
     install that kept the older ones broke on the first ``gym.make`` (found by a docs walk).
     The core dependencies at their floors, the package without its extras: every env makes,
     steps, passes Gymnasium's checker and runs vectorised in both autoreset modes."""
-    import tomllib
     from packaging.version import Version
+
+    tomllib = pytest.importorskip("tomllib", reason="Python 3.11+ reads pyproject.toml")
 
     declared = {re.split(r"[<>=!~ ]", dep)[0].lower(): dep for dep in
                 tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["dependencies"]}
