@@ -498,9 +498,13 @@ _n_envs = _at_least(1)
 
 def _device(text: str) -> str:
     """A PyTorch device string, checked as torch parses it (``gpu`` was torch's traceback
-    after the run directory was made)."""
-    import torch
-
+    after the run directory was made). Without torch it is left to the command, which names
+    the extra to install (argparse checks the default too: ``train`` without the train extra
+    was a traceback)."""
+    try:
+        import torch
+    except ModuleNotFoundError:
+        return text
     if text == "auto":  # SB3's: cuda where there is one, else the CPU
         return text
     try:

@@ -6,6 +6,7 @@ Nothing here trains: where a run directory is needed its files are written by ha
 """
 
 import hashlib
+import subprocess
 import sys
 from pathlib import Path
 
@@ -645,3 +646,18 @@ def test_a_model_of_another_algorithm_is_one_error_line(sandbox, capsys, algo):
         line = capsys.readouterr().err.strip()
         assert line.startswith(f"error: model.zip: {run / 'model.zip'} could not be loaded as "
                                f"a {algo} model"), line
+
+
+def test_train_without_the_train_extra_names_the_extra(tmp_path):
+    """Installed without ``[train]``, ``spinstrike train`` was torch's traceback: ``--device``'s
+    default was checked with ``import torch`` while the arguments were parsed, before the
+    command could name the extra (found installing the wheel alone in a fresh venv)."""
+    code = ("import sys; sys.modules['torch'] = None; from spinstrike.agents.cli import main; "
+            "sys.exit(main(['train', '--algo', 'ppo', '--env', 'SpinStrike/RodSpin-v0', "
+            "'--timesteps', '256', '--out', 'run']))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         cwd=tmp_path, timeout=600)
+    assert out.returncode == 2, out.stderr
+    assert "Traceback" not in out.stderr
+    assert "comes with the 'train' extra: pip install \"spinstrike[train]\"" in out.stderr
+    assert not (tmp_path / "run").exists() and not (tmp_path / "run.partial").exists()
