@@ -474,10 +474,75 @@ def _check_needs(effects: list[str], needs: Mapping[str, str], refuses: Mapping[
                               f"{effects})")
 
 
+def reset_room_error(size: list[float], reaches: Mapping[str, tuple[float, int]],
+                     clearance: float) -> str | None:
+    """The error for a walled table of ``size`` too small for resets that put each body at any
+    angle in its half of the table (``reaches``: name -> (reach from its centre, m; side, -1
+    left or +1 right)), ``clearance`` from the cushions; None where they fit. A table that
+    passed ``gym.make`` and then failed most seeds' resets named no argument."""
+    most = max(reach for reach, _ in reaches.values()) + clearance
+    need = (4 * most, 2 * most)
+    if size[0] >= need[0] and size[1] >= need[1]:
+        return None
+    where = " and ".join(f"the {name} (reach {reach:.4g} m) in the "
+                         f"{'left' if side < 0 else 'right'} half"
+                         for name, (reach, side) in reaches.items())
+    return (f"scene.table.size: {list(size)} m is too small for this env's resets, which put "
+            f"{where}, at any angle and {clearance} m clear of the cushions (their positions in "
+            f"a scene are not used): it needs at least [{need[0]:.4g}, {need[1]:.4g}] m")
+
+
+def _task_materials(data: dict, cfg: EnvConfig, pair: tuple[str, str]) -> dict:
+    """The scene's materials with the env's ``restitution`` and ``friction`` (``build_scene``)."""
+    mats = dict(data.get("materials", {}))
+    if cfg.restitution is not None:
+        mats["restitution"] = cfg.restitution
+    if cfg.friction is not None:
+        mats["friction"] = cfg.friction
+    task_pair = []  # the scene's entries for the task's pair: the arguments win there too
+    for entry in mats.get("pairs", []):
+        entry = dict(entry)
+        if sorted(entry.get("bodies", [])) == sorted(pair):
+            entry.update({k: v for k, v in (("restitution", cfg.restitution),
+                                            ("friction", cfg.friction)) if v is not None})
+        task_pair.append(entry)
+    if "pairs" in mats:
+        mats["pairs"] = task_pair
+    return mats
+
+
+def _place(data: dict, bodies: dict[str, dict], placed: Mapping[str, int]) -> list | None:
+    """Put each ``placed`` body at the middle of its half of a walled table (``build_scene``);
+    the table's size, or None where there is none (or it is no pair of numbers, which the
+    scene's own error names)."""
+    size = (data.get("table") or {}).get("size") if isinstance(data.get("table"), dict) else None
+    if not placed or not isinstance(size, (list, tuple)) or len(size) != 2 or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) for v in size):
+        return None
+    for name, side in placed.items():
+        bodies[name] = dict(bodies[name], position=[0.25 * side * size[0], 0.0])
+    data["bodies"] = [bodies[b["name"]] for b in data["bodies"]]
+    return list(size)
+
+
+def _placed_outside(exc: SceneError, data: dict, bodies: dict[str, dict],
+                    placed: Mapping[str, int], size: list, clearance: float) -> str | None:
+    """``reset_room_error`` where the scene's error is a ``placed`` body outside the table."""
+    for i, body in enumerate(data.get("bodies", [])):
+        if body["name"] in placed and str(exc).startswith(f"bodies[{i}].position:"):
+            reaches = {n: (0.5 * (bodies[n].get("length") or 0.0)
+                           + 0.5 * (bodies[n].get("thickness") or 0.0)
+                           + (bodies[n].get("radius") or 0.0), side)
+                       for n, side in placed.items()}
+            return reset_room_error(size, reaches, clearance)
+    return None
+
+
 def build_scene(default: str, cfg: EnvConfig, body_overrides: dict[str, dict],
                 pair: tuple[str, str], needs: Mapping[str, str] = MappingProxyType({}),
                 refuses: Mapping[str, str] = MappingProxyType({}),
-                shapes: Mapping[str, tuple[str, str]] = MappingProxyType({})) -> Scene:
+                shapes: Mapping[str, tuple[str, str]] = MappingProxyType({}),
+                placed: Mapping[str, int] = MappingProxyType({}), clearance: float = 0.0) -> Scene:
     """Packaged (or user) scene with the env's overrides applied, validated once. ``pair``:
     the task's pair (target and striker or mallet), whose material ``restitution`` and
     ``friction`` set even where the scene names that pair (as ``randomize`` does). ``needs``:
@@ -485,7 +550,12 @@ def build_scene(default: str, cfg: EnvConfig, body_overrides: dict[str, dict],
     ``refuses``: effects it cannot take, with why (checked before the scene is validated, whose
     errors would otherwise ask for what the effect needs); ``shapes``: the shape each of the
     task's bodies must have, with why (a RodSpin "rod" given as a disk earned 0 for every
-    action)."""
+    action); ``placed``: bodies the env puts at a random pose on a walled table at every reset,
+    each with the side of the table it goes to (-1 left, +1 right). Their scene positions are
+    never used, so they stand at the middle of their halves for the scene's checks (a smaller
+    table was refused for the packaged mallet's position, which the user never chose), and a
+    table too small for the resets (``reset_room_error``, ``clearance`` from the cushions) is
+    refused as such."""
     data = load_packaged_scene(default) if cfg.scene is None else _scene_data(cfg.scene)
     # a scene that leaves ``effects`` out has the schema's default (rotation), as in World
     effects = (list(cfg.effects) if cfg.effects is not None
@@ -503,21 +573,7 @@ def build_scene(default: str, cfg: EnvConfig, body_overrides: dict[str, dict],
         _drop_parameters_of_dropped_effects(data, effects)
     if cfg.solver is not None:
         data["solver"] = _solver_block(data.get("solver"), cfg.solver)
-    mats = dict(data.get("materials", {}))
-    if cfg.restitution is not None:
-        mats["restitution"] = cfg.restitution
-    if cfg.friction is not None:
-        mats["friction"] = cfg.friction
-    task_pair = []  # the scene's entries for the task's pair: the arguments win there too
-    for entry in mats.get("pairs", []):
-        entry = dict(entry)
-        if sorted(entry.get("bodies", [])) == sorted(pair):
-            entry.update({k: v for k, v in (("restitution", cfg.restitution),
-                                            ("friction", cfg.friction)) if v is not None})
-        task_pair.append(entry)
-    if "pairs" in mats:
-        mats["pairs"] = task_pair
-    data["materials"] = mats
+    data["materials"] = _task_materials(data, cfg, pair)
     if cfg.table_friction is not None:
         data["table"] = dict(data.get("table", {}), friction=cfg.table_friction)
     _check_bodies(data, body_overrides, shapes)
@@ -526,7 +582,11 @@ def build_scene(default: str, cfg: EnvConfig, body_overrides: dict[str, dict],
     bodies = {b["name"]: b for b in data.get("bodies", [])}
     for name, changes in body_overrides.items():
         bodies[name].update({k: v for k, v in changes.items() if v is not None})
+    size = _place(data, bodies, placed)
     try:
         return load_scene(data)
     except SceneError as exc:
+        error = size and _placed_outside(exc, data, bodies, placed, size, clearance)
+        if error:
+            raise ConfigError(error) from None
         raise ConfigError(f"scene: {exc}") from None

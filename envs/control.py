@@ -15,7 +15,13 @@ from typing import ClassVar
 import numpy as np
 
 from spinstrike.envs import fast
-from spinstrike.envs.config import ConfigError, ControlConfig, build_scene, build_world
+from spinstrike.envs.config import (
+    ConfigError,
+    ControlConfig,
+    build_scene,
+    build_world,
+    reset_room_error,
+)
 from spinstrike.envs.core import (
     SpinStrikeEnv,
     SpinStrikeVectorEnv,
@@ -62,7 +68,8 @@ class _ControlTask(Task):
         self.render_fps = round(fps) if abs(fps - round(fps)) < 1e-9 * fps else fps
         overrides = {"mallet": {"mass": cfg.mallet_mass}, self.TARGET: {"mass": cfg.target_mass}}
         scene = build_scene(self.SCENE, cfg, overrides, (self.TARGET, "mallet"), self.NEEDS,
-                            shapes=self.SHAPES)
+                            shapes=self.SHAPES, placed={self.TARGET: 1, "mallet": -1},
+                            clearance=CLEARANCE)
         self.world = build_world(scene, batch_size, CONTROL_CONTACTS)
         w = self.world
         if not w.walls or not w.driven[w.index("mallet")]:
@@ -90,19 +97,14 @@ class _ControlTask(Task):
 
     def _check_room(self) -> None:
         """A reset puts the target at any angle in the right half and the mallet in the left,
-        ``CLEARANCE`` from the cushions: refuse a table too small for that (it passed
-        ``gym.make``, then the resets of most seeds failed, naming no argument)."""
+        ``CLEARANCE`` from the cushions: refuse a table too small for that."""
         w = self.world
-        reach_t = float(w.half_length[0, self.it] + w.radius[0, self.it]) + CLEARANCE
-        reach_m = float(w.radius[0, self.im]) + CLEARANCE
-        need = (4 * max(reach_t, reach_m), 2 * max(reach_t, reach_m))
-        size = tuple(2 * float(h) for h in w.table_half_size[0])
-        if size[0] < need[0] or size[1] < need[1]:
-            raise ConfigError(
-                f"scene.table.size: {list(size)} m is too small for this env's resets, which put "
-                f"the {self.TARGET} (reach {reach_t - CLEARANCE:.4g} m) at any angle in the right "
-                f"half and the mallet in the left, {CLEARANCE} m clear of the cushions: it needs "
-                f"at least [{need[0]:.4g}, {need[1]:.4g}] m")
+        error = reset_room_error(
+            [2 * float(h) for h in w.table_half_size[0]],
+            {self.TARGET: (float(w.half_length[0, self.it] + w.radius[0, self.it]), 1),
+             "mallet": (float(w.radius[0, self.im]), -1)}, CLEARANCE)
+        if error:
+            raise ConfigError(error)
 
     @property
     def _actions(self) -> np.ndarray:
@@ -307,7 +309,9 @@ _CONTROL_DOC = """{summary}
     cloth friction earn nothing.
 
     ## Starting State
-    {target_cap} at rest at a random pose in the right half, mallet at rest in the left half.
+    {target_cap} at rest at a random pose in the right half, mallet at rest in the left half,
+    both 0.02 m clear of the cushions (their positions in a ``scene`` are not used; a table too
+    small for this is refused at ``gym.make`` with the least size that fits).
 
     ## Episode End
     Never terminates; truncated after ``max_episode_steps`` (250 steps = 5 s, set at

@@ -621,8 +621,8 @@ def test_dict_mode_needs_a_goal():
 
 def test_scenes_the_env_cannot_run_are_refused_when_it_is_made():
     """A user's scene that an env would break part-way (bodies it would move at every reset, a
-    walled table too small for a launch) or that the world refuses (overlaps) is a ConfigError
-    from ``gym.make``, naming what is wrong."""
+    walled table too small for a launch) or that the world refuses is a ConfigError from
+    ``gym.make``, naming what is wrong."""
     from spinstrike.envs.config import load_packaged_scene
 
     control = load_packaged_scene("rod_control")
@@ -640,9 +640,11 @@ def test_scenes_the_env_cannot_run_are_refused_when_it_is_made():
                       for b in scene["bodies"]]
             with pytest.raises(ConfigError, match=rf"bodies: 'rod' is {flag}: the env places"):
                 gym.make(env_id, scene=dict(scene, bodies=pinned))
-    with pytest.raises(ConfigError, match="scene: bodies: 'rod' and 'mallet' overlap"):
-        gym.make("SpinStrike/RodSpinControl-v0", scene=dict(
-            control, bodies=[dict(b, position=[0.0, 0.0]) for b in control["bodies"]]))
+    # a control env's resets place the rod and the mallet: their scene positions, even
+    # overlapping ones, are not used (nor refused)
+    env = gym.make("SpinStrike/RodSpinControl-v0", scene=dict(
+        control, bodies=[dict(b, position=[0.0, 0.0]) for b in control["bodies"]]))
+    assert np.isfinite(env.reset(seed=0)[0]).all()
     strike = load_packaged_scene("rod_spin")
     parked = [dict(b, position=[0.0, 0.25]) if b["name"] == "striker" else b
               for b in strike["bodies"]]  # the packaged parking place, (0, 1), is off the table
@@ -873,27 +875,42 @@ def test_a_strike_ends_at_time_cap_not_at_the_next_thirtieth_of_a_second():
     assert capped.step(slow)[-1]["first_contact_time"] == pytest.approx(t_hit)
 
 
-def test_a_control_table_too_small_for_the_resets_is_refused_at_make():
+@pytest.mark.parametrize("env_id", ["SpinStrike/RodSpinControl-v0",
+                                    "SpinStrike/PuckSpeedControl-v0"])
+@pytest.mark.parametrize("room", ["bodies fit, without clearance", "bodies do not fit"])
+@pytest.mark.parametrize("mallet_at", [None, [-0.05, 0.0]])
+def test_a_control_table_too_small_for_the_resets_is_refused_at_make(env_id, room, mallet_at):
     """A table with no room for the reset's placement passed ``gym.make``; then the resets of
     14 seeds in 20 failed with a SceneError naming no argument (a training run died mid-way,
     and RLlib's one-reset driver check passed it). At the smallest size allowed, every reset
-    succeeds."""
+    succeeds. The scene's positions of the target and the mallet are not used (every reset
+    places them): a smaller table was refused for the packaged mallet's position, and a table
+    too small for a body to fit at all named that position, which the user never chose."""
     import re
 
-    scene = copy.deepcopy(envs.config.load_packaged_scene("rod_control"))
-    scene["table"]["size"] = [0.7, 0.5]
-    scene["bodies"][1]["position"] = [-0.2, 0.0]  # the mallet's, inside the smaller table
-    with pytest.raises(envs.ConfigError, match=r"scene.table.size: \[0.7, 0.5\] m is too small"
-                       r".*at least \[[\d.]+, [\d.]+\] m") as info:
-        gym.make("SpinStrike/RodSpinControl-v0", scene=scene)
+    rod = "Rod" in env_id
+    scene = copy.deepcopy(envs.config.load_packaged_scene("rod_control" if rod else "puck_control"))
+    # the target fits at the middle of its half but not at any angle 0.02 m from the cushions
+    size = ([0.7, 0.3] if rod else [0.22, 0.11]) if room.startswith("bodies fit") else [0.1, 0.1]
+    scene["table"]["size"] = size
+    if mallet_at is not None:
+        scene["bodies"][1]["position"] = mallet_at  # inside the smaller table, or not
+    with pytest.raises(envs.ConfigError, match=re.escape(f"scene.table.size: {size} m is too "
+                       "small for this env's resets") + r".*at least \[[\d.]+, [\d.]+\] m"
+                       ) as info:
+        gym.make(env_id, scene=scene)
     need = [float(x) for x in re.search(r"at least \[([\d.]+), ([\d.]+)\]",
                                         str(info.value)).groups()]
     scene["table"]["size"] = [need[0] + 1e-3, need[1] + 1e-3]
-    vec = gym.make_vec("SpinStrike/RodSpinControl-v0", num_envs=64, scene=scene,
-                       vectorization_mode="vector_entry_point")
+    vec = gym.make_vec(env_id, num_envs=64, scene=scene, vectorization_mode="vector_entry_point")
     for seed in range(8):
         obs, _ = vec.reset(seed=seed)
         assert np.isfinite(obs).all()
+    # the smallest table takes a scene whose mallet stands far off it: the position is not used
+    scene["bodies"][1]["position"] = [-5.0, 3.0]
+    env = gym.make(env_id, scene=scene)
+    obs, _ = env.reset(seed=0)
+    assert np.isfinite(obs).all() and env.observation_space.contains(obs)
 
 
 def test_env_spec_holds_the_scene_file_as_read(tmp_path, monkeypatch):
