@@ -25,6 +25,7 @@ beside agents trained on ``exact``, with the wall time each training took.
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import os
 import platform
@@ -287,7 +288,18 @@ def main(argv: list[str] | None = None) -> int:
     from spinstrike.agents.evaluate import evaluate
     from spinstrike.agents.stats import _rliable
 
-    try:  # the report's intervals need it: said before anything trains, not after
+    # training needs SB3 (the train extra), the report's intervals rliable (stats): both said
+    # at once, before anything trains (one extra named, then the next after its install)
+    missing = [extra for module, extra in (("stable_baselines3", "train"), ("rliable", "stats"))
+               if importlib.util.find_spec(module) is None]
+    if missing:
+        raise AgentConfigError(
+            f"spinstrike baselines trains with stable-baselines3 ('train' extra) and reports "
+            f"confidence intervals with rliable ('stats' extra); missing: {missing}: pip install "
+            f"\"spinstrike[{','.join(missing)}]\""
+            + (" (with CPU-only PyTorch first: pip install torch --index-url "
+               "https://download.pytorch.org/whl/cpu)" if "train" in missing else ""))
+    try:
         _rliable()
     except ImportError as exc:
         raise AgentConfigError(str(exc)) from None

@@ -492,14 +492,24 @@ def test_yaml_1e6_is_accepted_as_an_integer_budget(tmp_path):
         load_agent_config("ppo", ENV, path)
 
 
-def test_baselines_without_rliable_says_so_before_training(sandbox, capsys, monkeypatch):
+@pytest.mark.parametrize("hidden,extras", [(["rliable"], "stats"),
+                                           (["stable_baselines3"], "train"),
+                                           (["stable_baselines3", "rliable"], "train,stats")])
+def test_baselines_without_its_extras_says_so_before_training(sandbox, capsys, monkeypatch,
+                                                              hidden, extras):
     """Without the stats extra, ``spinstrike baselines`` trained a whole env's seeds, then died
-    with an ImportError traceback; now it is one error line and nothing is written."""
-    monkeypatch.setitem(sys.modules, "rliable", None)  # import rliable raises ImportError
+    with an ImportError traceback; then it named the stats extra only, and a user who installed
+    it learned next that it needs the train extra too. Now one error line names every extra
+    missing, and nothing is written."""
+    for module in hidden:
+        monkeypatch.setitem(sys.modules, module, None)  # importing it raises ImportError
     assert main(["baselines", "--quick", "--envs", ENV, "--algos", "ppo"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: confidence intervals need rliable: pip install "
-                          "'spinstrike[stats]'") and len(err.splitlines()) == 1
+    assert err.startswith("error: spinstrike baselines trains with stable-baselines3 ('train' "
+                          "extra) and reports confidence intervals with rliable ('stats' "
+                          f"extra); missing: {extras.split(',')}: pip install "
+                          f'"spinstrike[{extras}]"') and len(err.splitlines()) == 1
+    assert ("download.pytorch.org/whl/cpu" in err) == ("train" in extras)
     assert list(sandbox.iterdir()) == []
 
 
