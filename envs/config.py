@@ -69,7 +69,8 @@ class EnvConfig(BaseModel):
 
     Attributes:
         scene: a scene (path, YAML string or dict) replacing the packaged one; its body names must
-            match (``striker``/``mallet`` and ``rod``/``puck``).
+            match (``striker``/``mallet`` and ``rod``/``puck``). The env places its bodies at
+            every reset, so their positions in the scene are not used.
         solver: solver block, e.g. ``{"mode": "fixed", "substeps": 8}`` or ``"pymunk"``: of the
             scene's mode, its keys override the scene's and the scene's others stay (RodSpin's
             ``settle_substep``); of another mode, it replaces the scene's block.
