@@ -461,7 +461,8 @@ def cmd_bench(args) -> int:
     import importlib
 
     module = importlib.import_module(f"spinstrike.benchmarks.{args.which}")
-    return int(module.main(args.rest) or 0)
+    # its usage and errors name the command typed, not python -m ...
+    return int(module.main(args.rest, prog=f"spinstrike bench {args.which}") or 0)
 
 
 def cmd_baselines(args) -> int:

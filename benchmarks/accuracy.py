@@ -651,11 +651,13 @@ def plot(ms: list[Measurement], path: Path) -> None:
 # ---------------------------------------------------------------------------------------------
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def main(argv: Sequence[str] | None = None,
+         prog: str = "python -m spinstrike.benchmarks.accuracy") -> int:
     """``python -m spinstrike.benchmarks.accuracy [--quick] [--out DIR] ...``; returns an exit
-    code."""
+    code. ``prog``: the command's name in its usage and errors (``spinstrike bench accuracy``
+    from the CLI)."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    parser = argparse.ArgumentParser(prog="python -m spinstrike.benchmarks.accuracy",
+    parser = argparse.ArgumentParser(prog=prog,
                                      description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true",
                         help="a small subset (fewer knobs, 2 variants per case, 2 phases)")

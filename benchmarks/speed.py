@@ -452,8 +452,9 @@ def _plot(path: Path, xs, ys, xlabel: str, title: str) -> None:
     plt.close(fig)
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m spinstrike.benchmarks.speed",
+def main(argv: list[str] | None = None, prog: str = "python -m spinstrike.benchmarks.speed"
+         ) -> int:
+    p = argparse.ArgumentParser(prog=prog,
                                 description=__doc__.split("\n")[0])
     p.add_argument("--quick", action="store_true",
                    help="smaller batches and fewer repetitions (a few minutes); prints only, "
@@ -470,18 +471,19 @@ def main(argv: list[str] | None = None) -> int:
     if min(args.bodies) < 1:
         p.error(f"--bodies: each must be >= 1 puck (got {min(args.bodies)})")
     quick = args.quick
-    out = out_dir(p, args.out if args.out is not None else (None if quick else Path("docs")),
-                  "speed.md and the plots")
+    target = args.out if args.out is not None else (None if quick else Path("docs"))
     # the PPO env-share row trains SB3's PPO (the 'train' extra; 'bench' does not bring torch):
-    # a full run writes it into speed.md, so it needs SB3 before any work; --quick skips it
+    # a full run writes it into speed.md, so it needs SB3 before any work, the output folder
+    # included (a refused run left an empty docs/); --quick skips it
     have_sb3 = importlib.util.find_spec("stable_baselines3") is not None
     if not have_sb3 and args.section == "all":
-        if out is not None:
+        if target is not None:
             p.error("the PPO env-share row of speed.md needs stable_baselines3, which comes with "
                     "the 'train' extra: pip install \"spinstrike[train]\" (or run --quick, "
                     "which prints the rest without it)")
         print("note: stable_baselines3 is not installed (the 'train' extra): the PPO env-share "
               "row is skipped", file=sys.stderr)
+    out = out_dir(p, target, "speed.md and the plots")
     load, cores = os.getloadavg()[0], os.cpu_count() or 1
     if load > 0.5 * cores:  # the rates are the fastest of a few runs, not immune to sharing
         print(f"warning: load average {load:.2f} on {cores} cores: other work shares them, "

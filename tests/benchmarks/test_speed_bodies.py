@@ -79,11 +79,16 @@ def test_without_sb3_a_quick_run_skips_the_ppo_row_and_a_full_run_refuses_first(
     from spinstrike.agents.cli import main
 
     monkeypatch.setitem(sys.modules, "stable_baselines3", None)  # as if not installed
-    with pytest.raises(SystemExit) as exit_:
-        main(["bench", "speed", "--out", str(tmp_path / "docs")])
-    captured = capsys.readouterr()
-    assert exit_.value.code == 2 and "spinstrike[train]" in captured.err
-    assert captured.out == "" and not (tmp_path / "docs" / "speed.md").exists()
+    monkeypatch.chdir(tmp_path)
+    # refused before anything is written: no output folder either (a refused run left an
+    # empty docs/ in the current directory); the error names the command typed
+    for out in (["--out", str(tmp_path / "out")], []):
+        with pytest.raises(SystemExit) as exit_:
+            main(["bench", "speed", *out])
+        captured = capsys.readouterr()
+        assert exit_.value.code == 2 and "spinstrike[train]" in captured.err
+        assert captured.err.splitlines()[-1].startswith("spinstrike bench speed: error: ")
+        assert captured.out == "" and list(tmp_path.iterdir()) == []
 
     def share(steps):
         raise AssertionError("the PPO row ran without stable_baselines3")
@@ -96,7 +101,6 @@ def test_without_sb3_a_quick_run_skips_the_ppo_row_and_a_full_run_refuses_first(
     monkeypatch.setattr(speed, "_startup_times", lambda ids: {i: (1.0, 2.0, 0.1, 0.2) for i in ids})
     monkeypatch.setattr(speed, "_world_step_time", lambda scene, b, *a: (1e-6 * b, 0.5))
     monkeypatch.setattr(speed, "bodies_sweep", lambda *a: [])
-    monkeypatch.chdir(tmp_path)
     assert main(["bench", "speed", "--quick"]) == 0
     captured = capsys.readouterr()
     assert "PPO env-share row is skipped" in captured.err
