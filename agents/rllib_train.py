@@ -45,7 +45,7 @@ from spinstrike.agents.train import (
     plot_learning_curve,
     run_title,
 )
-from spinstrike.envs import scene_as_read
+from spinstrike.envs import as_registered
 
 __all__ = ["load_rllib_policy", "module_policy", "ppo_config", "train_rllib"]
 
@@ -181,8 +181,8 @@ def train_rllib(env_id: str, *, config: str | Path | None = None, seed: int = 0,
     cfg = load_agent_config("ppo", env_id, config, overrides)
     if env_kwargs:
         cfg.env_kwargs = {**cfg.env_kwargs, **env_kwargs}
-    # config.yml records the scene (the variant's too), not a path to a file that may change
-    cfg.env_kwargs = scene_as_read(env_id, cfg.env_kwargs)
+    # config.yml records the env: a variant's registered arguments and its scene as read
+    cfg.env_kwargs = as_registered(env_id, cfg.env_kwargs)
     if cfg.normalize:
         raise AgentConfigError("normalize: not supported with --backend rllib")
     _refuse_render_mode(cfg.env_kwargs)

@@ -801,10 +801,11 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
         # a bad argument first, before "out exists"
         cfg.policy = cfg.raw["policy"] = _policy_for(cfg, check_env_kwargs(env_id,
                                                                             cfg.env_kwargs))
-        # config.yml records the scene (the variant's too), not a path to a file that may change
-        from spinstrike.envs import scene_as_read
+        # config.yml records the env: a variant's registered arguments and its scene as read
+        # (not a path to a file that may change), so an edit of the user's module changes no run
+        from spinstrike.envs import as_registered
 
-        cfg.env_kwargs = scene_as_read(env_id, cfg.env_kwargs)
+        cfg.env_kwargs = as_registered(env_id, cfg.env_kwargs)
         work = _work_dir(run_dir, resume, force)
     # what is not given: as the run's first command asked (resumed), else the default
     finish = {key: value if value is not None else recorded.get(key, FINISH[key])

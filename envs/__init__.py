@@ -19,12 +19,16 @@ id                                 task
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import gymnasium as gym
+import numpy as np
 
 from spinstrike.envs.config import ConfigError
 
-__all__ = ["ENV_IDS", "ConfigError", "base_id", "describe", "native_vector", "scene_as_read",
-           "variant_kwargs"]
+__all__ = ["ENV_IDS", "ConfigError", "as_registered", "base_id", "describe", "native_vector",
+           "registration_changes", "scene_as_read", "variant_kwargs"]
 
 #: registered ids and a one-line description each
 ENV_IDS: dict[str, str] = {
@@ -147,6 +151,59 @@ def scene_as_read(env_id: str, env_kwargs: dict) -> dict:
         if "scene" in out or read is not scene:
             out["scene"] = read
     return out
+
+
+def _plain(value: Any) -> Any:
+    """``value`` as YAML writes and reads it back: tuples as lists, numpy values as Python's."""
+    if isinstance(value, Mapping):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def as_registered(env_id: str, env_kwargs: dict) -> dict:
+    """What a run records of its env: ``env_kwargs`` over the arguments a variant registers
+    (``variant_kwargs``, its ``max_episode_steps`` included; the given win), as YAML holds
+    them, a scene file read in (``scene_as_read``). ``evaluate RUN``, ``record RUN`` and
+    ``--resume`` then rebuild the env trained on: only a scene file was recorded, so a dt, a
+    table or a ``randomize`` range edited in the module that registers the variant silently
+    changed what an old run was scored and filmed on."""
+    import yaml
+
+    out = _plain(scene_as_read(env_id, {**variant_kwargs(env_id), **dict(env_kwargs)}))
+    for key, value in out.items():
+        try:
+            yaml.safe_dump(value)
+        except yaml.YAMLError:
+            raise ConfigError(f"env: {env_id} is made with {key}={_short(value)}, which a run's "
+                              f"config.yml cannot record: give or register plain values "
+                              f"(numbers, strings, lists, dicts)") from None
+    return out
+
+
+def registration_changes(env_id: str, recorded: dict) -> list[str]:
+    """The arguments ``env_id`` registers now that differ from a run's ``recorded`` env kwargs
+    (``as_registered``), each as ``name (now X, recorded Y)``; an argument the record lacks
+    (a run recorded before the record held them) is taken from the registration, as
+    ``name (now X, not recorded)``."""
+    now = _plain(scene_as_read(env_id, variant_kwargs(env_id)))
+    changes = []
+    for key, value in now.items():
+        if key not in recorded:
+            changes.append(f"{key} (now {_short(value)}, not recorded)")
+        elif _plain(recorded[key]) != value:
+            changes.append(f"{key} (now {_short(value)}, recorded {_short(recorded[key])})")
+    return changes
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def native_vector(env_id: str) -> tuple[str, dict]:

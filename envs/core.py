@@ -30,6 +30,7 @@ from typing import Any, ClassVar
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.envs.registration import EnvSpec
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
@@ -571,6 +572,9 @@ class SpinStrikeVectorEnv(_SpecOfScene, VectorEnv):
         self.num_envs = int(num_envs)
         self.render_mode = render_mode
         self.max_episode_steps = episode_limit(max_episode_steps, self.MAX_EPISODE_STEPS)
+        #: ``None`` was given: the limit is the registration's, read when ``gym.make_vec`` sets
+        #: the spec (it passes a variant's registered limit only where the key is absent)
+        self._registered_limit = max_episode_steps is None
         self.cfg = parse_config(self.TASK.CONFIG, config, kwargs)
         self.task = self.TASK(self.cfg, self.num_envs)
         self.metadata["render_fps"] = self.task.render_fps  # as the single env's (a control dt)
@@ -587,6 +591,26 @@ class SpinStrikeVectorEnv(_SpecOfScene, VectorEnv):
     @property
     def world(self):
         return self.task.world
+
+    @_SpecOfScene.spec.setter
+    def spec(self, spec: EnvSpec | None) -> None:
+        """Set by ``gym.make_vec`` after the env is made. ``max_episode_steps=None`` given
+        explicitly reached the env as None, which read as the class's limit (250) where
+        ``gym.make`` and ``SyncVectorEnv`` use the variant's registered one (100): now read
+        from the spec. A limit among a registration's ``kwargs``, which ``gym.make`` refuses,
+        is refused here too (the native env truncated by it)."""
+        registered = gym.registry.get(spec.id) if spec is not None else None
+        if registered is not None and "max_episode_steps" in registered.kwargs:
+            raise ConfigError(
+                f"max_episode_steps: {spec.id} registers it among its kwargs, which gym.make "
+                f"refuses (it is Gymnasium's argument, not the env's): register it as "
+                f"gym.register(..., max_episode_steps="
+                f"{registered.kwargs['max_episode_steps']!r})")
+        _SpecOfScene.spec.fset(self, spec)
+        if (spec is not None and self.__dict__.get("_registered_limit")
+                and spec.max_episode_steps is not None):
+            self.max_episode_steps = episode_limit(spec.max_episode_steps,
+                                                   self.MAX_EPISODE_STEPS)
 
     @property
     def np_random_seed(self) -> tuple[int, ...]:

@@ -287,3 +287,87 @@ def test_a_variants_frames_are_titled_with_its_id(user_module):
     assert gym.make_vec(variant, 2).unwrapped.task.title == "TitleLab/Big-v0"
     copy = pickle.loads(pickle.dumps(gym.make(variant).unwrapped))
     assert copy.task.title == "TitleLab/Big-v0"
+
+
+def test_a_variants_step_limit_holds_when_max_episode_steps_is_none(user_module, capsys):
+    """``max_episode_steps=None`` means the registered limit (``gym.make``'s reading): the
+    native ``gym.make_vec`` of a variant registered with 12 steps truncated at the class's 250,
+    as ``gym.make_vec`` passes None on (it fills in the registered limit only where the key is
+    absent), while ``SyncVectorEnv`` of ``gym.make`` envs truncated at 12; ``train --env-kwargs
+    '{max_episode_steps: null}'`` trained on 250-step episodes and evaluated on 12. A limit put
+    among the registration's ``kwargs`` was refused by ``gym.make`` and taken by the native
+    ``gym.make_vec``: refused by both."""
+    user_module("spinstrike_limit_lab", (
+        "import gymnasium as gym\n"
+        "gym.register('LimitLab/Short-v0', entry_point='spinstrike.envs.control:RodSpinControlEnv',"
+        " vector_entry_point='spinstrike.envs.control:RodSpinControlVectorEnv',"
+        " kwargs={'dt': 0.05}, max_episode_steps=12)\n"
+        "gym.register('LimitLab/InKwargs-v0',"
+        " entry_point='spinstrike.envs.control:RodSpinControlEnv',"
+        " vector_entry_point='spinstrike.envs.control:RodSpinControlVectorEnv',"
+        " kwargs={'max_episode_steps': 60})\n"))
+    variant = "spinstrike_limit_lab:LimitLab/Short-v0"
+    actions = np.zeros((2, 2), np.float32)
+    for kwargs, limit in (({}, 12), ({"max_episode_steps": None}, 12),
+                          ({"max_episode_steps": 5}, 5), ({"max_episode_steps": -1}, None)):
+        for mode in ("vector_entry_point", "sync"):
+            vec = gym.make_vec(variant, 2, vectorization_mode=mode, **kwargs)
+            vec.reset(seed=0)
+            ends = [t for t in range(1, 31) if vec.step(actions)[3].any()]
+            assert ends[:1] == ([limit] if limit else []), (kwargs, mode, ends)
+    for make in (gym.make, lambda i: gym.make_vec(i, 2)):
+        with pytest.raises(envs.ConfigError, match="max_episode_steps"):
+            make("spinstrike_limit_lab:LimitLab/InKwargs-v0")
+    # through the CLI: training and its evaluation run the same 12-step episodes
+    assert main(["train", "--env", variant, "--timesteps", "256", "--n-envs", "2",
+                 "--eval-episodes", "1", "--no-video", "--no-progress", "--out", "run",
+                 "--env-kwargs", "{max_episode_steps: null}"]) == 0
+    import csv
+    rows = list(csv.DictReader(Path("run/progress.csv").open()))
+    lengths = {float(r["rollout/ep_len_mean"]) for r in rows if r.get("rollout/ep_len_mean")}
+    assert lengths == {12.0}, lengths
+
+
+def test_a_variants_registered_arguments_are_recorded_with_the_run(user_module, capsys):
+    """A run recorded a variant's scene file as read, and nothing else it registers: after the
+    user's module was edited (dt 0.05 -> 0.01, another step limit, another ``randomize``
+    range), ``evaluate RUN`` scored, and ``record RUN`` filmed, the edited env, with no word.
+    The run records every registered argument (tuples as YAML lists); a new process rebuilds
+    the env trained on and says what the registration changed."""
+    def register(dt, steps, high):
+        user_module("spinstrike_edit_lab", (
+            "import gymnasium as gym\n"
+            "gym.register('EditLab/Slow-v0',"
+            " entry_point='spinstrike.envs.control:RodSpinControlEnv',"
+            " vector_entry_point='spinstrike.envs.control:RodSpinControlVectorEnv',"
+            f" kwargs={{'dt': {dt}, 'randomize': {{'mallet_mass': (0.2, {high})}}}},"
+            f" max_episode_steps={steps})\n"))
+
+    register(0.05, 12, 0.4)
+    variant = "spinstrike_edit_lab:EditLab/Slow-v0"
+    assert main(["train", "--env", variant, "--timesteps", "128", "--n-envs", "2",
+                 "--eval-episodes", "1", "--no-video", "--no-progress", "--out", "run"]) == 0
+    recorded = yaml.safe_load(Path("run/config.yml").read_text())
+    assert recorded["hyperparameters"][recorded["env"]]["env_kwargs"] == {
+        "dt": 0.05, "randomize": {"mallet_mass": [0.2, 0.4]}, "max_episode_steps": 12}
+    script = Path(sys.executable).with_name("spinstrike")
+    env = dict(os.environ, SDL_VIDEODRIVER="dummy", SDL_AUDIODRIVER="dummy")
+
+    def run(*args):
+        out = subprocess.run([str(script), *args], env=env, capture_output=True, text=True,
+                             timeout=600)
+        assert out.returncode == 0, out.stderr[-2000:]
+        return out
+
+    evaluate = ["evaluate", "run", "--episodes", "3", "--no-save", "--json"]
+    before = run(*evaluate)
+    assert "note:" not in before.stderr
+    register(0.01, 30, 0.9)  # the user edits the module
+    after = run(*evaluate)
+    assert after.stdout == before.stdout
+    note = after.stderr
+    for change in ("dt (now 0.01, recorded 0.05)", "max_episode_steps (now 30, recorded 12)",
+                   "randomize (now {'mallet_mass': [0.2, 0.9]}, recorded"):
+        assert change in note, note
+    filmed = run("record", "run", "--out", "v.mp4", "--episodes", "1")
+    assert "at 20 fps" in filmed.stdout + filmed.stderr  # 1 / dt as trained, not 100
