@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib.util
 import json
 import math
 import os
@@ -189,11 +190,13 @@ def cmd_train(args) -> int:
     if not args.no_eval and args.eval_episodes is not None:
         _check_episodes("--eval-episodes", args.eval_episodes)
     _refuse_unused(args)
-    if args.backend == "rllib":
-        if args.imitate:
-            from spinstrike.agents.config import AgentConfigError
+    if args.backend == "rllib" and args.imitate:
+        from spinstrike.agents.config import AgentConfigError
 
-            raise AgentConfigError("--imitate: starts SB3's PPO only (not --backend rllib)")
+        raise AgentConfigError("--imitate: starts SB3's PPO only (not --backend rllib)")
+    _require_extra("train", {**TRAIN_MODULES, **({"ray": "rllib"} if args.backend == "rllib"
+                                                  else {})})
+    if args.backend == "rllib":
         result = _train_rllib(args)
     else:
         try:
@@ -773,6 +776,33 @@ def main(argv: list[str] | None = None) -> int:
               f"error: spinstrike {args.command} needs {top}, which comes with the {extra!r} "
               f"extra: pip install \"spinstrike[{extra}]\"", file=sys.stderr)
         return 2
+
+
+#: what ``spinstrike train`` uses, each brought by the train extra (SB3's TensorBoard logger and
+#: progress bar, the learning-curve plot, the video): checked before anything trains. The zoo
+#: extra brings SB3 alone: train died in SB3's "tensorboard is not installed" assertion, and
+#: with tensorboard added it trained the whole budget and lost the run to the missing plot
+TRAIN_MODULES = dict.fromkeys(("stable_baselines3", "torch", "tensorboard", "tqdm", "rich",
+                               "matplotlib", "pygame", "moviepy", "imageio_ffmpeg", "PIL"),
+                              "train")
+
+
+def _require_extra(command: str, modules: dict[str, str]) -> None:
+    """Refuse ``spinstrike COMMAND`` where a module it uses (``modules``: each with the extra
+    that brings it) is not installed, naming every missing module and the extras."""
+    missing = [m for m in modules if importlib.util.find_spec(m) is None]
+    if missing:
+        from spinstrike.agents.config import AgentConfigError
+
+        extras = sorted({modules[m] for m in missing})
+        which = "extra" if len(extras) == 1 else "extras"
+        cpu = (" (with CPU-only PyTorch first: pip install torch --index-url "
+               "https://download.pytorch.org/whl/cpu)" if "torch" in missing else "")
+        raise AgentConfigError(
+            f"spinstrike {command} needs {', '.join(missing)}, which "
+            f"{'comes' if len(missing) == 1 else 'come'} with the "
+            f"{' and '.join(repr(e) for e in extras)} {which}: pip install "
+            f"\"spinstrike[{','.join(extras)}]\"{cpu}")
 
 
 #: the extra that brings each optional module the commands import

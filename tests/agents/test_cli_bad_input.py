@@ -671,3 +671,21 @@ def test_train_without_the_train_extra_names_the_extra(tmp_path):
     assert "Traceback" not in out.stderr
     assert "comes with the 'train' extra: pip install \"spinstrike[train]\"" in out.stderr
     assert not (tmp_path / "run").exists() and not (tmp_path / "run.partial").exists()
+
+
+def test_train_checks_every_module_it_uses_before_training(monkeypatch, tmp_path, capsys):
+    """The zoo extra brings SB3 and not the rest of the train extra: ``spinstrike train`` died
+    in SB3's "tensorboard is not installed" assertion (a traceback, an empty runs/), and with
+    tensorboard installed it trained the whole budget, then lost the run to the missing
+    matplotlib of the learning-curve plot. Every missing module is named at once, before
+    anything trains or is written."""
+    from spinstrike.agents.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    for module in ("tensorboard", "matplotlib", "moviepy"):
+        _uninstalled(monkeypatch, module)
+    assert main(["train", "--timesteps", "64", "--out", "run"]) == 2
+    err = capsys.readouterr().err
+    assert err == ("error: spinstrike train needs tensorboard, matplotlib, moviepy, which come "
+                   "with the 'train' extra: pip install \"spinstrike[train]\"\n")
+    assert list(tmp_path.iterdir()) == []
