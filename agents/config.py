@@ -92,6 +92,8 @@ class RunConfig:
     model_kwargs: dict = field(default_factory=dict)
     source: str = ""
     raw: dict = field(default_factory=dict)
+    #: the entry in its file, ``ppo.yml[SpinStrike/RodSpin-v0]``, for errors ("" if none)
+    where: str = ""
 
     def as_yaml_dict(self) -> dict:
         """The entry as written in the hyperparameter file, with overrides (saved with a run)."""
@@ -494,4 +496,4 @@ def _resolve(algo: str, env_id: str, entry: dict, where: str, source: str) -> Ru
         raise AgentConfigError(f"{where}.ent_coef: a number >= 0 for PPO; 'auto' is SAC's "
                                f"(got {entry['ent_coef']!r})")
     return RunConfig(algo, env_id, n_timesteps, policy, n_envs, normalize, env_kwargs, entry,
-                     source, raw)
+                     source, raw, where)

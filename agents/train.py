@@ -655,6 +655,21 @@ def check_env_kwargs(env_id: str, env_kwargs: dict, field: str = "env_kwargs",
     return space
 
 
+def _check_entry_env_kwargs(env_id: str, cfg: RunConfig, given: dict | None):
+    """``check_env_kwargs`` of a new run's ``env_kwargs``; an argument the env refuses that
+    came from the hyperparameter file's entry (not ``--env-kwargs``) is named with the entry,
+    as the file's other errors are (it was the bare argument, with no word of the file)."""
+    from spinstrike.envs.config import ConfigError
+
+    try:
+        return check_env_kwargs(env_id, cfg.env_kwargs)
+    except ConfigError as exc:
+        key = str(exc).split(":", 1)[0]
+        if cfg.where and key in (cfg.raw.get("env_kwargs") or {}) and key not in (given or {}):
+            raise ConfigError(f"{cfg.where}.env_kwargs.{exc}") from None
+        raise
+
+
 def _never_terminates(env) -> bool:
     """A control env: its episodes end only by a step limit."""
     from spinstrike.envs.control import _ControlEnv
@@ -799,8 +814,8 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
             imitation = settings(imitate, algo, env_id, bool(cfg.normalize), imitate_rounds,
                                  imitate_episodes)
         # a bad argument first, before "out exists"
-        cfg.policy = cfg.raw["policy"] = _policy_for(cfg, check_env_kwargs(env_id,
-                                                                            cfg.env_kwargs))
+        cfg.policy = cfg.raw["policy"] = _policy_for(cfg, _check_entry_env_kwargs(
+            env_id, cfg, env_kwargs))
         # config.yml records the env: a variant's registered arguments and its scene as read
         # (not a path to a file that may change), so an edit of the user's module changes no run
         from spinstrike.envs import as_registered

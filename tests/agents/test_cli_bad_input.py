@@ -689,3 +689,20 @@ def test_train_checks_every_module_it_uses_before_training(monkeypatch, tmp_path
     assert err == ("error: spinstrike train needs tensorboard, matplotlib, moviepy, which come "
                    "with the 'train' extra: pip install \"spinstrike[train]\"\n")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_bad_env_kwarg_in_a_hyperparameter_file_names_the_file(sandbox, capsys):
+    """An argument the env refuses, from the file's entry: ``error: max_forse: unknown
+    argument`` named neither the file nor its entry, as the file's other errors do."""
+    path = sandbox / "hp.yml"
+    shipped = load_agent_config("ppo", ENV).raw
+    path.write_text(yaml.safe_dump({ENV: dict(shipped, env_kwargs={"max_forse": 3.0})}))
+    assert main(["train", "--env", ENV, "--config", str(path), "--timesteps", "64",
+                 "--out", str(sandbox / "run")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: hp.yml[{ENV}].env_kwargs.max_forse: unknown argument"), err
+    # the same argument from the command line is the command line's
+    assert main(["train", "--env", ENV, "--timesteps", "64", "--out", str(sandbox / "run"),
+                 "--env-kwargs", "{max_forse: 3.0}"]) == 2
+    assert capsys.readouterr().err.startswith("error: max_forse: unknown argument")
+    assert not (sandbox / "run").exists()
