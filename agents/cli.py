@@ -96,7 +96,7 @@ def _policy(args):
 
             policy, meta = load_rllib_policy(run)
             env_kwargs = meta["hyperparameters"][meta["env"]].get("env_kwargs", {})
-            _note_registration_changes(run, meta["env"], env_kwargs)
+            _note_registration_changes(run, meta, env_kwargs)
             return policy, meta["env"], env_kwargs, "agent"
         missing = [f for f in ("model.zip", "config.yml") if not (run / f).is_file()]
         if missing == ["model.zip"] and list((run / "checkpoints").glob("model_*_steps.zip")):
@@ -113,7 +113,7 @@ def _policy(args):
             raise AgentConfigError(f"run_dir: {run} has no {' or '.join(missing)} (not a run)")
         policy, meta = load_model_policy(run)
         env_kwargs = meta["hyperparameters"][meta["env"]].get("env_kwargs", {})
-        _note_registration_changes(run, meta["env"], env_kwargs)
+        _note_registration_changes(run, meta, env_kwargs)
         return policy, meta["env"], env_kwargs, "agent"
     if not args.env:
         for flag in ("oracle", "random", "planner"):
@@ -476,16 +476,17 @@ def cmd_baselines(args) -> int:
     return int(baselines_main(args.rest) or 0)
 
 
-def _note_registration_changes(run: Path, env_id: str, recorded: dict) -> None:
+def _note_registration_changes(run: Path, meta: dict, env_kwargs: dict) -> None:
     """Say where a variant's registration (the user's module, imported again) no longer
-    matches what the run recorded: the recorded arguments are used; one the record lacks (a
-    run recorded before the record held them) comes from the registration now."""
+    matches what the run recorded (``registration_changes``): the run's arguments are used;
+    one its record lacks (a run recorded before the record held them) comes from the
+    registration now."""
     from spinstrike.envs import registration_changes
 
-    changes = registration_changes(env_id, recorded)
+    changes = registration_changes(meta["env"], env_kwargs, meta.get("registered"))
     if changes:
-        print(f"note: {env_id} is registered with other arguments than {run}/config.yml "
-              f"records: {'; '.join(changes)}; the recorded ones are used", file=sys.stderr)
+        print(f"note: {meta['env']} is registered with other arguments than when {run} "
+              f"trained: {'; '.join(changes)}; the run's are used", file=sys.stderr)
 
 
 def _at_least(low: int, note: str = "", high: int | None = None):

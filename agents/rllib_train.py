@@ -40,6 +40,7 @@ from spinstrike.agents.config import (
 from spinstrike.agents.train import (
     TrainResult,
     _refuse_render_mode,
+    _registered,
     _work_dir,
     finish_run,
     plot_learning_curve,
@@ -276,7 +277,7 @@ def _learn(algo_config, cfg: RunConfig, work: Path, *, seed, address, num_env_ru
             "source": cfg.source, "num_env_runners": num_env_runners,
             "num_envs_per_env_runner": algo_config.num_envs_per_env_runner,
             "address": address, "versions": _versions(),
-            "hyperparameters": cfg.as_yaml_dict()}
+            "hyperparameters": cfg.as_yaml_dict(), **_registered(cfg.env_id)}
     (work / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
     (work / "command.txt").write_text((command or shlex.join(sys.argv)) + "\n")
     per_iter = algo_config.train_batch_size_per_learner

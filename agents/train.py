@@ -550,7 +550,8 @@ def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, 
                                    f"{type(exc).__name__}: {exc}") from None
         meta = {"algo": algo, "env": cfg.env_id, "seed": seed, "source": cfg.source,
                 "versions": _versions(), "torch_threads": torch.get_num_threads(),
-                "hyperparameters": cfg.as_yaml_dict(), "finish": finish}
+                "hyperparameters": cfg.as_yaml_dict(), "finish": finish,
+                **_registered(cfg.env_id)}
         (work / "command.txt").write_text((command or shlex.join(sys.argv)) + "\n")
         if imitate:
             from spinstrike.agents.imitate import dagger
@@ -653,6 +654,16 @@ def check_env_kwargs(env_id: str, env_kwargs: dict, field: str = "env_kwargs",
                                f"ever: register it with max_episode_steps (the shipped control "
                                f"envs: 250, 5 s), or give max_episode_steps in {field}")
     return space
+
+
+def _registered(env_id: str) -> dict:
+    """``config.yml``'s record of a variant's registration when it trained (``registered``),
+    which ``evaluate`` / ``record RUN`` compare with the registration then; none for a
+    shipped id."""
+    from spinstrike.envs import registered_kwargs
+
+    registered = registered_kwargs(env_id)
+    return {"registered": registered} if registered else {}
 
 
 def _check_entry_env_kwargs(env_id: str, cfg: RunConfig, given: dict | None):

@@ -28,7 +28,7 @@ import numpy as np
 from spinstrike.envs.config import ConfigError
 
 __all__ = ["ENV_IDS", "ConfigError", "as_registered", "base_id", "describe", "native_vector",
-           "registration_changes", "scene_as_read", "variant_kwargs"]
+           "registered_kwargs", "registration_changes", "scene_as_read", "variant_kwargs"]
 
 #: registered ids and a one-line description each
 ENV_IDS: dict[str, str] = {
@@ -186,18 +186,25 @@ def as_registered(env_id: str, env_kwargs: dict) -> dict:
     return out
 
 
-def registration_changes(env_id: str, recorded: dict) -> list[str]:
-    """The arguments ``env_id`` registers now that differ from a run's ``recorded`` env kwargs
-    (``as_registered``), each as ``name (now X, recorded Y)``; an argument the record lacks
-    (a run recorded before the record held them) is taken from the registration, as
-    ``name (now X, not recorded)``."""
-    now = _plain(scene_as_read(env_id, variant_kwargs(env_id)))
+def registered_kwargs(env_id: str) -> dict:
+    """The arguments ``env_id`` registers (``variant_kwargs``; none for a shipped id), as a
+    run's ``config.yml`` records them (``as_registered``)."""
+    return _plain(scene_as_read(env_id, variant_kwargs(env_id)))
+
+
+def registration_changes(env_id: str, env_kwargs: dict, registered: dict | None) -> list[str]:
+    """Where ``env_id``'s registration now differs from what a run recorded: its
+    ``env_kwargs`` (``as_registered``: what the run is rebuilt with) and ``registered``, the
+    registration when it trained (None for a run recorded before 2026-11-28). Each as
+    ``name (now X, the run's Y)`` (the run's is used), or ``name (now X, not recorded)`` for
+    one the run's record lacks, which the registration now gives."""
     changes = []
-    for key, value in now.items():
-        if key not in recorded:
+    for key, value in registered_kwargs(env_id).items():
+        if key not in env_kwargs:
             changes.append(f"{key} (now {_short(value)}, not recorded)")
-        elif _plain(recorded[key]) != value:
-            changes.append(f"{key} (now {_short(value)}, recorded {_short(recorded[key])})")
+        elif registered is not None and _plain(registered.get(key)) != value:
+            changes.append(f"{key} (now {_short(value)}, the run's "
+                           f"{_short(_plain(env_kwargs[key]))})")
     return changes
 
 

@@ -5,6 +5,7 @@ shipped ones. The variant's registered arguments reach the batched env training 
 native vector env), its run's record names it, and a later process finds it again through the
 module; ids that are not SpinStrike envs are refused naming what is allowed."""
 
+import json
 import os
 import subprocess
 import sys
@@ -343,13 +344,14 @@ def test_a_variants_registered_arguments_are_recorded_with_the_run(user_module, 
             f" kwargs={{'dt': {dt}, 'randomize': {{'mallet_mass': (0.2, {high})}}}},"
             f" max_episode_steps={steps})\n"))
 
-    register(0.05, 12, 0.4)
+    register(0.05, 60, 0.4)
     variant = "spinstrike_edit_lab:EditLab/Slow-v0"
     assert main(["train", "--env", variant, "--timesteps", "128", "--n-envs", "2",
                  "--eval-episodes", "1", "--no-video", "--no-progress", "--out", "run"]) == 0
     recorded = yaml.safe_load(Path("run/config.yml").read_text())
     assert recorded["hyperparameters"][recorded["env"]]["env_kwargs"] == {
-        "dt": 0.05, "randomize": {"mallet_mass": [0.2, 0.4]}, "max_episode_steps": 12}
+        "dt": 0.05, "randomize": {"mallet_mass": [0.2, 0.4]}, "max_episode_steps": 60} \
+        == recorded["registered"]
     script = Path(sys.executable).with_name("spinstrike")
     env = dict(os.environ, SDL_VIDEODRIVER="dummy", SDL_AUDIODRIVER="dummy")
 
@@ -362,12 +364,18 @@ def test_a_variants_registered_arguments_are_recorded_with_the_run(user_module, 
     evaluate = ["evaluate", "run", "--episodes", "3", "--no-save", "--json"]
     before = run(*evaluate)
     assert "note:" not in before.stderr
+    assert json.loads(before.stdout)["oracle"]["mean"] > 0  # scores that tell the envs apart
+    # an argument the command line gave over the registration is no change of it
+    assert main(["train", "--env", variant, "--timesteps", "128", "--n-envs", "2",
+                 "--eval-episodes", "1", "--no-video", "--no-progress", "--out", "run2",
+                 "--env-kwargs", "{dt: 0.02}"]) == 0
+    assert "note:" not in run("evaluate", "run2", "--episodes", "1", "--no-save").stderr
     register(0.01, 30, 0.9)  # the user edits the module
     after = run(*evaluate)
     assert after.stdout == before.stdout
     note = after.stderr
-    for change in ("dt (now 0.01, recorded 0.05)", "max_episode_steps (now 30, recorded 12)",
-                   "randomize (now {'mallet_mass': [0.2, 0.9]}, recorded"):
+    for change in ("dt (now 0.01, the run's 0.05)", "max_episode_steps (now 30, the run's 60)",
+                   "randomize (now {'mallet_mass': [0.2, 0.9]}, the run's"):
         assert change in note, note
     filmed = run("record", "run", "--out", "v.mp4", "--episodes", "1")
     assert "at 20 fps" in filmed.stdout + filmed.stderr  # 1 / dt as trained, not 100
