@@ -22,6 +22,7 @@ from spinstrike.physics import EFFECTS, SceneError, World, load_scene
 from spinstrike.physics.scene import (
     UNION_MEMBER,
     WALL_NAMES,
+    Body,
     Integer,
     Number,
     Scene,
@@ -520,10 +521,14 @@ def _place(data: dict, bodies: dict[str, dict], placed: Mapping[str, int]) -> li
     if not placed or not isinstance(size, (list, tuple)) or len(size) != 2 or not all(
             isinstance(v, (int, float)) and not isinstance(v, bool) for v in size):
         return None
-    for name, side in placed.items():
-        bodies[name] = dict(bodies[name], position=[0.25 * side * size[0], 0.0])
-    data["bodies"] = [bodies[b["name"]] for b in data["bodies"]]
+    for name, side in placed.items():  # the scene's own dicts, as the overrides edit them
+        bodies[name]["position"] = [0.25 * side * size[0], 0.0]
     return list(size)
+
+
+def _reach(body: Body) -> float:
+    """How far a body reaches from its centre, m: its core's half-length and radius."""
+    return body.half_length + body.core_radius
 
 
 def _placed_outside(exc: SceneError, data: dict, bodies: dict[str, dict],
@@ -531,9 +536,9 @@ def _placed_outside(exc: SceneError, data: dict, bodies: dict[str, dict],
     """``reset_room_error`` where the scene's error is a ``placed`` body outside the table."""
     for i, body in enumerate(data.get("bodies", [])):
         if body["name"] in placed and str(exc).startswith(f"bodies[{i}].position:"):
-            reaches = {n: (0.5 * (bodies[n].get("length") or 0.0)
-                           + 0.5 * (bodies[n].get("thickness") or 0.0)
-                           + (bodies[n].get("radius") or 0.0), side)
+            # the bodies are valid (the table's check comes after theirs): their reach as the
+            # scene defines it
+            reaches = {n: (_reach(Body.model_validate(bodies[n])), side)
                        for n, side in placed.items()}
             return reset_room_error(size, reaches, clearance)
     return None
