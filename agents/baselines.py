@@ -284,7 +284,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--planner-episodes", type=_at_least(0), default=20,
                    help="episodes of the CEM planner on each control env (0: none)")
     args = p.parse_args(argv)
-    from spinstrike.agents.config import AgentConfigError, check_env_id
+    from spinstrike.agents.config import CPU_TORCH_FIRST, AgentConfigError, check_env_id
     from spinstrike.agents.evaluate import evaluate
     from spinstrike.agents.stats import _rliable
 
@@ -297,8 +297,7 @@ def main(argv: list[str] | None = None) -> int:
             f"spinstrike baselines trains with stable-baselines3 ('train' extra) and reports "
             f"confidence intervals with rliable ('stats' extra); missing: {missing}: pip install "
             f"\"spinstrike[{','.join(missing)}]\""
-            + (" (with CPU-only PyTorch first: pip install torch --index-url "
-               "https://download.pytorch.org/whl/cpu)" if "train" in missing else ""))
+            + (f" {CPU_TORCH_FIRST}" if "train" in missing else ""))
     try:
         _rliable()
     except ImportError as exc:

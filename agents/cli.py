@@ -770,12 +770,8 @@ def main(argv: list[str] | None = None) -> int:
         if top not in EXTRA_OF:
             raise
         extra = "bench" if args.command == "bench" and top == "matplotlib" else EXTRA_OF[top]
-        print(f"error: spinstrike {args.command} needs {top}, which comes with the {extra!r} "
-              f"extra: pip install \"spinstrike[{extra}]\" (with CPU-only PyTorch first: "
-              f"pip install torch --index-url https://download.pytorch.org/whl/cpu)"
-              if extra in ("train", "rllib") else
-              f"error: spinstrike {args.command} needs {top}, which comes with the {extra!r} "
-              f"extra: pip install \"spinstrike[{extra}]\"", file=sys.stderr)
+        print("error: " + _needs_extras(args.command, [top], [extra],
+                                        cpu_torch=extra in ("train", "rllib")), file=sys.stderr)
         return 2
 
 
@@ -795,15 +791,21 @@ def _require_extra(command: str, modules: dict[str, str]) -> None:
     if missing:
         from spinstrike.agents.config import AgentConfigError
 
-        extras = sorted({modules[m] for m in missing})
-        which = "extra" if len(extras) == 1 else "extras"
-        cpu = (" (with CPU-only PyTorch first: pip install torch --index-url "
-               "https://download.pytorch.org/whl/cpu)" if "torch" in missing else "")
-        raise AgentConfigError(
-            f"spinstrike {command} needs {', '.join(missing)}, which "
+        raise AgentConfigError(_needs_extras(command, missing,
+                                             sorted({modules[m] for m in missing}),
+                                             cpu_torch="torch" in missing))
+
+
+def _needs_extras(command: str, missing: list[str], extras: list[str], cpu_torch: bool) -> str:
+    """``spinstrike COMMAND needs ...``: the missing modules, the extras that bring them and
+    the ``pip install`` (with CPU-only PyTorch first where ``cpu_torch``)."""
+    from spinstrike.agents.config import CPU_TORCH_FIRST
+
+    return (f"spinstrike {command} needs {', '.join(missing)}, which "
             f"{'comes' if len(missing) == 1 else 'come'} with the "
-            f"{' and '.join(repr(e) for e in extras)} {which}: pip install "
-            f"\"spinstrike[{','.join(extras)}]\"{cpu}")
+            f"{' and '.join(repr(e) for e in extras)} extra{'s' if len(extras) > 1 else ''}: "
+            f"pip install \"spinstrike[{','.join(extras)}]\""
+            + (f" {CPU_TORCH_FIRST}" if cpu_torch else ""))
 
 
 #: the extra that brings each optional module the commands import

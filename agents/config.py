@@ -57,6 +57,11 @@ ACTIVATIONS = {"relu": "ReLU", "tanh": "Tanh", "elu": "ELU", "leaky_relu": "Leak
                "gelu": "GELU", "silu": "SiLU"}
 
 
+#: said with every ``pip install`` of an extra that brings PyTorch (else pip takes the CUDA build)
+CPU_TORCH_FIRST = ("(with CPU-only PyTorch first: pip install torch --index-url "
+                   "https://download.pytorch.org/whl/cpu)")
+
+
 class AgentConfigError(ValueError):
     """An invalid hyperparameter file, entry or CLI argument; the message names the key."""
 
