@@ -340,11 +340,22 @@ class Renderer:
         self._arrow(surf, start, end, colour, width)
         pg.draw.circle(surf, colour, start, max(4, self.height // 80) + int(6 * m.fade), 2)
         label = self._small.render(f"j = {m.j:.3f} N s", True, colour)
-        at = (end[0] + 6, end[1] - label.get_height() // 2)
+        at = self._label_at(end, label.get_width(), label.get_height())
         box = pg.Surface((label.get_width() + 4, label.get_height() + 2), pg.SRCALPHA)
         box.fill((*COLOURS["panel"], int(PANEL_ALPHA * m.fade)))
         surf.blit(box, (at[0] - 2, at[1] - 1))
         surf.blit(label, at)
+
+    def _label_at(self, end, w: int, h: int) -> tuple[int, int]:
+        """Where a ``w`` x ``h`` label goes beside an arrow's head at ``end``: right of it, or
+        left of it where the right would leave the frame (an impulse at the right cushion),
+        kept whole inside the frame."""
+        x = end[0] + 6
+        if x + w + 2 > self.width:
+            x = end[0] - 6 - w
+        x = min(max(2, x), self.width - w - 2)
+        y = min(max(1, end[1] - h // 2), self.height - h - 1)
+        return int(x), int(y)
 
     def _vector(self, surf, v: Vector) -> None:
         start = self._px(v.x, v.y)

@@ -23,7 +23,7 @@ from spinstrike.agents.cli import main
 from spinstrike.agents.oracle import oracle_for
 from spinstrike.envs import fast
 from spinstrike.envs.recording import RecordEveryFrame, VideoWriter, tile
-from spinstrike.envs.rendering import COLOURS, Marker, Renderer, strike_times
+from spinstrike.envs.rendering import COLOURS, Frame, Marker, Renderer, strike_times
 from spinstrike.envs.strike import CHUNK
 from spinstrike.physics.layout import ANGLE, OMEGA, VX, VY, X, Y
 
@@ -538,6 +538,30 @@ def test_impulse_markers_show_the_push_on_the_target():
     assert (m.nx, m.ny) == (-0.6, -0.8)
     m = Marker.on(1, 0, 4, (0.1, 0.2), n, 0.5)  # body 0 against a cushion: the push on body 0
     assert (m.x, m.y, m.nx, m.ny, m.j) == (0.1, 0.2, -0.6, -0.8, 0.5)
+
+
+def test_impulse_labels_stay_whole_inside_the_frame():
+    """An impulse's label beside a contact at the right cushion, or at a corner, is drawn whole:
+    as many of its pixels as beside a contact in the middle of the table (it was cut at the
+    frame's edge)."""
+    r = Renderer((480, 320), (0.6, 0.4))
+
+    def label_box(x, y, nx, ny):
+        """(width, height) of the label's box, as drawn: the pixels of its background colour
+        (the most common colour not the table's: the arrow of an impulse this small has no
+        length, and the contact's ring is thin)."""
+        image = r.draw(Frame([], (math.inf, math.inf), markers=[Marker(x, y, nx, ny, 1e-4)]))
+        colours, counts = np.unique(image.reshape(-1, 3), axis=0, return_counts=True)
+        ranked = [tuple(c) for c in colours[np.argsort(-counts)]]
+        box = next(c for c in ranked if c != COLOURS["table"])
+        rows, cols = np.nonzero((image == box).all(axis=2))
+        return (int(np.ptp(cols)) + 1, int(np.ptp(rows)) + 1)
+
+    whole = label_box(0.0, 0.0, 1.0, 0.0)
+    assert whole[0] > 60 and whole[1] > 10
+    for x, y, nx, ny in [(0.6, 0.0, 1.0, 0.0), (0.59, -0.4, 0.0, -1.0), (0.6, 0.4, 0.7, 0.7),
+                         (-0.6, 0.4, -1.0, 0.0)]:
+        assert label_box(x, y, nx, ny) == whole, (x, y)
 
 
 def test_strike_times_law():
