@@ -388,11 +388,18 @@ def cmd_record(args) -> int:
                        else f"{name}-{env_id.split('/')[-1]}.mp4")
     _check_video_out(out)
     size = _size(args.size) if args.size else None
+    replaced = _replaces(out)
     result = record(policy, env_id, out, episodes=args.episodes, seed=args.seed,
                     env_kwargs=env_kwargs, size=size, grid=args.grid)
     print(f"video: {result['path']} ({result['frames']} frames at {result['fps']} fps, "
-          f"{_video_size(result, None if args.grid else size)})")
+          f"{_video_size(result, None if args.grid else size)}){replaced}")
     return 0
+
+
+def _replaces(out: str) -> str:
+    """What ``record``'s line adds where the video replaces a file (a run's ``rollout.mp4``
+    filmed again, or a name given twice): it is overwritten, as ffmpeg's ``-y`` does, but said."""
+    return "; it replaces the file that was there" if Path(out).exists() else ""
 
 
 def _record_scene(args) -> int:
@@ -424,9 +431,10 @@ def _record_scene(args) -> int:
     _check_video_out(out)
     world = physics.World(args.scene)
     size = _size(args.size) if args.size else (720, 480)
+    replaced = _replaces(out)
     result = record_world(world, out, seconds=args.seconds, dt=args.dt, size=size)
     print(f"video: {result['path']} ({result['frames']} frames at {result['fps']:g} fps, "
-          f"{_video_size(result, size)}; {result['contacts']} contacts)")
+          f"{_video_size(result, size)}; {result['contacts']} contacts){replaced}")
     return 0
 
 

@@ -125,6 +125,11 @@ def test_ctrl_c_while_a_run_films_says_what_is_missing_and_leaves_no_broken_vide
     assert main(["record", str(run)]) == 0
     frames, _ = imageio_ffmpeg.count_frames_and_secs(str(run / "rollout.mp4"))
     assert frames > 20
+    assert "replaces" not in capsys.readouterr().out
+    # filmed again: the video is replaced, and the line says so
+    assert main(["record", str(run), "--episodes", "1"]) == 0
+    assert "; it replaces the file that was there" in capsys.readouterr().out
+    assert imageio_ffmpeg.count_frames_and_secs(str(run / "rollout.mp4"))[0] < frames
 
 
 def test_a_run_on_a_scene_file_records_the_scene_and_evaluates_from_anywhere(
