@@ -228,7 +228,7 @@ def cmd_train(args) -> int:
         print(f"run: {result['run_dir']}  ({result['timesteps']} steps, "
               f"{result['wall_time']:.1f} s" + (f"; {result['total_wall_time']:.0f} s in "
                                                  f"{sessions} sessions" if sessions > 1 else "")
-              + ")")
+              + ")" + _rounded_up(result))
     from spinstrike.agents.evaluate import policy_label
 
     control = "Control" in _check_env_id(result.get("env") or args.env)
@@ -262,6 +262,26 @@ def _refuse_unused(args) -> None:
     for flag, value, whose in unused:
         if value is not None:
             raise AgentConfigError(f"{flag}: {whose}, not given (got {value!r})")
+
+
+def _rounded_up(result: dict) -> str:
+    """What the run line adds where the run trained more steps than its budget: SB3 trains
+    whole rollouts (``n_envs x n_steps`` for PPO, ``n_envs`` steps a call for SAC and TD3; so
+    ``--timesteps 100`` trains 1024 steps at the shipped PPO entries), RLlib whole iterations."""
+    import yaml
+
+    from spinstrike.agents.train import recorded_budget
+
+    work = Path(result["run_dir"])
+    if not (work / "config.yml").is_file():
+        return ""
+    budget = recorded_budget(work)
+    if budget is None or result["timesteps"] <= budget:
+        return ""
+    rllib = yaml.safe_load((work / "config.yml").read_text()).get("backend") == "rllib"
+    return (f"; the budget of {budget} rounded up to whole "
+            + ("training iterations, as RLlib trains them" if rllib
+               else "rollouts, as SB3 trains them"))
 
 
 def _train_rllib(args) -> dict:

@@ -55,10 +55,12 @@ def test_the_cli_trains_on_dict_and_pixel_observations(kwargs, policy, tmp_path,
     steps). The run takes the policy the observations need, says so and records it; its
     evaluations and its summary go through the same observations."""
     run = tmp_path / "run"
-    assert main(["train", "--algo", "ppo", "--env", "SpinStrike/RodSpin-v0", "--timesteps", "64",
+    assert main(["train", "--algo", "ppo", "--env", "SpinStrike/RodSpin-v0", "--timesteps", "128",
                  "--n-envs", "2", "--env-kwargs", kwargs, "--out", str(run), "--no-video",
                  "--eval-episodes", "2", "--no-progress"]) == 0
-    assert f"policy: {policy} for" in capsys.readouterr().err
+    out, err = capsys.readouterr()
+    assert f"policy: {policy} for" in err
+    assert "(128 steps, " in out and "rounded up" not in out  # 2 envs x n_steps 64: whole
     meta = yaml.safe_load((run / "config.yml").read_text())
     assert meta["hyperparameters"]["SpinStrike/RodSpin-v0"]["policy"] == policy
     assert (run / "model.zip").stat().st_size < 20e6
@@ -168,10 +170,13 @@ def test_a_run_on_a_scene_file_records_the_scene_and_evaluates_from_anywhere(
 def test_cli_train_evaluate_record_envs(tmp_path, capsys):
     run = tmp_path / "ppo"
     assert main(["train", "--algo", "ppo", "--env", "SpinStrike/PuckSpeed-v0", "--timesteps",
-                 "256", "--n-envs", "4", "--out", str(run), "--eval-episodes", "3",
+                 "200", "--n-envs", "4", "--out", str(run), "--eval-episodes", "3",
                  "--no-progress"]) == 0
     out = capsys.readouterr().out
     assert "oracle: 1.0000" in out and "video:" in out and "chase-and-hit" not in out
+    # 4 envs x n_steps 64: SB3 trains whole rollouts, and the run line says why 256, not 200
+    assert (f"({4 * 64} steps, " in out and
+            "; the budget of 200 rounded up to whole rollouts, as SB3 trains them" in out)
     summary = (run / "summary.md").read_text()
     assert "| agent |" in summary and "| random |" in summary and "| oracle |" in summary
     frames, seconds = imageio_ffmpeg.count_frames_and_secs(str(run / "rollout.mp4"))
