@@ -519,8 +519,9 @@ def _place(data: dict, bodies: dict[str, dict], placed: Mapping[str, int]) -> li
     scene's own error names)."""
     size = (data.get("table") or {}).get("size") if isinstance(data.get("table"), dict) else None
     if not placed or not isinstance(size, (list, tuple)) or len(size) != 2 or not all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) for v in size):
-        return None
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+            for v in size):
+        return None  # (an infinite size: the bodies placed at +-inf were named, not the size)
     for name, side in placed.items():  # the scene's own dicts, as the overrides edit them
         bodies[name]["position"] = [0.25 * side * size[0], 0.0]
     return list(size)

@@ -913,6 +913,20 @@ def test_a_control_table_too_small_for_the_resets_is_refused_at_make(env_id, roo
     assert np.isfinite(obs).all() and env.observation_space.contains(obs)
 
 
+@pytest.mark.parametrize("env_id", ["SpinStrike/RodSpinControl-v0",
+                                    "SpinStrike/PuckSpeedControl-v0"])
+@pytest.mark.parametrize("size", [[math.inf, 0.6], [1.2, -math.inf], [math.nan, 0.6]])
+def test_a_control_tables_size_not_finite_is_named_alone(env_id, size):
+    """A table size of inf was refused naming the bodies' positions (``bodies[0].position[0]``,
+    got inf), which the env derives from the size and the user never wrote; now the size."""
+    rod = "Rod" in env_id
+    scene = copy.deepcopy(envs.config.load_packaged_scene("rod_control" if rod else "puck_control"))
+    scene["table"]["size"] = size
+    with pytest.raises(envs.ConfigError, match=r"scene: table\.size") as info:
+        gym.make(env_id, scene=scene)
+    assert "position" not in str(info.value)
+
+
 def test_env_spec_holds_the_scene_file_as_read(tmp_path, monkeypatch):
     """``env.spec.kwargs`` kept a scene file's path, so ``gym.make(env.spec)`` read the file
     again: after an edit it built another env, and from another folder it failed. The spec now
