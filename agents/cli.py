@@ -376,6 +376,9 @@ def _check_video_out(out: str) -> None:
 
     if Path(out).suffix.lower() not in FORMATS:
         raise AgentConfigError(f"--out: must end in .mp4 or .gif (got {out!r})")
+    if Path(out).is_dir():  # (refused before the policy loads and the episodes are filmed)
+        raise AgentConfigError(f"--out: {out} is a folder; the video needs a file name "
+                               f"ending in .mp4 or .gif")
 
 
 #: ``spinstrike record``'s options that only a policy's video uses, with their defaults, and
@@ -404,8 +407,9 @@ def cmd_record(args) -> int:
     _fill_defaults(args, RECORD_POLICY)
     _check_episodes("--episodes", args.episodes)
     policy, env_id, env_kwargs, name = _policy(args)
-    out = args.out or (str(Path(args.run_dir) / "rollout.mp4") if args.run_dir
-                       else f"{name}-{env_id.split('/')[-1]}.mp4")
+    out = args.out if args.out is not None else (
+        str(Path(args.run_dir) / "rollout.mp4") if args.run_dir
+        else f"{name}-{env_id.split('/')[-1]}.mp4")
     _check_video_out(out)
     size = _size(args.size) if args.size else None
     replaced = _replaces(out)
@@ -447,7 +451,7 @@ def _record_scene(args) -> int:
     if args.dt > args.seconds:  # one step of --dt was filmed: 5 s simulated for --seconds 3
         raise AgentConfigError(f"--dt: a frame per step of {args.dt:g} s is longer than the "
                                f"--seconds {args.seconds:g} to film; give a smaller --dt")
-    out = args.out or f"{Path(str(args.scene)).stem}.mp4"
+    out = args.out if args.out is not None else f"{Path(str(args.scene)).stem}.mp4"
     _check_video_out(out)
     world = physics.World(args.scene)
     size = _size(args.size) if args.size else (720, 480)
@@ -671,8 +675,9 @@ def build_parser() -> argparse.ArgumentParser:
             e.add_argument("--json", action="store_true")
             e.add_argument("--no-save", action="store_true")
         else:
-            e.add_argument("--out", help="video file, .mp4 or .gif (default: rollout.mp4 in "
-                           "the run directory)")
+            e.add_argument("--out", help="video file, .mp4 or .gif, replaced if there "
+                           "(default: rollout.mp4 in the run directory; else, in the working "
+                           "folder, oracle-ENV.mp4, random-, planner- or the --scene's name)")
             e.add_argument("--episodes", type=int,
                            help=f"default {RECORD_POLICY['--episodes']} (not with --scene)")
             e.add_argument("--seed", type=_seed,

@@ -127,7 +127,9 @@ def record_world(world, path: str | Path, seconds: float = 3.0, dt: float = 0.02
     A frame shows the table and cushions, every body with a spin arrow, the last ``trail``
     seconds of each body's path, an arrow at each contact of the step (scaled by its impulse,
     fading over the next frames) and a line with the time, the kinetic energy and the
-    contacts so far. The world is stepped in place (its state is the film's last frame).
+    contacts so far. A body that would leave the view (a table without cushions) widens it
+    for the rest of the film. The world is stepped in place (its state is the film's last
+    frame); it films ``ceil(seconds / dt)`` steps.
 
     Returns:
         ``{"path", "frames", "fps", "size", "contacts"}``.
@@ -138,6 +140,9 @@ def record_world(world, path: str | Path, seconds: float = 3.0, dt: float = 0.02
         raise ValueError(f"seconds: must be a number > 0 (got {seconds!r})")
     if not (math.isfinite(dt) and dt > 0):
         raise ValueError(f"dt: must be a number > 0 s (got {dt!r})")
+    if dt > seconds:  # (one step of dt was filmed, silently; the CLI refused it)
+        raise ValueError(f"dt: a frame per step of {dt:g} s is longer than the {seconds:g} s "
+                         f"to film; give a smaller dt")
     size = _check_size(size)
     b = element
     if isinstance(b, bool) or not isinstance(b, int | np.integer) or not 0 <= b < world.batch_size:
@@ -151,6 +156,8 @@ def record_world(world, path: str | Path, seconds: float = 3.0, dt: float = 0.02
         extent = np.abs(world.state.positions[b]).max(axis=0) + reach.max()
         view = (max(extent[0], 1.5 * extent[1]) * 1.5, max(extent[1], extent[0] / 1.5) * 1.5)
     renderer = Renderer(size, view)
+    zoom = 1.0  # widened (never narrowed) where a body would leave the view: an unbounded
+    #             table's bodies fly off the extent they started in
     fps = 1.0 / dt
     keep = max(1, int(round(trail / dt)))
     paths: list[deque] = []
@@ -159,7 +166,12 @@ def record_world(world, path: str | Path, seconds: float = 3.0, dt: float = 0.02
     writer = VideoWriter(path, fps)
 
     def frame() -> np.ndarray:
+        nonlocal zoom
         drawn = body_draws(world, b)  # bodies not named as the envs' are drawn grey
+        reach = np.abs(world.state.positions[b]) + (world.half_length[b] + world.radius[b])[:, None]
+        out = float((reach / np.asarray(view)).max())  # > 1: a body's edge leaves the view
+        if out > zoom:
+            zoom = 1.25 * out  # with room to go on, not a view that creeps every frame
         points = [body_points(d) for d in drawn]
         while len(paths) < len(points):
             paths.append(deque(maxlen=keep))
@@ -169,11 +181,11 @@ def record_world(world, path: str | Path, seconds: float = 3.0, dt: float = 0.02
         energy = float(world.kinetic_energy()[b])
         text = f"t = {float(world.time[b]):.2f} s   E = {energy:.3f} J   contacts {total}"
         return renderer.draw(Frame(drawn, tuple(half), walls, text=text, trails=trails,
-                                   markers=list(markers), smooth=True))
+                                   markers=list(markers), smooth=True, zoom=zoom))
 
     try:
         writer.write(frame())
-        for _ in range(max(1, int(round(seconds / dt)))):
+        for _ in range(math.ceil(seconds / dt - 1e-9)):  # at least ``seconds``
             contacts = world.step(dt)
             mine = contacts.batch == b
             total += int(mine.sum())

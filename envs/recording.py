@@ -5,8 +5,9 @@
   for the one-strike envs: a strike is one step, whose frames are the whole strike in slow
   motion, and ``RecordVideo`` keeps only the last frame of each list (its ``_capture_frame``),
   so it films one frame per strike. It streams the frames to the encoder as they come (nothing
-  piles up in memory) and writes each one exactly once (moviepy 2.2, which ``RecordVideo`` uses,
-  drops the last frame of some clips).
+  piles up in memory) and writes each one exactly once (moviepy, which ``RecordVideo`` uses,
+  drops the last frame of some clips: 2.1 and 2.2 both). Its ``video_length`` is the frames a
+  video holds; ``RecordVideo``'s films one frame more (it stops once it has more).
 * :class:`VideoWriter` writes frames to an mp4 (H.264 through imageio-ffmpeg) or a GIF
   (Pillow), by the file's extension; :func:`tile` puts several frames side by side (what
   ``spinstrike record --grid`` shows).
@@ -18,9 +19,11 @@ Saving one step's frames with Gymnasium's own helper works too:
 from __future__ import annotations
 
 import contextlib
+import errno
 import gc
 import math
 import os
+import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -43,7 +46,7 @@ class VideoWriter:
     frames into one of their summed duration; above 50 fps only every k-th frame is kept, so
     that each lasts 20 ms or more and viewers play it in real time).
 
-    The frames go to ``<stem>.partial<suffix>`` beside ``path``, renamed to ``path`` by
+    The frames go to ``<stem>.<random>.partial<suffix>`` beside ``path``, renamed to ``path`` by
     :meth:`close`: a recording stopped half way (Ctrl-C, an error) leaves no truncated video
     under ``path`` (nor replaces one that was there); :meth:`abort` removes the partial file.
 
@@ -59,12 +62,23 @@ class VideoWriter:
                              f"{str(path)!r})")
         if not (math.isfinite(fps) and fps > 0):
             raise ValueError(f"fps: must be a number > 0 (got {fps!r})")
+        if self.path.is_dir():  # (it failed at the end, the whole video filmed in vain)
+            raise IsADirectoryError(errno.EISDIR, "is a folder; the video needs a file name "
+                                    f"ending in {' or '.join(FORMATS)}", str(path))
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._partial = self.path.with_name(f"{self.path.stem}.partial{self.path.suffix}")
-        # a place that cannot be written fails here, an OSError naming it (ffmpeg failed at the
-        # first frame with a broken pipe; a GIF only at the end)
-        with open(self._partial, "wb"):
-            pass
+        # a name of its own beside path (a fixed NAME.partial.mp4 replaced a file of the user's
+        # of that name); a place that cannot be written fails here, an OSError naming path
+        # (ffmpeg failed at the first frame with a broken pipe; a GIF only at the end)
+        try:
+            fd, partial = tempfile.mkstemp(prefix=f"{self.path.stem}.", dir=self.path.parent,
+                                           suffix=f".partial{self.path.suffix}")
+        except OSError as exc:
+            raise OSError(exc.errno, exc.strerror, str(path)) from None
+        os.close(fd)
+        umask = os.umask(0)  # mkstemp's file is the user's alone (0600); a video is not
+        os.umask(umask)
+        os.chmod(partial, 0o666 & ~umask)
+        self._partial = Path(partial)
         self.fps = fps
         #: frames written so far
         self.frames = 0

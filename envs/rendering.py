@@ -195,6 +195,7 @@ class Renderer:
         impulse_scale: impulse (N s) drawn as an arrow of a quarter of the view's height.
         panel_lines: lines of text in a band along the top (video frames: the information
             panel and the gauge), which the view then fits below; 0: no band (plain frames).
+            A frame too small for the band to take at most half its height shows neither.
     """
 
     def __init__(self, size: tuple[int, int], view_half: tuple[float, float],
@@ -205,6 +206,12 @@ class Renderer:
         # the band's height: pygame's default font takes 3/4 of its size per line
         self.band = (math.ceil(0.75 * self.text_size * panel_lines) + 2 * PAD
                      if panel_lines else 0)
+        #: whether video frames show their panel and gauge: not where the band would take more
+        #: than half the height (a 64 x 48 frame kept a 4 px strip of table under the text,
+        #: and below 44 px the view's scale went negative: the table drawn mirrored, off frame)
+        self.panels = 2 * self.band <= self.height
+        if not self.panels:
+            self.band = 0
         self.scale = min(self.width / (2 * view_half[0]),
                          (self.height - self.band) / (2 * view_half[1]))
         self.spin_scale = spin_scale
@@ -444,8 +451,8 @@ class Renderer:
             self._marker(surf, m)
         if frame.text:
             surf.blit(self._font.render(frame.text, True, COLOURS["text"]), (8, 6))
-        left = self._panel(surf, frame.panel) if frame.panel else 0
-        if frame.gauge is not None:
+        left = self._panel(surf, frame.panel) if frame.panel and self.panels else 0
+        if frame.gauge is not None and self.panels:
             self._gauge(surf, frame.gauge, left)
         # a copy through a locked view of the pixels: 5x faster than array3d + transpose
         view = pg.surfarray.pixels3d(surf)

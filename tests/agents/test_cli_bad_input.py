@@ -190,7 +190,11 @@ CASES = [
     ("record-where-nothing-can-be-written",  # ffmpeg's broken pipe at the first frame
      lambda t: ["record", "--random", "--env", ENV, "--episodes", "1", "--out",
                 "/proc/spinstrike-nope.mp4"],
-     ["/proc/spinstrike-nope.partial.mp4:"]),
+     ["/proc/spinstrike-nope.mp4:"]),
+    ("record-onto-a-folder",  # filmed whole, then failed, leaving NAME.partial.mp4 behind
+     lambda t: ["record", "--random", "--env", ENV, "--episodes", "1", "--out",
+                _dir(t, "videos.mp4")],
+     ["--out:", "videos.mp4 is a folder; the video needs a file name ending in .mp4 or .gif"]),
     # a file: failed after training, and the trained model was deleted with the .partial
     ("force-on-a-file",
      lambda t: ["train", "--force", "--out", _text(t, "afile", "x")],

@@ -503,6 +503,59 @@ def test_record_every_frame_refuses_modes_without_frames(tmp_path):
         VideoWriter(tmp_path / "x.avi", 30)
 
 
+def test_video_writer_keeps_the_users_files(tmp_path):
+    """The frames went to a fixed ``NAME.partial.mp4``, which replaced a file of the user's of
+    that name, silently; a folder at the video's path was found only at the end, after the
+    whole film, leaving the partial file behind. The partial file now has a name of its own,
+    the folder is refused at once, and the video gets the user's default permissions."""
+    import os
+    import stat
+
+    mine = tmp_path / "a.partial.mp4"
+    mine.write_text("precious")
+    with VideoWriter(tmp_path / "a.mp4", 30) as w:
+        for _ in range(3):
+            w.write(np.zeros((16, 16, 3), np.uint8))
+    assert mine.read_text() == "precious"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.mp4", "a.partial.mp4"]
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE((tmp_path / "a.mp4").stat().st_mode) == 0o666 & ~umask
+    (tmp_path / "d.gif").mkdir()
+    with pytest.raises(IsADirectoryError, match=r"is a folder; the video needs a file name"):
+        VideoWriter(tmp_path / "d.gif", 30)
+    assert list((tmp_path / "d.gif").iterdir()) == []
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.mp4", "a.partial.mp4", "d.gif"]
+
+
+def test_record_world_films_what_it_is_asked_and_keeps_bodies_in_view(tmp_path):
+    """``record_world`` filmed one step of dt where seconds < dt (the CLI refused it) and
+    rounded seconds / dt half to even; on a table without cushions, bodies flew out of the view
+    fixed from where they started (the striker's pixels went to none). Now: refused, at least
+    ``seconds``, and the view widens to keep every body in it."""
+    from spinstrike import physics
+    from spinstrike.agents.record import record_world
+
+    with pytest.raises(ValueError, match=r"dt: a frame per step of 0.02 s is longer than the "
+                                         r"0.001 s to film"):
+        record_world(physics.World("rod_spin"), tmp_path / "x.mp4", seconds=0.001)
+    assert not list(tmp_path.iterdir())
+    world = physics.World("rod_spin")  # unbounded; its striker flies off at 3 m/s
+    assert not world.walls
+    striker = world.names.index("striker")
+    velocities = np.zeros((1, world.n_bodies, 2))
+    velocities[0, striker] = [3.0, 0.5]
+    world.set_state(velocities=velocities)
+    result = record_world(world, tmp_path / "fly.gif", seconds=1.03, size=(240, 160))
+    assert result["frames"] == 1 + 52  # ceil(1.03 / 0.02) steps
+    from PIL import Image, ImageSequence
+
+    last = np.asarray(list(ImageSequence.Iterator(Image.open(tmp_path / "fly.gif")))[-1]
+                      .convert("RGB"))
+    assert (last == COLOURS["striker"]).all(axis=2).sum() > 0  # still in the picture
+    assert world.state.positions[0, striker, 0] > 3.0
+
+
 def test_video_writer_and_tile(tmp_path):
     frames = [np.full((9, 15, 3), 40 * k, np.uint8) for k in range(5)]
     with VideoWriter(tmp_path / "a.mp4", 30) as w:
@@ -538,6 +591,30 @@ def test_impulse_markers_show_the_push_on_the_target():
     assert (m.nx, m.ny) == (-0.6, -0.8)
     m = Marker.on(1, 0, 4, (0.1, 0.2), n, 0.5)  # body 0 against a cushion: the push on body 0
     assert (m.x, m.y, m.nx, m.ny, m.j) == (0.1, 0.2, -0.6, -0.8, 0.5)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_small_video_frames_show_the_table_not_the_panel(env_id):
+    """``render_size`` takes 16 to 4096 pixels a side, but the panel's band took >= 44 px: at
+    64 x 48 the table was a 4 px strip under the text, and at 16 x 16 the view's scale went
+    negative (the table mirrored, the bodies drawn off the frame). A frame whose band would
+    take more than half its height shows no panel; the view fills it."""
+    for size, panel in [((16, 16), False), ((64, 48), False), ((160, 120), True),
+                        ((720, 480), True)]:
+        env = gym.make(env_id, render_mode="rgb_array", render_size=size)
+        env.reset(seed=0)
+        frame = env.render()
+        assert frame.shape == (size[1], size[0], 3)
+        task = env.unwrapped.task
+        r = task.renderer
+        hx, hy = task.view_half()
+        assert (r.band > 0) is panel
+        assert r.scale == pytest.approx(min(size[0] / (2 * hx), (size[1] - r.band) / (2 * hy)))
+        assert r.scale > 0.5 * min(size[0] / (2 * hx), size[1] / (2 * hy))
+        for x, y in task.world.state.positions[0]:
+            px, py = r._px(x, y)
+            assert 0 <= px < size[0] and r.band <= py < size[1]
+        env.close()
 
 
 def test_impulse_labels_stay_whole_inside_the_frame():
