@@ -198,7 +198,8 @@ class _ControlTask(Task):
         return self.tbuf[:, fast.T_OBS:fast.T_OBS + fast.OBS_SIZE]
 
     def snapshot(self) -> dict:
-        return {}
+        # what element 0's frame says: its episode's return (kept while recording, else 0)
+        return {"return": self._return}
 
     def trace(self) -> dict:
         return {"trail": list(self._trail), "return": self._return}
@@ -208,7 +209,12 @@ class _ControlTask(Task):
         self._return = float(trace.get("return", 0.0))
 
     def restore(self, snap: dict) -> None:
-        pass
+        # the trail starts again at the restored pose (it joined the poses before the jump to
+        # the restored ones with streaks across the table); the frame says the snapshot's return
+        self._return = float(snap.get("return", 0.0))
+        if self.record_trace:
+            self._trail.clear()
+            self._remember()
 
     def frame(self, b: int, decorate: bool = True) -> Frame:
         w = self.world

@@ -797,6 +797,28 @@ def test_a_state_put_back_is_framed_as_it_was():
     assert "after the strike" in panel[0] and panel[2] == f"reward {reward:.3f}"
 
 
+@pytest.mark.parametrize("env_id", CONTROL_IDS)
+def test_a_control_state_put_back_is_framed_as_the_source_env_frames_it(env_id):
+    """A control env given another's state kept its own motion trail: the next frame joined
+    its old poses to the new ones with streaks across the table, and its panel showed its own
+    return. The trail now starts at the restored pose, and the panel has the source's return;
+    stepped alike after that, the two frames agree (the trail as far back as the restore)."""
+    a, b = (gym.make(env_id, render_mode="rgb_array") for _ in range(2))
+    for env, seed in ((a, 1), (b, 2)):
+        env.reset(seed=seed)
+        for action in _actions(env.action_space, 30, seed):
+            env.step(action)
+    b.unwrapped.set_physics_state(a.unwrapped.get_physics_state())
+    for k, action in enumerate(_actions(a.action_space, 6, 9)):
+        fa, fb = a.unwrapped.task.frame(0), b.unwrapped.task.frame(0)
+        assert fb.panel == fa.panel
+        assert fb.trails == [trail[-(k + 1):] for trail in fa.trails]
+        for env in (a, b):
+            env.step(action)
+    assert np.array_equal(a.unwrapped.task.world.state.positions,
+                          b.unwrapped.task.world.state.positions)
+
+
 def test_a_fast_gif_keeps_frames_viewers_play_in_real_time(tmp_path, capsys):
     """``record --scene ... --dt 0.002`` wrote GIF frames of 0 and 10 ms, which viewers play as
     100 ms (10x slow). A GIF above 50 fps keeps every k-th frame: each lasts 20 ms or more and
