@@ -65,6 +65,18 @@ def _check_size(size) -> tuple[int, int]:
     return w, h
 
 
+def _check_grid(episodes: int, columns: int, size) -> None:
+    """A grid's frame within the sides a frame may have (4096 px: ``--grid --size 4096x4096``
+    wrote an 8192 x 8192 H.264 that players refuse; 50 episodes at 720 x 480, 5760 x 3360)."""
+    from spinstrike.envs.config import FRAME_SIZES, ConfigError
+
+    w, h = columns * size[0], math.ceil(episodes / columns) * size[1]
+    if max(w, h) > FRAME_SIZES[1]:
+        raise ConfigError(f"grid: {episodes} episodes of {size[0]}x{size[1]} tile to {w}x{h}, "
+                          f"beyond {FRAME_SIZES[1]} pixels a side (what players take); give "
+                          f"fewer episodes or a smaller size")
+
+
 def record(policy, env_id: str, path: str | Path, episodes: int = 3, seed: int = 2000,
            env_kwargs: dict | None = None, size: tuple[int, int] | None = None,
            grid: bool = False, hold: float = 0.5) -> dict:
@@ -86,10 +98,17 @@ def record(policy, env_id: str, path: str | Path, episodes: int = 3, seed: int =
     runs = [_Episode(policy, env_id, seed + k, kwargs) for k in range(episodes)]
     fps = runs[0].env.metadata["render_fps"]
     held = int(round(hold * fps))
-    writer = VideoWriter(path, fps)
+    columns = math.ceil(math.sqrt(episodes))
     try:
         if grid:
-            columns = math.ceil(math.sqrt(episodes))
+            _check_grid(episodes, columns, runs[0].env.unwrapped.cfg.render_size)
+        writer = VideoWriter(path, fps)
+    except BaseException:
+        for run in runs:
+            run.close()
+        raise
+    try:
+        if grid:
             while True:
                 frames = [run.next_frame() for run in runs]
                 if all(f is None for f in frames):

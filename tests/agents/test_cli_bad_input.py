@@ -191,6 +191,10 @@ CASES = [
      lambda t: ["record", "--random", "--env", ENV, "--episodes", "1", "--out",
                 "/proc/spinstrike-nope.mp4"],
      ["/proc/spinstrike-nope.mp4:"]),
+    ("record-grid-beyond-4096",  # an 8192 x 8192 H.264 that players refuse, written
+     lambda t: ["record", "--random", "--env", ENV, "--episodes", "4", "--grid", "--size",
+                "2100x300", "--out", str(t / "g.mp4")],
+     ["grid: 4 episodes of 2100x300 tile to 4200x600, beyond 4096 pixels a side"]),
     ("record-onto-a-folder",  # filmed whole, then failed, leaving NAME.partial.mp4 behind
      lambda t: ["record", "--random", "--env", ENV, "--episodes", "1", "--out",
                 _dir(t, "videos.mp4")],
