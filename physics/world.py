@@ -36,6 +36,7 @@ from spinstrike.physics.edit import (
     batch_rows,
     check_snapshot,
     first_overlap,
+    warn_tolerance_above_radii,
 )
 from spinstrike.physics.events import pair_bodies, pair_geometry
 from spinstrike.physics.jit import jit
@@ -335,6 +336,7 @@ class World:
         self._params[:] = self._derive_params(self._mass, self._inertia, self._radius,
                                               self._half_length, self._table_mu)
         self._configure_solver()
+        warn_tolerance_above_radii(self, self._radius)
         self._initial = self._initial_state()
         self._state[:] = np.nan  # nothing placed yet: reset() below places every body, checked
         self._make_views()

@@ -390,3 +390,54 @@ def test_a_light_rod_jammed_against_a_cushion_keeps_the_heavy_disk_s_energy_at_t
     rod = 0.5 * 1e-3 * v[0] @ v[0] + 0.5 * world.inertia[0, 0] * world.state.omegas[0, 0] ** 2
     assert rod < 1e-6 * e0
     assert world.kinetic_energy()[0] == pytest.approx(e0, rel=1e-9)
+
+
+def _two_disks(radius: float, tolerance: float, gap: float) -> dict:
+    return {"solver": {"mode": "exact", "tolerance": tolerance},
+            "bodies": [{"name": "s", "shape": "disk", "radius": radius, "mass": 1.0,
+                        "position": [-(2 * radius + gap), 0.0], "velocity": [1.0, 0.0]},
+                       {"name": "t", "shape": "disk", "radius": radius, "mass": 1.0}]}
+
+
+def test_a_tolerance_larger_than_two_bodies_radii_warns_naming_them():
+    """The exact solver's tolerance is a length: contacts are resolved up to it apart. Two
+    0.1 mm disks at a tolerance of 1 mm collided at once, 8 radii apart (velocities 33 % off),
+    without a word. A tolerance larger than a pair's radii together (the length over which
+    their normal turns) now warns, naming ``solver.tolerance`` and the bodies, at the World
+    and at an edit that shrinks them; through ``gym.make`` too. Below it nothing is said and
+    the impulse comes at contact; a pair with a rod (whose side is flat) is not warned of."""
+    import copy
+
+    import gymnasium as gym
+
+    from spinstrike import envs
+
+    with pytest.warns(RuntimeWarning, match=r"solver\.tolerance: 0\.001 m is larger than the "
+                      r"radii of disks 's' and 't' together \(0\.0002 m\)"):
+        w = physics.World(_two_disks(1e-4, 1e-3, 8e-4))
+    assert len(w.step(1e-6)) == 1  # still resolved at a distance: it is a warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        w = physics.World(_two_disks(1e-3, 1e-4, 8e-4))  # 20x below the radii: quiet
+        c = w.step(2e-3)
+        assert len(c) == 1 and c.time[0] == pytest.approx(8e-4, rel=1e-3)
+        np.testing.assert_allclose(w.state.velocities[0], [[0, 0], [1, 0]], atol=1e-9)
+        bare = {"solver": {"mode": "exact", "tolerance": 1e-3},
+                "bodies": [{"name": "rod", "shape": "rod", "length": 1e-6, "thickness": 0.0,
+                            "mass": 1.0},
+                           {"name": "disk", "shape": "disk", "radius": 0.01, "mass": 1.0,
+                            "position": [0.0, 0.05]}]}
+        physics.World(bare)
+        physics.World(_two_disks(1e-4, 1e-3, 8e-4), solver={"mode": "fixed"})  # no tolerance
+    w = physics.World(_two_disks(1e-3, 1e-3, 8e-4))
+    with pytest.warns(RuntimeWarning, match=r"disks 's' and 't' together \(0\.0002 m\)"):
+        with w.edit() as e:
+            e.set_body("s", radius=1e-4)
+            e.set_body("t", radius=1e-4)
+    scene = copy.deepcopy(envs.config.load_packaged_scene("puck_speed"))
+    for body in scene["bodies"]:
+        body["radius"] = 0.002
+    with pytest.warns(RuntimeWarning, match=r"solver\.tolerance: 0\.01 m is larger than the "
+                      r"radii of disks '\w+' and '\w+' together \(0\.004 m\)"):
+        gym.make("SpinStrike/PuckSpeed-v1", scene=scene,
+                 solver={"mode": "exact", "tolerance": 1e-2})
