@@ -315,10 +315,23 @@ class _StrikeTask(Task):
         sb = self._sbuf
         w = self.world
         if self.record_trace:
-            for counts in (self._strace.events.count, self._strace.chunks.count,
-                           self._strace.contact_count):
-                counts[:] = 0
-            w.run(fast.STRIKE_TRACED, sb, self._scfg, self._strace)
+            before = w.get_state(), sb.copy()
+            self._traced_strike()
+            tr = self._strace
+            events = int(tr.events.count[TRACE_ENTRIES] + tr.events.count[TRACE_DROPPED])
+            contacts = int(tr.contact_count[TRACE_ENTRIES] + tr.contact_count[TRACE_DROPPED])
+            if (events > len(tr.events.time) or contacts > len(tr.contacts)) and \
+                    len(tr.events.time) < MAX_TRACE_EVENTS:
+                # a strike of many contacts (e = 0, a heavy striker) filled the trace, and its
+                # frames after that were free flights from the last state kept: the striker
+                # drawn up to 27 mm inside the rod. The strike is run again (the same, bit for
+                # bit) with room for all of it
+                self._strace = fast.strike_trace(
+                    len(tr.chunks.time) - 1, w.n_bodies, min(events, MAX_TRACE_EVENTS),
+                    max(contacts, len(tr.contacts)))
+                w.restore(before[0])
+                sb[:] = before[1]
+                self._traced_strike()
         else:
             w.run(fast.STRIKE, sb, self._scfg, None)
         refused = np.flatnonzero(sb[:, fast.S_OVERLAP_PAIR] != -1)
@@ -341,6 +354,12 @@ class _StrikeTask(Task):
                 "first_contact_point": sb[:, fast.S_FIRST_PX:fast.S_FIRST_PY + 1].copy(),
                 "fallback": sb[:, fast.S_FALLBACK] != 0,
                 "sim_time": sb[:, fast.S_SIM_TIME].copy(), "second_contact": contacts >= 2}
+
+    def _traced_strike(self) -> None:
+        for counts in (self._strace.events.count, self._strace.chunks.count,
+                       self._strace.contact_count):
+            counts[:] = 0
+        self.world.run(fast.STRIKE_TRACED, self._sbuf, self._scfg, self._strace)
 
     def step(self, actions, batch_info: bool = True):
         a = check_actions(actions, self.action_shape)
@@ -393,7 +412,10 @@ class _StrikeTask(Task):
         order = np.argsort(key_time, kind="stable")
         contacts = tr.contacts[:int(tr.contact_count[TRACE_ENTRIES])].copy()
         duration = float(self._sbuf[0, fast.S_SIM_TIME])
-        times, factor = strike_times(duration, self.render_fps, contacts[:, fast.TC_TIME])
+        # each contact has a frame at its instant, the first MAX_CONTACT_FRAMES of them (a
+        # strike of 1,000 contacts was a 35 s video of its first few ms)
+        times, factor = strike_times(duration, self.render_fps,
+                                     contacts[:MAX_CONTACT_FRAMES, fast.TC_TIME])
         states = np.empty((len(times), self.world.n_bodies, STATE_COLUMNS))
         buf = self.world.buffers
         fast.sample_trace(buf.fbuf, buf.ibuf, 0, key_time[order], key_state[order], times,
@@ -405,7 +427,8 @@ class _StrikeTask(Task):
         """The video frames of a strike: trails, impulse markers (fading over
         ``MARKER_FRAMES``), the panel and gauge; the last frame also shows ghost poses and every
         impulse (it is what ``rgb_array`` shows after the step)."""
-        frame_of = np.searchsorted(clip.times, clip.contacts[:, fast.TC_TIME])
+        shown = clip.contacts[:MAX_CONTACT_FRAMES]  # the contacts with frames of their own
+        frame_of = np.searchsorted(clip.times, shown[:, fast.TC_TIME])
         last_contact = clip.contacts[:, fast.TC_TIME].max() if len(clip.contacts) else np.inf
         points = [[body_points(b) for b in body_draws(self.world, 0, S)] for S in clip.states]
         frames = []
@@ -415,7 +438,7 @@ class _StrikeTask(Task):
             trails = [[points[g][i][k] for g in range(max(0, f - TRAIL_FRAMES), f + 1)]
                       for i in range(len(points[f])) for k in range(len(points[f][i]))]
             markers = [_marker(c, self.it, 1.0 - (f - frame_of[q]) / MARKER_FRAMES)
-                       for q, c in enumerate(clip.contacts) if 0 <= f - frame_of[q] < MARKER_FRAMES]
+                       for q, c in enumerate(shown) if 0 <= f - frame_of[q] < MARKER_FRAMES]
             final = f == len(clip.states) - 1
             frames.append(self._video_frame(
                 0, S, t, clip.slow_motion, reward if (t >= last_contact or final) else None,
@@ -423,7 +446,7 @@ class _StrikeTask(Task):
         last = frames[-1]
         step = max(1, len(clip.states) // 8)
         last.ghosts = [body_draws(self.world, 0, S) for S in clip.states[::step]]
-        last.markers = [_marker(c, self.it, 1.0) for c in clip.contacts]
+        last.markers = [_marker(c, self.it, 1.0) for c in shown]
         return frames
 
     def _zoom(self, b: int, positions: np.ndarray) -> float:
@@ -485,6 +508,10 @@ class _StrikeTask(Task):
 
 #: frames over which a body's motion trail reaches back
 TRAIL_FRAMES = 10
+#: contacts of a strike with a video frame (and an impulse marker) of their own: the first
+MAX_CONTACT_FRAMES = 64
+#: the most solver states a strike's trace grows to hold (~0.1 KB each for two bodies)
+MAX_TRACE_EVENTS = 500_000
 #: frames over which an impulse marker fades out after its contact
 MARKER_FRAMES = 12
 
@@ -506,14 +533,16 @@ class StrikeClip:
 
     Attributes:
         times: the frames' simulated instants, s from the launch (the regular grid, the end,
-            and every contact instant: ``rendering.strike_times``).
+            and the instants of the first ``MAX_CONTACT_FRAMES`` contacts:
+            ``rendering.strike_times``).
         states: the state rows ``[len(times), N, 6]`` at those instants, sampled from the
             solver's trace (``fast.sample_trace``).
         contacts: ``[C, fast.TRACE_CONTACT]``: each contact's time, point, normal, impulse and
             bodies, as the solver recorded them.
         slow_motion: the video's slow-motion factor (a whole number).
         duration: the strike's simulated time, s (``info['sim_time']``).
-        dropped: solver states the trace had no room for (0: the frames are exact).
+        dropped: solver states the trace had no room for (0: the frames are exact; it grows
+            to hold ``MAX_TRACE_EVENTS``, running the strike again).
     """
 
     times: np.ndarray
