@@ -405,7 +405,7 @@ def test_a_tolerance_larger_than_two_bodies_radii_warns_naming_them():
     without a word. A tolerance larger than a pair's radii together (the length over which
     their normal turns) now warns, naming ``solver.tolerance`` and the bodies, at the World
     and at an edit that shrinks them; through ``gym.make`` too. Below it nothing is said and
-    the impulse comes at contact; a pair with a rod (whose side is flat) is not warned of."""
+    the impulse comes at contact; two rods (a side's normal, flat) are not warned of."""
     import copy
 
     import gymnasium as gym
@@ -413,7 +413,7 @@ def test_a_tolerance_larger_than_two_bodies_radii_warns_naming_them():
     from spinstrike import envs
 
     with pytest.warns(RuntimeWarning, match=r"solver\.tolerance: 0\.001 m is larger than the "
-                      r"radii of disks 's' and 't' together \(0\.0002 m\)"):
+                      r"radii of bodies 's' and 't' together \(0\.0002 m\)"):
         w = physics.World(_two_disks(1e-4, 1e-3, 8e-4))
     assert len(w.step(1e-6)) == 1  # still resolved at a distance: it is a warning
     with warnings.catch_warnings():
@@ -422,15 +422,22 @@ def test_a_tolerance_larger_than_two_bodies_radii_warns_naming_them():
         c = w.step(2e-3)
         assert len(c) == 1 and c.time[0] == pytest.approx(8e-4, rel=1e-3)
         np.testing.assert_allclose(w.state.velocities[0], [[0, 0], [1, 0]], atol=1e-9)
-        bare = {"solver": {"mode": "exact", "tolerance": 1e-3},
-                "bodies": [{"name": "rod", "shape": "rod", "length": 1e-6, "thickness": 0.0,
+        rods = {"solver": {"mode": "exact", "tolerance": 1e-3},
+                "bodies": [{"name": "a", "shape": "rod", "length": 1e-6, "thickness": 1e-6,
                             "mass": 1.0},
-                           {"name": "disk", "shape": "disk", "radius": 0.01, "mass": 1.0,
-                            "position": [0.0, 0.05]}]}
-        physics.World(bare)
+                           {"name": "b", "shape": "rod", "length": 0.1, "thickness": 0.0,
+                            "mass": 1.0, "position": [0.0, 0.05]}]}
+        physics.World(rods)  # two rods: a side's normal, which does not turn
         physics.World(_two_disks(1e-4, 1e-3, 8e-4), solver={"mode": "fixed"})  # no tolerance
+    cap = {"solver": {"mode": "exact", "tolerance": 1e-3},
+           "bodies": [{"name": "rod", "shape": "rod", "length": 0.02, "thickness": 2e-4,
+                       "mass": 1.0},
+                      {"name": "disk", "shape": "disk", "radius": 1e-4, "mass": 1e-3,
+                       "position": [0.0, 0.05]}]}
+    with pytest.warns(RuntimeWarning, match=r"bodies 'rod' and 'disk' together \(0\.0002 m\)"):
+        physics.World(cap)  # a disk on a thin rod's end cap was 0.39 m/s off
     w = physics.World(_two_disks(1e-3, 1e-3, 8e-4))
-    with pytest.warns(RuntimeWarning, match=r"disks 's' and 't' together \(0\.0002 m\)"):
+    with pytest.warns(RuntimeWarning, match=r"bodies 's' and 't' together \(0\.0002 m\)"):
         with w.edit() as e:
             e.set_body("s", radius=1e-4)
             e.set_body("t", radius=1e-4)
@@ -438,6 +445,6 @@ def test_a_tolerance_larger_than_two_bodies_radii_warns_naming_them():
     for body in scene["bodies"]:
         body["radius"] = 0.002
     with pytest.warns(RuntimeWarning, match=r"solver\.tolerance: 0\.01 m is larger than the "
-                      r"radii of disks '\w+' and '\w+' together \(0\.004 m\)"):
+                      r"radii of bodies '\w+' and '\w+' together \(0\.004 m\)"):
         gym.make("SpinStrike/PuckSpeed-v1", scene=scene,
                  solver={"mode": "exact", "tolerance": 1e-2})
