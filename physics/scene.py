@@ -629,19 +629,47 @@ class _StrictLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep)
 
 
-# YAML 1.2's floats that YAML 1.1 (PyYAML) reads as strings: an exponent without a dot
-# (``1e-9``, ``2E3``, ``-5e+2``); ``tolerance: 1e-9`` was refused as "not a number (got '1e-9')"
+# Plain scalars are read by YAML 1.2's core schema, not PyYAML's YAML 1.1: a float's exponent
+# needs no dot (``tolerance: 1e-9`` was refused as "not a number (got '1e-9')"), ``010`` is ten
+# (1.1: eight), and ``1:30`` (1.1: ninety), ``1_0`` (ten), ``0b1``, ``on``, ``yes``, ``no`` and
+# dates are strings, which the schema then refuses naming the field (1.1 read ``on`` as true,
+# silently). Merge keys (``<<``) stay.
+_CORE = {
+    "tag:yaml.org,2002:null": (r"~|null|Null|NULL|", list("~nN") + [""]),
+    "tag:yaml.org,2002:bool": (r"true|True|TRUE|false|False|FALSE", list("tTfF")),
+    "tag:yaml.org,2002:int": (r"[-+]?[0-9]+|0o[0-7]+|0x[0-9a-fA-F]+", list("-+0123456789")),
+    "tag:yaml.org,2002:float": (
+        r"[-+]?(\.[0-9]+|[0-9]+(\.[0-9]*)?)([eE][-+]?[0-9]+)?|[-+]?\.(inf|Inf|INF)"
+        r"|\.nan|\.NaN|\.NAN", list("-+.0123456789")),
+}
 _StrictLoader.yaml_implicit_resolvers = {
-    k: list(v) for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()}
-_StrictLoader.add_implicit_resolver(
-    "tag:yaml.org,2002:float", re.compile(r"^[-+]?[0-9][0-9_]*[eE][-+]?[0-9]+$"),
-    list("-+0123456789"))
+    first: [(tag, regexp) for tag, regexp in resolvers if tag == "tag:yaml.org,2002:merge"]
+    for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()}
+for _tag, (_pattern, _first) in _CORE.items():
+    _StrictLoader.add_implicit_resolver(_tag, re.compile(f"^(?:{_pattern})$"), _first)
+
+
+def _core_int(loader, node) -> int:
+    """An int as YAML 1.2 reads it: decimal (``010`` is ten), ``0o`` octal, ``0x`` hex."""
+    text = loader.construct_scalar(node)
+    if text.startswith(("0o", "0x")):
+        return int(text[2:], 8 if text[1] == "o" else 16)
+    return int(text, 10)
+
+
+def _core_float(loader, node) -> float:
+    text = loader.construct_scalar(node).lower()
+    return float(text.replace(".inf", "inf").replace(".nan", "nan"))
+
+
+_StrictLoader.add_constructor("tag:yaml.org,2002:int", _core_int)
+_StrictLoader.add_constructor("tag:yaml.org,2002:float", _core_float)
 
 
 def load_yaml(text: str):
-    """``yaml.safe_load``, but a key given twice in a mapping is a ``yaml.YAMLError``, and a
-    number with an exponent and no dot (``1e-9``) is a float, as YAML 1.2 reads it (PyYAML's
-    YAML 1.1 reads a string): scene files, hyperparameter files and the CLI's
+    """``yaml.safe_load``, but a key given twice in a mapping is a ``yaml.YAMLError``, and
+    plain scalars are read by YAML 1.2's core schema (``1e-9`` a float, ``010`` ten, ``on`` and
+    ``1:30`` strings), not PyYAML's YAML 1.1: scene files, hyperparameter files and the CLI's
     ``--env-kwargs`` are read with it."""
     return yaml.load(text, Loader=_StrictLoader)  # noqa: S506 (a SafeLoader)
 

@@ -67,6 +67,33 @@ def test_yaml_numbers_with_an_exponent_and_no_dot_are_floats(tmp_path, capsys):
     assert "restitution" in capsys.readouterr().err
 
 
+def test_yaml_scalars_are_read_as_yaml_1_2_reads_them(tmp_path, capsys):
+    """Beyond the exponent, PyYAML's YAML 1.1 read ``substeps: 010`` as 8 (octal), ``1:30`` as
+    90 (base 60), ``1_0`` as 10 and ``static: on`` as true, silently, where the README says
+    YAML 1.2. Now ``010`` is ten (``0o10`` eight, ``0x10`` sixteen), and the others are strings,
+    refused naming the field, in a scene file and on the command line."""
+    scene = {k: v for k, v in _packaged("puck_speed").items() if k != "solver"}
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump(scene, sort_keys=False)
+                    + "solver: {mode: fixed, substeps: 010}\n")
+    assert physics.World(path).solver.substeps == 10
+    for value, got in (("0o10", 8), ("0x10", 16)):
+        assert physics.World(path.read_text().replace("010", value)).solver.substeps == got
+    bodies = scene["bodies"]
+    for value in ("1:30", "1_0"):
+        with pytest.raises(physics.SceneError, match=f"solver.substeps: .*got '{value}'"):
+            physics.World(path.read_text().replace("010", value))
+    flagged = yaml.safe_dump({**scene, "bodies": [bodies[0], {**bodies[1], "static": True}]},
+                             sort_keys=False)
+    for word in ("on", "yes", "off"):
+        with pytest.raises(physics.SceneError, match=rf"bodies\[1\]\.static: .*got '{word}'"):
+            physics.World(flagged.replace("static: true", f"static: {word}"))
+    assert main(["evaluate", "--random", "--env", "SpinStrike/RodSpin-v0", "--env-kwargs",
+                 "{solver: {mode: fixed, substeps: 1:30}}", "--episodes", "2",
+                 "--no-save"]) == 2
+    assert "substeps" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize(("env_id", "scene", "body", "changes", "shape"), [
     ("SpinStrike/RodSpin-v0", "rod_spin", "rod", {"shape": "disk", "radius": 0.1}, "rod"),
     ("SpinStrike/RodSpin-v0", "rod_spin", "striker",
