@@ -253,6 +253,12 @@ class WorldEdit:
             mu = as_batch(friction, (self.n,), "table.friction")
             if np.any(mu < 0):
                 raise SceneError(f"table.friction: must be >= 0 (got {mu.min()})")
+            g = self._w.gravity
+            with np.errstate(over="ignore"):
+                deceleration = mu * g
+            if not np.all(np.isfinite(deceleration)):
+                raise SceneError(f"table.friction: times gravity ({g:g} m/s^2), the cloth's "
+                                 f"deceleration, must be a finite number (got {mu.max():g})")
             if np.any(mu > 0) and not self._w.table_friction:
                 raise SceneError("table.friction: is set but the scene does not list the "
                                  "'table_friction' effect")

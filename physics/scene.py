@@ -216,6 +216,15 @@ class Table(_Model):
             raise ValueError(f"must be two positive lengths in m (got {list(v)})")
         return v
 
+    @model_validator(mode="after")
+    def _finite_deceleration(self) -> Table:
+        # (1e308 of either was taken, and their product overflowed in the solver: a bare numpy
+        # warning, the bodies' speeds NaN)
+        if not math.isfinite(self.friction * self.gravity):
+            raise ValueError(f"friction x gravity, the cloth's deceleration, must be a finite "
+                             f"number (got {self.friction:g} x {self.gravity:g})")
+        return self
+
 
 class PairMaterial(_Model):
     """Per-pair override: ``bodies`` names two bodies, or a body and ``walls`` / a wall name."""

@@ -463,7 +463,9 @@ class World:
         sliding = dynamic & ~self.driven
         decel = table_mu[:, None] * self.gravity * float(self.table_friction)
         p[..., FRICTION_DECEL] = np.where(sliding, decel, 0.0)
-        with np.errstate(divide="ignore", invalid="ignore"):
+        # (over: a deceleration near the float range over a small k is an infinite one, which
+        # stops the spin at once, as it should; the numpy warning named nothing)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             k = radius_of_gyration(np.where(self.static, 1.0, mass),
                                    np.where(self.static, 1.0, inertia))
             p[..., SPIN_DECEL] = np.where(~self.static & ~self.driven & (k > 0), decel / k, 0.0)

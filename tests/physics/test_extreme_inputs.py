@@ -448,3 +448,30 @@ def test_a_tolerance_larger_than_two_bodies_radii_warns_naming_them():
                       r"radii of bodies '\w+' and '\w+' together \(0\.004 m\)"):
         gym.make("SpinStrike/PuckSpeed-v1", scene=scene,
                  solver={"mode": "exact", "tolerance": 1e-2})
+
+
+def test_a_cloth_deceleration_beyond_the_float_range_is_refused_naming_the_table():
+    """``table.friction`` 1e308 (or friction and gravity of 1e300 each) was taken, and their
+    product overflowed in the solver: a bare numpy warning and bodies stopped by an infinite
+    deceleration. Now refused naming the field, from a scene, an edit and ``gym.make``; a
+    large but finite one stops the bodies at once, quietly."""
+    import gymnasium as gym
+
+    body = [{"name": "a", "shape": "disk", "radius": 0.1, "mass": 1.0, "velocity": [1, 0],
+             "omega": 3.0}]
+    scene = {"effects": ["rotation", "table_friction"], "bodies": body}
+    for table in ({"friction": 1e308}, {"friction": 1e300, "gravity": 1e300}):
+        with pytest.raises(physics.SceneError, match=r"table: friction x gravity, the cloth's "
+                           r"deceleration, must be a finite number"):
+            physics.World({**scene, "table": table})
+    w = physics.World({**scene, "table": {"friction": 0.1}})
+    with pytest.raises(physics.SceneError, match=r"table\.friction: times gravity"):
+        w.set_table(friction=1e308)
+    assert w.table_mu[0] == 0.1
+    with pytest.raises(Exception, match=r"table_friction|friction x gravity"):
+        gym.make("SpinStrike/RodSpinControl-v0", table_friction=1e308)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        w = physics.World({**scene, "table": {"friction": 0.1, "gravity": 1e308}})
+        w.step(0.01)
+    assert not w.state.velocities.any() and not w.state.omegas.any()
