@@ -128,12 +128,15 @@ STATS = Table("statistics", "events", "iterations", "fallback", "contacts", "sub
  STAT_WATCHED) = STATS
 STAT_COLUMNS = len(STATS)
 
-#: what the ``fallback`` statistic holds (values, not columns): the step ran as designed; the
-#: exact solver settled the rest of the step with fixed substeps; it did, but needed more than
-#: its cap of substeps, so the no-tunnelling bound did not hold; the state is no longer finite
-#: (checked after every step: ``World.step`` raises ``SimulationError``)
-FALLBACK = Table("fallback", "none", "settled", "capped", "nonfinite", prefix="FALLBACK_")
-FALLBACK_NONE, FALLBACK_SETTLED, FALLBACK_CAPPED, FALLBACK_NONFINITE = FALLBACK
+#: what the ``fallback`` statistic holds (values, not columns, the worse the higher): the step
+#: ran as designed; the exact solver's sweeps did not converge and the block solve of the jam,
+#: which has no friction, took pairs with contact friction (their friction after it is lost);
+#: the exact solver settled the rest of the step with fixed substeps; it did, but needed more
+#: than its cap of substeps, so the no-tunnelling bound did not hold; the state is no longer
+#: finite (checked after every step: ``World.step`` raises ``SimulationError``)
+FALLBACK = Table("fallback", "none", "jammed", "settled", "capped", "nonfinite",
+                 prefix="FALLBACK_")
+FALLBACK_NONE, FALLBACK_JAMMED, FALLBACK_SETTLED, FALLBACK_CAPPED, FALLBACK_NONFINITE = FALLBACK
 
 #: outcome of a time-of-impact search (values, not columns)
 SEARCH = Table("search outcome", "none", "contact", "checkpoint")

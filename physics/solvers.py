@@ -87,6 +87,7 @@ from spinstrike.physics.layout import (
     CAL_WATCH_SIZE,
     CHECKPOINT,
     FALLBACK_CAPPED,
+    FALLBACK_JAMMED,
     FALLBACK_SETTLED,
     FRICTION,
     FRICTION_DECEL,
@@ -389,6 +390,10 @@ def _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, crec, stats)
         a, b, wall = pair_bodies(p, PA, PB, n)
         apply_impulse(S, Pm, a, b, wall >= 0, lam[i], geo[i, JAM_NX], geo[i, JAM_NY],
                       geo[i, JAM_CROSS_A], geo[i, JAM_CROSS_B], rotation)
+        # the block has no friction: a pair with some lost it (a wedge that should lock
+        # squirted out; W8), which the step's fallback says
+        if MAT[p, FRICTION] > 0.0 and stats[STAT_FALLBACK] < FALLBACK_JAMMED:
+            stats[STAT_FALLBACK] = FALLBACK_JAMMED
         _record(p, t, geo[i, JAM_PX], geo[i, JAM_PY], geo[i, JAM_NX], geo[i, JAM_NY], lam[i], 0.0,
                 cpair, crec, stats)
         changed[a] = 1

@@ -59,6 +59,7 @@ from spinstrike.physics.layout import (
     CI_TABLE_FRICTION,
     CI_ZENO_IMPACTS,
     FALLBACK_CAPPED,
+    FALLBACK_JAMMED,
     FALLBACK_NONE,
     FALLBACK_NONFINITE,
     FALLBACK_SETTLED,
@@ -224,7 +225,9 @@ class StepStats:
         substeps: fixed substeps (the fixed solver, or the exact solver's settling).
         contacts: impulses applied.
         fallback: the exact solver settled the rest of the step with fixed substeps (a run of
-            resting bounces, or ``max_events`` reached).
+            resting bounces, or ``max_events`` reached), or solved a jam (sweeps that did not
+            converge) whose pairs have contact friction as a block without it, so that their
+            friction in it was lost (a self-locking wedge squirts out: README, known failures).
         capped: that settling needed more substeps than its cap (``MAX_SETTLE_SUBSTEPS``,
             10^6), so the bound that keeps bodies from passing through each other did not hold
             (``World.step`` warns): forces or speeds about 10^6 times what the bodies' sizes
@@ -958,7 +961,8 @@ class World:
         if self._last_step is None:
             st = self._stats.copy()
             code = st[:, STAT_FALLBACK]
-            fallback = (code == FALLBACK_SETTLED) | (code == FALLBACK_CAPPED)
+            fallback = (code == FALLBACK_JAMMED) | (code == FALLBACK_SETTLED) | (
+                code == FALLBACK_CAPPED)
             capped = code == FALLBACK_CAPPED
             watched_impulse = self._crec[:, self.max_contacts, REC_WATCHED_J].copy()
             for a in (st, fallback, capped, watched_impulse):  # st: and so its columns
