@@ -332,7 +332,8 @@ _CONTROL_DOC = """{summary}
     ``hits`` (every mallet-target impulse of the step), ``hit_impulse`` (N s, their sum, every
     one: a settled step of a mallet pushing the rod at e = 0 makes ~1,500), ``force`` (N, after
     the speed limit), ``spin``, ``speed``, ``mallet_speed``, ``reward_hit``, ``fallback`` (the
-    solver settled a resting contact).
+    solver settled a resting contact, or solved a jam without its contact friction:
+    ``physics.StepStats``).
 
     ## Rendering
     One frame per step (real time at ``render_fps`` = 1 / ``dt``): ``"rgb_array"`` (the current

@@ -916,7 +916,8 @@ class RodSpinEnv(_StrikeEnv):
     ``second_contact``, ``impulse`` (normal impulses summed over the strike's contacts, N s;
     friction's tangential part left out), ``first_impulse``, ``first_contact_point``,
     ``first_contact_time`` (s), ``sim_time``, ``analytic_max_spin``, ``analytic_best_lever``,
-    ``best_reward``, ``reward_spin``, ``fallback`` (the solver settled a resting contact).
+    ``best_reward``, ``reward_spin``, ``fallback`` (the solver settled a resting contact,
+    or solved a jam without its contact friction: ``physics.StepStats``).
 
 {rendering}    ## Version History
     * v0: initial version.
