@@ -84,7 +84,10 @@ class VideoWriter:
         self.frames = 0
         self._size: tuple[int, int] | None = None
         self._encoder = None
-        self._gif: list[np.ndarray] = []
+        self._gif: list = []  # a GIF's frames, as PIL images in palette mode
+        # viewers show a GIF frame shorter than 20 ms for 100 ms (a 500 fps recording, a --dt
+        # of 0.002 s, played 10x slow): above 50 fps a GIF keeps every k-th frame only
+        self._gif_every = max(1, math.ceil(fps / GIF_MAX_FPS - 1e-9))
 
     @property
     def size(self) -> tuple[int, int] | None:
@@ -110,7 +113,14 @@ class VideoWriter:
             raise ValueError(f"frame: size {frame.shape[:2]} differs from the video's "
                              f"{self._size}")
         if self.path.suffix.lower() == ".gif":
-            self._gif.append(frame.copy())
+            # kept as Pillow's GIF writer would convert it (a palette of the frame's own
+            # colours, one byte a pixel), and only the frames the GIF keeps: the RGB frames,
+            # all of them, took 3.1 GB for a 4-episode control grid (its mp4: 0.4 GB)
+            if self.frames % self._gif_every == 0:
+                from PIL import Image
+
+                self._gif.append(Image.fromarray(frame).convert(
+                    "P", palette=Image.Palette.ADAPTIVE))
         else:
             h, w = self._size
             if h % 2 or w % 2:
@@ -135,12 +145,8 @@ class VideoWriter:
             self._encoder.close()
             self._encoder = None
         if self._gif:
-            from PIL import Image
-
-            # viewers show a GIF frame shorter than 20 ms for 100 ms (a 500 fps recording, a
-            # --dt of 0.002 s, played 10x slow): above 50 fps keep every k-th frame only
-            k = max(1, math.ceil(self.fps / GIF_MAX_FPS - 1e-9))
-            images = [Image.fromarray(f) for f in self._gif[::k]]
+            k = self._gif_every
+            images = self._gif
             # a GIF counts time in hundredths of a second: round the frames' cumulative times
             # to those, so that the whole lasts what it should (30 fps: 30, 30, 40, 30...)
             ends = np.round(np.arange(len(images) + 1) * 100 * k / self.fps) * 10

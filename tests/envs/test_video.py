@@ -878,3 +878,32 @@ def test_a_fast_gif_keeps_frames_viewers_play_in_real_time(tmp_path, capsys):
                 im.seek(k)
                 got.append(im.info["duration"])
         assert min(got) >= 20 and abs(sum(got) - 1000) <= 20, (fps, got)
+
+
+def test_a_gif_holds_its_frames_as_the_gif_does(tmp_path):
+    """A GIF's frames were held as RGB arrays until the end (every one, those a fast GIF drops
+    too): a 4-episode control grid took 3.1 GB, its mp4 0.4 GB. They are held now as Pillow's
+    GIF writer converts them (a palette, a byte a pixel), and only those kept: the file is the
+    same, byte for byte, and the Python-side memory is no longer the frames'."""
+    import tracemalloc
+
+    from PIL import Image
+
+    rng = np.random.default_rng(0)
+    frames = [rng.integers(0, 255, (240, 360, 3), dtype=np.uint8) for _ in range(12)]
+    path = tmp_path / "w.gif"
+    tracemalloc.start()
+    try:
+        with VideoWriter(path, 30) as w:
+            for f in frames:
+                w.write(f)
+            held = tracemalloc.get_traced_memory()[0]
+    finally:
+        tracemalloc.stop()
+    assert held < frames[0].nbytes  # 12 RGB frames were 3.1 MB
+    pillow = tmp_path / "pillow.gif"
+    ends = np.round(np.arange(len(frames) + 1) * 100 / 30) * 10
+    images = [Image.fromarray(f) for f in frames]
+    images[0].save(pillow, save_all=True, append_images=images[1:], loop=0,
+                   duration=np.diff(ends).astype(int).tolist(), optimize=True)
+    assert path.read_bytes() == pillow.read_bytes()
