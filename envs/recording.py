@@ -23,7 +23,7 @@ import errno
 import gc
 import math
 import os
-import tempfile
+import secrets
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -69,16 +69,19 @@ class VideoWriter:
         # a name of its own beside path (a fixed NAME.partial.mp4 replaced a file of the user's
         # of that name); a place that cannot be written fails here, an OSError naming path
         # (ffmpeg failed at the first frame with a broken pipe; a GIF only at the end)
-        try:
-            fd, partial = tempfile.mkstemp(prefix=f"{self.path.stem}.", dir=self.path.parent,
-                                           suffix=f".partial{self.path.suffix}")
-        except OSError as exc:
-            raise OSError(exc.errno, exc.strerror, str(path)) from None
-        os.close(fd)
-        umask = os.umask(0)  # mkstemp's file is the user's alone (0600); a video is not
-        os.umask(umask)
-        os.chmod(partial, 0o666 & ~umask)
-        self._partial = Path(partial)
+        # (os.open with 0o666 as open() does: the umask gives the video the user's usual
+        # permissions, where mkstemp's 0600 kept it from everyone else)
+        while True:
+            partial = self.path.with_name(
+                f"{self.path.stem}.{secrets.token_hex(4)}.partial{self.path.suffix}")
+            try:
+                os.close(os.open(partial, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+                break
+            except FileExistsError:
+                continue
+            except OSError as exc:
+                raise OSError(exc.errno, exc.strerror, str(path)) from None
+        self._partial = partial
         self.fps = fps
         #: frames written so far
         self.frames = 0

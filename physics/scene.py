@@ -218,8 +218,8 @@ class Table(_Model):
 
     @model_validator(mode="after")
     def _finite_deceleration(self) -> Table:
-        # (1e308 of either was taken, and their product overflowed in the solver: a bare numpy
-        # warning, the bodies' speeds NaN)
+        # (1e308 of either was taken, and their product overflowed: a bare numpy warning, and
+        # an infinite deceleration)
         if not math.isfinite(self.friction * self.gravity):
             raise ValueError(f"friction x gravity, the cloth's deceleration, must be a finite "
                              f"number (got {self.friction:g} x {self.gravity:g})")
