@@ -275,10 +275,11 @@ def _rounded_up(result: dict) -> str:
     work = Path(result["run_dir"])
     if not (work / "config.yml").is_file():
         return ""
-    budget = recorded_budget(work)
+    meta = yaml.safe_load((work / "config.yml").read_text())
+    budget = recorded_budget(work, meta)
     if budget is None or result["timesteps"] <= budget:
         return ""
-    rllib = yaml.safe_load((work / "config.yml").read_text()).get("backend") == "rllib"
+    rllib = meta.get("backend") == "rllib"
     return (f"; the budget of {budget} rounded up to whole "
             + ("training iterations, as RLlib trains them" if rllib
                else "rollouts, as SB3 trains them"))

@@ -153,7 +153,14 @@ def record_world(world, path: str | Path, seconds: float = 3.0, dt: float = 0.02
     Returns:
         ``{"path", "frames", "fps", "size", "contacts"}``.
     """
-    from spinstrike.envs.rendering import Frame, Marker, Renderer, body_draws, body_points
+    from spinstrike.envs.rendering import (
+        Frame,
+        Marker,
+        Renderer,
+        body_draws,
+        body_points,
+        view_need,
+    )
 
     if not (math.isfinite(seconds) and seconds > 0):
         raise ValueError(f"seconds: must be a number > 0 (got {seconds!r})")
@@ -177,6 +184,7 @@ def record_world(world, path: str | Path, seconds: float = 3.0, dt: float = 0.02
     renderer = Renderer(size, view)
     zoom = 1.0  # widened (never narrowed) where a body would leave the view: an unbounded
     #             table's bodies fly off the extent they started in
+    reach = world.half_length[b] + world.radius[b]
     fps = 1.0 / dt
     keep = max(1, int(round(trail / dt)))
     paths: list[deque] = []
@@ -187,8 +195,7 @@ def record_world(world, path: str | Path, seconds: float = 3.0, dt: float = 0.02
     def frame() -> np.ndarray:
         nonlocal zoom
         drawn = body_draws(world, b)  # bodies not named as the envs' are drawn grey
-        reach = np.abs(world.state.positions[b]) + (world.half_length[b] + world.radius[b])[:, None]
-        out = float((reach / np.asarray(view)).max())  # > 1: a body's edge leaves the view
+        out = view_need(world.state.positions[b], reach, view)  # > 1: a body leaves it
         if out > zoom:
             zoom = 1.25 * out  # with room to go on, not a view that creeps every frame
         points = [body_points(d) for d in drawn]

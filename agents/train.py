@@ -193,9 +193,11 @@ def _recorded_run(work: Path, given: dict[str, Any], config, timesteps,
     return algo, cfg, seed, meta.get("finish") or {}
 
 
-def recorded_budget(work: Path) -> int | None:
-    """The budget (``n_timesteps``) ``work/config.yml`` records, or None."""
-    meta = yaml.safe_load((work / "config.yml").read_text())
+def recorded_budget(work: Path, meta: dict | None = None) -> int | None:
+    """The budget (``n_timesteps``) ``work/config.yml`` records (``meta``: that file, read
+    already), or None."""
+    if meta is None:
+        meta = yaml.safe_load((work / "config.yml").read_text())
     try:
         return int(meta["hyperparameters"][meta["env"]]["n_timesteps"])
     except (KeyError, TypeError, ValueError):

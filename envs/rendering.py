@@ -151,6 +151,15 @@ def body_draws(world, b: int, S: np.ndarray | None = None) -> list[BodyDraw]:
                      world.half_length[b, i], om[i], *vel[i]) for i in range(world.n_bodies)]
 
 
+def view_need(positions: np.ndarray, reach: np.ndarray, view_half) -> float:
+    """How far a view of half extents ``view_half`` (m, about the origin) must widen to show
+    bodies reaching ``reach`` [N] (m) from their centres at all of ``positions`` [..., N, 2]
+    whole: at most 1, they are in it (a ``Frame``'s ``zoom`` of this shows them to the edge)."""
+    extent = np.abs(positions) + np.asarray(reach)[:, None]
+    return max(float(np.max(extent[..., 0])) / view_half[0],
+               float(np.max(extent[..., 1])) / view_half[1])
+
+
 def body_points(b: BodyDraw) -> list[tuple[float, float]]:
     """The points of a body whose paths make its motion trail (m): the centre, and a rod's
     two tips (they show the spin)."""

@@ -37,6 +37,7 @@ from spinstrike.envs.rendering import (
     body_draws,
     body_points,
     strike_times,
+    view_need,
 )
 from spinstrike.physics import SceneError
 from spinstrike.physics.layout import STATE_COLUMNS, X, Y
@@ -453,10 +454,8 @@ class _StrikeTask(Task):
         """How far a video frame's view must widen (about the origin, >= 1) to show element
         ``b``'s bodies whole at all of ``positions`` (``[..., N, 2]``): on an unbounded table a
         fast puck or striker can leave the fixed view (1: they stay in it; else 5 % to spare)."""
-        hx, hy = self.view_half()
-        reach = self.world.half_length[b] + self.world.radius[b]
-        extent = np.abs(positions) + reach[:, None]
-        need = max(float(np.max(extent[..., 0])) / hx, float(np.max(extent[..., 1])) / hy)
+        need = view_need(positions, self.world.half_length[b] + self.world.radius[b],
+                         self.view_half())
         return 1.0 if need <= 1.0 else 1.05 * need
 
     def _video_frame(self, b: int, S: np.ndarray | None, t: float, slow_motion: int,
