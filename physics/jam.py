@@ -12,7 +12,9 @@ pairs, 2^n sets). That is the compression phase: the minimiser of the kinetic en
 non-negative impulses, which leaves no pair approaching. Restitution follows Poisson's
 hypothesis with the smallest ``e`` of the touching pairs: the impulses are ``(1 + e) lam``, which
 change the kinetic energy by ``-(1 - e^2)/2 lam.A.lam <= 0`` (0 for e = 1). Friction is not part
-of the block (the sweeps before it applied it).
+of this block; where pairs have contact friction :func:`jam_friction_impulses` solves them with
+it (up to ``MAX_FRICTION_PAIRS`` pairs; the solvers fall back on this block beyond, and flag the
+step): without it a self-locking wedge squirted out.
 
 Accuracy at extreme mass ratios: ``A`` is never formed. A light body jammed between heavy ones
 makes it nearly singular (its entries ``1/m_light + 1/m_heavy`` lose the heavy bodies' terms to
@@ -31,8 +33,10 @@ import math
 import numpy as np
 
 from spinstrike.physics.events import pair_bodies, pair_geometry
+from spinstrike.physics.impulse import relative_velocity
 from spinstrike.physics.jit import jit
 from spinstrike.physics.layout import (
+    FRICTION,
     HALF_H,
     HALF_W,
     INV_INERTIA,
@@ -43,15 +47,20 @@ from spinstrike.physics.layout import (
     Y,
 )
 
-__all__ = ["JAM_COLUMNS", "MAX_JAM_PAIRS", "jam_impulses"]
+__all__ = ["JAM_COLUMNS", "MAX_FRICTION_PAIRS", "MAX_JAM_PAIRS", "jam_friction_impulses",
+           "jam_impulses"]
 
 
 #: most touching pairs the block solve takes (it tries up to 2^n active sets)
 MAX_JAM_PAIRS = 10
 #: the per-pair rows it returns: unit normal (a to b), lever terms r x n of a and b, contact
-#: point (m), normal relative velocity (m/s)
-JAM = Table("jam pair", "nx", "ny", "cross_a", "cross_b", "px", "py", "vn", prefix="JAM_")
-JAM_NX, JAM_NY, JAM_CROSS_A, JAM_CROSS_B, JAM_PX, JAM_PY, JAM_VN = JAM
+#: point (m), normal relative velocity (m/s); the lever terms r x t of a and b and the tangential
+#: relative velocity (m/s) along t = (-n_y, n_x), for the friction block
+
+JAM = Table("jam pair", "nx", "ny", "cross_a", "cross_b", "px", "py", "vn", "cross_ta", "cross_tb",
+            "vt", prefix="JAM_")
+(JAM_NX, JAM_NY, JAM_CROSS_A, JAM_CROSS_B, JAM_PX, JAM_PY, JAM_VN, JAM_CROSS_TA, JAM_CROSS_TB,
+ JAM_VT) = JAM
 JAM_COLUMNS = len(JAM)
 
 
@@ -75,6 +84,10 @@ def _collect(S, Pm, hw, PA, PB, slop, idx, geo):
             geo[m, JAM_PX] = S[a, X] + oax + ka * nx
             geo[m, JAM_PY] = S[a, Y] + oay + ka * ny
             geo[m, JAM_VN] = vn
+            geo[m, JAM_CROSS_TA] = oax * nx + oay * ny + ka
+            geo[m, JAM_CROSS_TB] = obx * nx + oby * ny - kb
+            geo[m, JAM_VT] = relative_velocity(S, a, bb, wall >= 0, nx, ny, oax, oay, ka, obx,
+                                               oby, kb)[1]
             m += 1
     return m
 
@@ -205,8 +218,9 @@ def _apply_delassus(Pm, PA, PB, idx, geo, m, side, ids, lam, rotation, out, scal
 
 @jit
 def _householder(M, k):
-    """QR of ``M`` (rows x k, rows >= k) in place: ``R`` in its upper k x k triangle. False if
-    a column is (to round-off) a combination of the ones before it: no unique solution."""
+    """QR of ``M``'s first k columns (rows >= k) in place: ``R`` in its upper k x k triangle,
+    and the reflectors applied to any columns after them (``Q^T`` times them). False if a
+    column is (to round-off) a combination of the ones before it: no unique solution."""
     rows = M.shape[0]
     if rows < k:
         return False
@@ -224,7 +238,7 @@ def _householder(M, k):
         # the reflector v = x - alpha e_c, kept in column c below the diagonal (and v_c apart)
         vc = M[c, c] - alpha
         vnorm2 = vc * vc + rest2
-        for q in range(c + 1, k):
+        for q in range(c + 1, M.shape[1]):
             dot = vc * M[c, q]
             for r in range(c + 1, rows):
                 dot += M[r, c] * M[r, q]
@@ -349,4 +363,225 @@ def jam_impulses(S, Pm, hw, PA, PB, MAT, slop, rotation, idx, geo, lam):
     k = min(1.0 + e, -2.0 * lv / lal)
     for i in range(m):
         lam[i] = k * sol[i]
+    return m
+
+
+#: most touching pairs the friction block takes (each pair stuck, sliding either way, or apart:
+#: it tries up to 4^n sets); a larger jam with friction is solved without it, and flagged
+MAX_FRICTION_PAIRS = 5
+#: a frictional pair's states in the friction block: apart, stuck, sliding along +t (its
+#: friction impulse -mu lam_n), sliding along -t (+mu lam_n). A frictionless pair: apart, on.
+OFF, STICK, SLIDE_POS, SLIDE_NEG = 0, 1, 2, 3
+
+
+@jit
+def _rows(idx, geo, m):
+    """The friction block's 2m rows: the m normal rows of ``geo`` and after them a tangential
+    row per pair (its direction t = (-n_y, n_x), lever terms r x t and tangential velocity in
+    the normal row's columns), so that ``_weighted_jacobian`` and ``_apply_delassus`` serve
+    both."""
+    idx2 = np.empty(2 * m, np.int64)
+    geo2 = np.empty((2 * m, JAM_COLUMNS))
+    for i in range(m):
+        idx2[i] = idx[i]
+        idx2[m + i] = idx[i]
+        geo2[i] = geo[i]
+        geo2[m + i] = geo[i]
+        geo2[m + i, JAM_NX] = -geo[i, JAM_NY]
+        geo2[m + i, JAM_NY] = geo[i, JAM_NX]
+        geo2[m + i, JAM_CROSS_A] = geo[i, JAM_CROSS_TA]
+        geo2[m + i, JAM_CROSS_B] = geo[i, JAM_CROSS_TB]
+        geo2[m + i, JAM_VN] = geo[i, JAM_VT]
+    return idx2, geo2
+
+
+@jit
+def _lu_solve(G, k, rhs):
+    """Solve ``G^T y = rhs`` (G: k x k) in place in ``rhs``, on a copy of G; False if
+    singular."""
+    M = np.empty((k, k))
+    for r in range(k):
+        for c in range(k):
+            M[r, c] = G[c, r]
+    return _solve_small(M, rhs, k)
+
+
+@jit
+def _unknowns(m, mu, state):
+    """The unknowns of a set of pair states: each pair on has its normal impulse, whose column
+    (``col``, a row of ``lam2``) also carries ``sig`` times it as friction on row ``m + i`` (a
+    sliding pair's ``-/+ mu``); a stuck pair with friction also its friction impulse (row
+    ``m + i``). Returns (col, sig, k)."""
+    col = np.empty(2 * m, np.int64)
+    sig = np.zeros(2 * m)
+    k = 0
+    for i in range(m):
+        if state[i] == OFF:
+            continue
+        col[k] = i
+        if state[i] == SLIDE_POS:
+            sig[k] = -mu[i]
+        elif state[i] == SLIDE_NEG:
+            sig[k] = mu[i]
+        k += 1
+        if state[i] == STICK and mu[i] > 0.0:
+            col[k] = m + i
+            k += 1
+    return col, sig, k
+
+
+@jit
+def _consistent(m, mu, state, geo2, lam2, w, scale, eps):
+    """Whether a set's impulses ``lam2`` (``w = A lam2``) keep its states: normal impulses >= 0,
+    a stuck pair's friction inside its cone, a sliding pair still slipping its way, a pair off
+    not approaching (each to ``eps`` and the round-off of its sums)."""
+    for i in range(m):
+        if state[i] == OFF:
+            if geo2[i, JAM_VN] + w[i] < -(eps + 1e-14 * scale[i]):
+                return False
+            continue
+        if lam2[i] < 0.0:
+            return False
+        vt = geo2[m + i, JAM_VN] + w[m + i]
+        tol_t = eps + 1e-14 * scale[m + i]
+        if state[i] == STICK and abs(lam2[m + i]) > mu[i] * lam2[i] * (1.0 + 1e-12):
+            return False
+        if (state[i] == SLIDE_POS and vt < -tol_t) or (state[i] == SLIDE_NEG and vt > tol_t):
+            return False
+    return True
+
+
+@jit
+def _friction_set(Pm, PA, PB, m, idx2, geo2, B, side, ids, mu, state, lam2, w, scale, eps,
+                  rotation):
+    """Solve the friction block for one set of pair states (``state``): every pair on has no
+    normal velocity left, a stuck pair no tangential velocity, and a sliding pair's friction is
+    ``mu`` times its normal impulse against its slip. True if the solution keeps the states
+    (:func:`_consistent`). Impulses in ``lam2`` (normal rows, then tangential),
+    ``w = A lam2``.
+
+    The unknowns' impulse columns (a sliding pair's: ``n -/+ mu t``) and the rows their
+    velocities are measured on differ, so the system ``Br^T Bc x = -v`` is not symmetric. A
+    Householder QR of the mass-weighted ``Bc`` with its reflectors applied to ``Br`` gives it
+    as ``G^T R x`` without forming ``Br^T Bc`` (``G``: the top of ``Q^T Br``; ``G = R`` when
+    nothing slides, the frictionless block's ``R^T R``), then two refinements with the residual
+    from the bodies' impulse sums."""
+    col, sig, k = _unknowns(m, mu, state)
+    rows = B.shape[0]
+    if rows < k:
+        return False
+    Mx = np.empty((rows, 2 * k))
+    for u in range(k):
+        c = col[u]
+        for r in range(rows):
+            Mx[r, k + u] = B[r, c]
+            Mx[r, u] = B[r, c] + (sig[u] * B[r, c + m] if sig[u] != 0.0 else 0.0)
+    if not _householder(Mx, k):
+        return False
+    rhs = np.empty(k)
+    for u in range(k):
+        rhs[u] = -geo2[col[u], JAM_VN]
+    x = np.zeros(k)
+    d = rhs.copy()
+    for _ in range(_REFINEMENTS + 1):
+        if not _lu_solve(Mx[:k, k:], k, d):
+            return False
+        for c in range(k - 1, -1, -1):  # R dx = d
+            acc = d[c]
+            for q in range(c + 1, k):
+                acc -= Mx[c, q] * d[q]
+            d[c] = acc / Mx[c, c]
+        lam2[:] = 0.0
+        for u in range(k):
+            x[u] += d[u]
+            lam2[col[u]] += x[u]
+            if sig[u] != 0.0:
+                lam2[col[u] + m] += sig[u] * x[u]
+        _apply_delassus(Pm, PA, PB, idx2, geo2, 2 * m, side, ids, lam2, rotation, w, scale)
+        for u in range(k):
+            d[u] = rhs[u] - w[col[u]]
+    return _consistent(m, mu, state, geo2, lam2, w, scale, eps)
+
+
+@jit
+def jam_friction_impulses(S, Pm, hw, PA, PB, MAT, slop, rotation, idx, geo, lam, lamt):
+    """The block solve of a jam with contact friction: normal and tangential impulses of all
+    touching pairs at once, not yet applied (the frictionless :func:`jam_impulses` loses the
+    friction, and a self-locking wedge squirts out).
+
+    Compression: every set of pair states is tried (``OFF``..``SLIDE_NEG``, the first pair
+    fastest, a pair stuck before sliding) until one is consistent (:func:`_friction_set`):
+    Coulomb's law at every pair, no pair left approaching. Restitution follows Poisson's
+    hypothesis on the whole impulse, with the smallest ``e`` of the pairs: the impulses are
+    ``(1 + e) lam``, so every pair's normal velocity, and a stuck pair's tangential one, comes
+    out ``-e`` times what it was, and a sliding pair's friction stays ``mu`` times its normal
+    impulse (as a lone contact's). Repeating only the normal impulses instead (a lone contact's
+    stuck friction is not repeated) kicked a locked wedge's 1 kg puck out at 25 m/s at e = 1:
+    the stuck friction that balanced the heavy disk's push was missing. The energy changes by
+    ``k lam.v + k^2/2 lam.A.lam`` for impulses ``k lam``, never above 0 up to k = 2 (friction
+    only dissipates: ``lam.v <= -lam.A.lam``), and ``k`` is capped where the change computed
+    from the solved ``lam`` is zero, so no round-off gives energy.
+
+    Args:
+        idx, geo, lam, lamt: scratch of ``MAX_JAM_PAIRS`` pair indices, geometry rows and
+            normal and tangential impulses, filled for the first m rows.
+
+    Returns:
+        m, the number of rows to apply (0: nothing to do); -1 where this solve does not apply
+        (no pair with friction, more than ``MAX_FRICTION_PAIRS`` pairs, no consistent set):
+        the frictionless block is the caller's fallback.
+    """
+    n = S.shape[0]
+    m = _collect(S, Pm, hw, PA, PB, slop, idx, geo)
+    if m <= 0 or m > MAX_FRICTION_PAIRS:
+        return -1
+    mu = np.empty(m)
+    radix = np.empty(m, np.int64)
+    sets = 1
+    e = 1.0
+    for i in range(m):
+        mu[i] = MAT[idx[i], FRICTION]
+        radix[i] = 4 if mu[i] > 0.0 else 2
+        sets *= radix[i]
+        e = min(e, MAT[idx[i], RESTITUTION])
+    if sets == 1 << m:
+        return -1
+    idx2, geo2 = _rows(idx, geo, m)
+    vmax = 0.0
+    for r in range(2 * m):
+        vmax = max(vmax, abs(geo2[r, JAM_VN]))
+    if vmax == 0.0:
+        return 0
+    B, side, ids = _weighted_jacobian(Pm, PA, PB, n, idx2, geo2, 2 * m, rotation)
+    state = np.zeros(m, np.int64)
+    lam2 = np.zeros(2 * m)
+    w = np.empty(2 * m)
+    scale = np.empty(2 * m)
+    found = False
+    for code in range(1, sets):
+        rest = code
+        for i in range(m):
+            state[i] = rest % radix[i]
+            rest //= radix[i]
+        if _friction_set(Pm, PA, PB, m, idx2, geo2, B, side, ids, mu, state, lam2, w, scale,
+                         1e-12 * vmax, rotation):
+            found = True
+            break
+    if not found:
+        return -1
+    # energy (the frictionless block's guard): k lam changes it by k lam.v + k^2/2 lam.A.lam,
+    # where lam.v = lam.w - lam.A.lam <= -lam.A.lam (friction dissipates: lam.w <= 0), so
+    # <= 0 up to k = 2; k is capped where the change computed from this lam is zero
+    lv = 0.0
+    for r in range(2 * m):
+        lv += lam2[r] * geo2[r, JAM_VN]
+    lal = _apply_delassus(Pm, PA, PB, idx2, geo2, 2 * m, side, ids, lam2, rotation, w, scale)
+    if not (lv < 0.0 and lal > 0.0):
+        return -1
+    k = min(1.0 + e, -2.0 * lv / lal)
+    for r in range(2 * m):
+        lam2[r] *= k
+    for i in range(m):
+        lam[i] = lam2[i]
+        lamt[i] = lam2[m + i]
     return m

@@ -69,12 +69,15 @@ from spinstrike.physics.jam import (
     JAM_COLUMNS,
     JAM_CROSS_A,
     JAM_CROSS_B,
+    JAM_CROSS_TA,
+    JAM_CROSS_TB,
     JAM_NX,
     JAM_NY,
     JAM_PX,
     JAM_PY,
     MAX_JAM_PAIRS,
     _solve_small,
+    jam_friction_impulses,
     jam_impulses,
 )
 from spinstrike.physics.jit import jit, jit_counted, jit_inline, jit_uncounted, static_if
@@ -372,17 +375,35 @@ def _watched_pass(S, Pm, F, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, flat
     return hit, resting
 
 
+@jit
+def _no_friction_block(S, Pm, hw, PA, PB, MAT, slop, rotation, idx, geo, lam, lamt):
+    """A world without contact friction has no friction block (``_friction_block_if``)."""
+    return -1
+
+
+#: the friction block, compiled only for worlds with contact friction
+_friction_block_if = static_if(jam_friction_impulses, otherwise=_no_friction_block)
+
+
 @jit_counted
-def _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, crec, stats):
-    """The sweeps did not converge (a jam): apply and record the block solve's impulses.
+def _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, contact_friction, changed, cpair, crec,
+         stats):
+    """The sweeps did not converge (a jam): apply and record the block solve's impulses, with
+    friction (``jam.jam_friction_impulses``) where a pair has some and the block takes them,
+    else without (``jam.jam_impulses``).
 
     Reference counted even when called from the many-body loop (``jit_counted``, which keeps
     the counting that uncounted callers would otherwise pass on): the block solve allocates."""
     idx = np.empty(MAX_JAM_PAIRS, np.int64)
     geo = np.empty((MAX_JAM_PAIRS, JAM_COLUMNS))
     lam = np.zeros(MAX_JAM_PAIRS)
+    lamt = np.zeros(MAX_JAM_PAIRS)
     n = S.shape[0]
-    m = jam_impulses(S, Pm, hw, PA, PB, MAT, slop, rotation, idx, geo, lam)
+    m = _friction_block_if(contact_friction, S, Pm, hw, PA, PB, MAT, slop, rotation, idx, geo,
+                           lam, lamt)
+    lost = m < 0
+    if lost:
+        m = jam_impulses(S, Pm, hw, PA, PB, MAT, slop, rotation, idx, geo, lam)
     for i in range(m):
         if lam[i] <= 0.0:
             continue
@@ -390,12 +411,15 @@ def _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, crec, stats)
         a, b, wall = pair_bodies(p, PA, PB, n)
         apply_impulse(S, Pm, a, b, wall >= 0, lam[i], geo[i, JAM_NX], geo[i, JAM_NY],
                       geo[i, JAM_CROSS_A], geo[i, JAM_CROSS_B], rotation)
-        # the block has no friction: a pair with some lost it (a wedge that should lock
-        # squirted out; W8), which the step's fallback says
-        if MAT[p, FRICTION] > 0.0 and stats[STAT_FALLBACK] < FALLBACK_JAMMED:
+        if lamt[i] != 0.0:
+            apply_impulse(S, Pm, a, b, wall >= 0, lamt[i], -geo[i, JAM_NY], geo[i, JAM_NX],
+                          geo[i, JAM_CROSS_TA], geo[i, JAM_CROSS_TB], rotation)
+        # the frictionless block, where a pair has friction, lost it (a wedge that should lock
+        # squirted out; W8): the step's fallback says so
+        if lost and MAT[p, FRICTION] > 0.0 and stats[STAT_FALLBACK] < FALLBACK_JAMMED:
             stats[STAT_FALLBACK] = FALLBACK_JAMMED
-        _record(p, t, geo[i, JAM_PX], geo[i, JAM_PY], geo[i, JAM_NX], geo[i, JAM_NY], lam[i], 0.0,
-                cpair, crec, stats)
+        _record(p, t, geo[i, JAM_PX], geo[i, JAM_PY], geo[i, JAM_NX], geo[i, JAM_NY], lam[i],
+                lamt[i], cpair, crec, stats)
         changed[a] = 1
         if wall < 0:
             changed[b] = 1
@@ -423,7 +447,8 @@ def _sweeps(S, Pm, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, flat, contact
         if not hit:
             break
     if hit:
-        _jam_if(jam, S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, crec, stats)
+        _jam_if(jam, S, Pm, hw, PA, PB, MAT, slop, t, rotation, contact_friction, changed,
+                cpair, crec, stats)
     return resting
 
 
@@ -443,7 +468,8 @@ def _watched_sweeps(S, Pm, F, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, fl
         if not hit:
             break
     if hit:
-        _jam_if(jam, S, Pm, hw, PA, PB, MAT, slop, t, rotation, changed, cpair, crec, stats)
+        _jam_if(jam, S, Pm, hw, PA, PB, MAT, slop, t, rotation, contact_friction, changed,
+                cpair, crec, stats)
     return resting
 
 

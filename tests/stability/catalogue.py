@@ -831,6 +831,53 @@ def _jammed(solver: str) -> Measurement:
                        "(to 2/ratio), E kept; overlap in mm")
 
 
+def wedge_scene(mu: float, heavy: float = 1e3, e: float = 0.0) -> dict:
+    """A 1 kg puck on the bottom cushion; a heavier disk lands on it along a normal 30 degrees
+    from the vertical. The puck's two contact forces can line up along the chord between its
+    contact points, 15 degrees off each normal: for mu > tan 15 deg = 0.268 the wedge locks
+    (the heavy disk stops going down, the puck can only roll out); below, the puck squirts."""
+    rl, rh = 0.03, 0.05
+    low = np.array([0.0, -0.5 + rl])
+    high = low + (rl + rh + 0.002) * np.array([math.cos(math.radians(60)),
+                                               math.sin(math.radians(60))])
+    return {"table": {"size": [2.0, 1.0]}, "effects": ["rotation", "walls", "contact_friction"],
+            "materials": {"restitution": e, "friction": mu},
+            "bodies": [{"name": "puck", "shape": "disk", "radius": rl, "mass": 1.0,
+                        "position": low.tolist()},
+                       {"name": "heavy", "shape": "disk", "radius": rh, "mass": heavy,
+                        "position": high.tolist(), "velocity": [-1.0, -1.0]}]}
+
+
+#: the locked wedge's puck velocity (m/s) at a mass ratio of 1e3: fixed substeps converge
+#: there (5,000..50,000 substeps: -0.6441; pymunk locks it too)
+WEDGE_LOCKED = -0.6441
+
+
+def _wedge(solver: str) -> Measurement:
+    """A self-locking wedge (``wedge_scene``, mu 0.5, e = 0): the jam's block solve had no
+    friction and the puck squirted out at -2.62 m/s; the friction block locks it. Error: the
+    puck's x velocity against the locked one, at mass ratios 1e3..1e9; and at e = 0.5 and 1
+    (no reference: Poisson's restitution on the whole impulse) the puck stays below 2 m/s and
+    no energy is gained (the excess, m/s and relative energy, counts as error)."""
+    worst = 0.0
+    for heavy in (1e3, 1e6, 1e9):
+        world = _world(wedge_scene(0.5, heavy), solver)
+        world.step(0.01)
+        err = abs(world.state.velocities[0, 0, 0] - WEDGE_LOCKED)
+        for e in (0.5, 1.0):
+            w = _world(wedge_scene(0.5, heavy, e), solver)
+            e0 = w.kinetic_energy()[0]
+            w.step(0.01)
+            err = max(err, float(np.linalg.norm(w.state.velocities[0, 0])) - 2.0,
+                      w.kinetic_energy()[0] / e0 - 1.0)
+            err = err if _finite(w) else math.inf
+        worst = max(worst, err if _finite(world) else math.inf)
+    return Measurement(worst, "1 kg puck on a cushion, a disk 1e3..1e9 x heavier lands on it "
+                       "30 deg from the vertical (mu 0.5): e = 0, the puck's velocity against "
+                       "the locked -0.6441 m/s; e = 0.5, 1: its speed beyond 2 m/s and the "
+                       "relative energy gained")
+
+
 # ---------------------------------------------------------------------------------------------
 # 9. tiny and huge time steps
 # ---------------------------------------------------------------------------------------------
@@ -1016,6 +1063,13 @@ CASES: tuple[Case, ...] = (
          "takes over)",
          "rel.", _jammed, {"exact": Claim(1e-9)},
          brief="light puck jammed by 1e2..1e12 x heavier ones: stops / reflects, E kept"),
+    Case("locked_wedge", "A self-locking wedge: a puck jammed under a heavy disk against a "
+         "cushion, with friction (mu 0.5 > tan 15 deg)",
+         "mass ratios 1e3..1e9: e = 0, the puck rolls out at the locked velocity fixed substeps "
+         "converge to (-0.6441 m/s; it squirted out at -2.62 when the jam's block solve had no "
+         "friction); e = 0.5, 1: below 2 m/s, no energy gained",
+         "m/s", _wedge, {"exact": Claim(2e-3)},
+         brief="puck wedged under a 1e3..1e9 x heavier disk, mu 0.5: locks, no energy gain"),
     Case("pressed_into_cushion", "Mallet pressing a puck into a cushion / a rod into a corner "
          "(e = 0, 0.5, 0.9; Zeno bounces)", _SUSTAINED_CHECKS, "ratio to limit", _pressed,
          {"exact": Claim(1.0), "fixed": Claim(1.0), "pymunk": Claim(1.0)},
