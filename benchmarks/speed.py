@@ -169,7 +169,10 @@ def _single_rate(env_id: str, steps: int, repeats: int, policy: str = "random",
 
 
 def _ppo_env_share(steps: int) -> float:
-    """Share of PPO's wall time spent inside the env's step (native VecEnv adapter)."""
+    """Share of PPO's wall time spent inside the env's step (native VecEnv adapter), with torch
+    on one thread as ``spinstrike train`` runs it (``--torch-threads 1``): on torch's default
+    (one a core) the share on a busy 2-core host fell 10-20x (0.005-0.008 against 0.08-0.09)."""
+    import torch
     from stable_baselines3 import PPO
 
     from spinstrike.envs.sb3 import make_sb3_vec_env
@@ -185,12 +188,17 @@ def _ppo_env_share(steps: int) -> float:
         return out
 
     vec.step_wait = timed
-    model = PPO("MlpPolicy", vec, n_steps=256, batch_size=512, device="cpu", seed=0)
-    model.learn(4096)  # warm-up
-    spent[0] = 0.0
-    t = time.perf_counter()
-    model.learn(steps, reset_num_timesteps=False)
-    return spent[0] / (time.perf_counter() - t)
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        model = PPO("MlpPolicy", vec, n_steps=256, batch_size=512, device="cpu", seed=0)
+        model.learn(4096)  # warm-up
+        spent[0] = 0.0
+        t = time.perf_counter()
+        model.learn(steps, reset_num_timesteps=False)
+        return spent[0] / (time.perf_counter() - t)
+    finally:
+        torch.set_num_threads(threads)
 
 
 _STARTUP = """
@@ -535,8 +543,8 @@ def main(argv: list[str] | None = None, prog: str = "python -m spinstrike.benchm
         print(f"start-up {env_id}: cold {c1:.1f} / {c1000:.1f} s, warm {w1:.1f} / {w1000:.1f} s")
     if have_sb3:
         share = _ppo_env_share(8192 if quick else 32768)
-        rows.append(("share of SB3 PPO wall time spent in the env (16 envs, native adapter)",
-                     share, "-", "fraction", ""))
+        rows.append(("share of SB3 PPO wall time spent in the env (16 envs, native adapter, "
+                     "torch on 1 thread)", share, "-", "fraction", ""))
         print(f"PPO env share {share:.3f}")
 
     batches = [1, 4, 16, 64, 256, 1024, 4096] + ([] if quick else [16384, 65536])
