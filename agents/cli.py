@@ -51,6 +51,11 @@ def _kwargs(text: str | None) -> dict:
     if not isinstance(value, dict):
         raise AgentConfigError(f"--env-kwargs: must be a mapping such as "
                                f"'{{restitution: 0.8}}' (got {text!r})")
+    glued = [key for key, v in value.items() if v is None and isinstance(key, str) and ":" in key]
+    if glued:  # YAML reads {max_force:1} as the key 'max_force:1' with no value
+        key, _, rest = glued[0].partition(":")
+        raise AgentConfigError(f"--env-kwargs: {glued[0]!r} reads as one key with no value: "
+                               f"YAML needs a space after the colon ('{{{key}: {rest}}}')")
     return value
 
 

@@ -198,6 +198,8 @@ def train_rllib(env_id: str, *, config: str | Path | None = None, seed: int = 0,
     except ImportError:
         raise AgentConfigError("backend: rllib needs Ray RLlib: pip install "
                                "'spinstrike[rllib]'") from None
+    if address is not None and not ray.is_initialized():
+        _probe(address)
     # the env's config is checked here, before Ray starts or the disk is touched; the env is
     # built once (as the SB3 backend does: its errors come before the run folder's)
     algo_config = ppo_config(cfg, seed, num_env_runners)
@@ -263,6 +265,32 @@ def _compile_kernels(env_id: str, env_kwargs: dict) -> None:
         env.step(np.zeros(env.action_space.shape, env.action_space.dtype))
     finally:
         env.close()
+
+
+#: seconds a cluster's head (``--address HOST:PORT``) has to answer before the run is refused
+PROBE_TIMEOUT = 5.0
+
+
+def _probe(address: str) -> None:
+    """Refuse an ``--address HOST:PORT`` where nothing answers, at once: ``ray.init`` retried
+    it for ~14 minutes, a warning every ~35 s, before its error (RLlib walk W10: a typo or a
+    head node not yet up). ``auto``, ``local`` and the like are left to Ray (it answers them at
+    once); ``ray://HOST:PORT`` (Ray Client) is probed as HOST:PORT."""
+    import socket
+
+    target = address.removeprefix("ray://")
+    host, sep, port = target.rpartition(":")
+    if not sep or not host or not port.isdigit():
+        return
+    host = host.strip("[]")  # an IPv6 literal, [::1]:6379
+    try:
+        socket.create_connection((host, int(port)), timeout=PROBE_TIMEOUT).close()
+    except OSError as exc:
+        raise AgentConfigError(
+            f"--address {address}: no Ray cluster to join: nothing answers at {host}:{port} "
+            f"within {PROBE_TIMEOUT:g} s ({exc.strerror or exc}); start one with `ray start "
+            "--head` on that machine (it prints the address to give; see docs/rllib.md), or "
+            "leave --address out to train on a new local Ray") from None
 
 
 def _learn(algo_config, cfg: RunConfig, work: Path, *, seed, address, num_env_runners,

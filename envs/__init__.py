@@ -27,8 +27,9 @@ import numpy as np
 
 from spinstrike.envs.config import ConfigError
 
-__all__ = ["ENV_IDS", "ConfigError", "as_registered", "base_id", "describe", "native_vector",
-           "registered_kwargs", "registration_changes", "scene_as_read", "variant_kwargs"]
+__all__ = ["ENV_IDS", "ConfigError", "as_registered", "base_id", "describe", "flat_kwargs",
+           "native_vector", "registered_kwargs", "registration_changes", "scene_as_read",
+           "variant_kwargs"]
 
 #: registered ids and a one-line description each
 ENV_IDS: dict[str, str] = {
@@ -122,15 +123,31 @@ def base_id(env_id: str) -> str:
                       f"class (nor a subclass of one); {allowed}")
 
 
+def flat_kwargs(kwargs: Mapping) -> dict:
+    """An env's keyword arguments with a ``config`` dict among them (the env's own form,
+    ``gym.register(..., kwargs={"config": {...}})``) laid flat, the other keywords winning, as
+    the env merges them: one form for a run's record and for RLlib's ``env_config``. (Kept
+    nested, the scene in it was recorded as a path, not as read, and ``train --backend rllib``
+    refused the variant: ``config: unknown argument``.) A ``config`` that is not a mapping is
+    left for the env to refuse."""
+    out = dict(kwargs)
+    nested = out.get("config")
+    if isinstance(nested, Mapping):
+        del out["config"]
+        out = {**nested, **out}
+    return out
+
+
 def variant_kwargs(env_id: str) -> dict:
-    """The keyword arguments ``env_id`` is registered with (none for a shipped id), and its
-    ``max_episode_steps`` if it registers one: what ``gym.make(env_id)`` passes its env."""
+    """The keyword arguments ``env_id`` is registered with (none for a shipped id; a ``config``
+    dict among them laid flat, :func:`flat_kwargs`), and its ``max_episode_steps`` if it
+    registers one: what ``gym.make(env_id)`` passes its env."""
     bare = env_id.rpartition(":")[2]
     if bare in ENV_IDS:
         return {}
     base_id(env_id)  # checked, its module imported
     spec = gym.registry[bare]
-    kwargs = dict(spec.kwargs)
+    kwargs = flat_kwargs(spec.kwargs)
     if spec.max_episode_steps is not None:
         kwargs["max_episode_steps"] = spec.max_episode_steps
     return kwargs
@@ -175,7 +192,7 @@ def as_registered(env_id: str, env_kwargs: dict) -> dict:
     changed what an old run was scored and filmed on."""
     import yaml
 
-    out = _plain(scene_as_read(env_id, {**variant_kwargs(env_id), **dict(env_kwargs)}))
+    out = _plain(scene_as_read(env_id, {**variant_kwargs(env_id), **flat_kwargs(env_kwargs)}))
     for key, value in out.items():
         try:
             yaml.safe_dump(value)
@@ -199,6 +216,8 @@ def registration_changes(env_id: str, env_kwargs: dict, registered: dict | None)
     ``name (now X, the run's Y)`` (the run's is used), or ``name (now X, not recorded)`` for
     one the run's record lacks, which the registration now gives."""
     changes = []
+    env_kwargs = flat_kwargs(env_kwargs)  # (recorded nested before 2026-11-28)
+    registered = None if registered is None else flat_kwargs(registered)
     for key, value in registered_kwargs(env_id).items():
         if key not in env_kwargs:
             changes.append(f"{key} (now {_short(value)}, not recorded)")

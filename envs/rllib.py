@@ -42,9 +42,11 @@ from __future__ import annotations
 import importlib
 import numbers
 import os
+from collections.abc import Mapping
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 from gymnasium.vector import AutoresetMode
 
 from spinstrike.envs import ENV_IDS
@@ -133,8 +135,11 @@ def resolve(env_id: str, env_config: Any = None) -> tuple[str, dict]:
         ConfigError: an unknown id or one that is not a SpinStrike env (``envs.base_id``), or a
             subclass of a shipped env: its class lives in the user's module.
     """
-    from spinstrike.envs import _entry_class, base_id, variant_kwargs
+    from spinstrike.envs import _entry_class, base_id, flat_kwargs, variant_kwargs
 
+    if env_config is not None and not isinstance(env_config, Mapping):
+        raise ConfigError(f"env_config: must be a mapping of the env's arguments (got "
+                          f"{type(env_config).__name__} {env_config!r:.60})")
     config = dict(env_config or {})
     if isinstance(env_id, str) and env_id.removeprefix(PREFIX) in ENV_IDS:
         return env_id.removeprefix(PREFIX), config
@@ -151,11 +156,9 @@ def resolve(env_id: str, env_config: Any = None) -> tuple[str, dict]:
                           "them without it. Register the variant with the shipped env's "
                           f"classes and keyword arguments (entry_point={shipped.entry_point!r}, "
                           "kwargs={...}), or train it with the SB3 backend")
-    registered = variant_kwargs(env_id)
-    # gym.register(..., kwargs={"config": {...}}), the env's own config form: flat here, as
-    # env_config is (it was refused as an unknown key 'config')
-    nested = registered.pop("config", None) or {}
-    return base, {**nested, **registered, **config}
+    # gym.register(..., kwargs={"config": {...}}), the env's own config form, comes flat, as
+    # env_config is (it was refused as an unknown key 'config'); so does one in env_config
+    return base, {**variant_kwargs(env_id), **flat_kwargs(config)}
 
 
 def _env_class(env_id: str, vector: bool = False) -> type:
@@ -176,6 +179,12 @@ def _checked_env(env_id: str, env_config: Any, vector: bool) -> tuple[EnvConfig,
     """:func:`check_env_config`, and the env's (observation space, action space)."""
     env_id, env_config = resolve(env_id, env_config)
     cfg, args = _split(env_config)
+    for key, value in cfg.items():  # a Tune search space: no value to check
+        if (isinstance(value, Mapping) and set(value) == {"grid_search"}) or \
+                type(value).__module__.startswith("ray.tune"):
+            raise ConfigError(f"env_config[{key!r}]: a Tune search space ({value!r:.60}) is no "
+                              f"value to check: set it in the config after configure(), where "
+                              f"each trial's runners check their own (docs/rllib.md)")
     value = args.get("num_envs")
     if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
         raise ConfigError(f"env_config['num_envs']: must be an int >= 1 (got {value!r})")
@@ -190,11 +199,15 @@ def _checked_env(env_id: str, env_config: Any, vector: bool) -> tuple[EnvConfig,
                           f"{kind} (got {args['render_mode']!r})")
     parsed = parse_config(env_class.TASK.CONFIG, cfg, {})
     # and the env itself, once: what only a built env can tell (its scene's bodies, overlaps,
-    # a table too small) is refused here, not in every runner with an IndexError in the driver
+    # a table too small) is refused here, not in every runner with an IndexError in the driver.
+    # It is reset and stepped, as the runners will: on a cold kernel cache that compiles every
+    # kernel they use here, once, and says so (reset alone left the step's kernels to each
+    # runner, which compiled them silently: a first iteration ~45 s longer; RLlib walk W10)
     env = env_class(num_envs=1, config=cfg) if vector or "num_envs" in args else \
         env_class(config=cfg)
     try:
         env.reset(seed=0)
+        env.step(np.zeros(env.action_space.shape, env.action_space.dtype))
         spaces = (getattr(env, "single_observation_space", env.observation_space),
                   getattr(env, "single_action_space", env.action_space))
     finally:
@@ -306,8 +319,11 @@ def _check_algorithm_env(config, where: str) -> tuple | None:
         except ConfigError:
             return None  # another library's env
         raise ConfigError(f"{where}: env {env!r}: RLlib's runners make only the shipped ids "
-                          f"(registered by register_envs); use {shipped!r} with env_config "
-                          f"{env_config!r} (what spinstrike.envs.rllib.resolve gives)")
+                          f"(registered by register_envs): your module imports in a runner "
+                          f"only on this machine and from this folder (Ray puts the driver's "
+                          f"working directory on its path), not on other nodes; use "
+                          f"{shipped!r} with env_config {env_config!r} (what "
+                          f"spinstrike.envs.rllib.resolve gives)")
     vector = str(getattr(config.gym_env_vectorize_mode, "value", config.gym_env_vectorize_mode))
     try:
         return _checked_env(env, env_config, vector == "vector_entry_point")[1]

@@ -117,6 +117,9 @@ CASES = [
      lambda t: ["train", "--env-kwargs", "{bogus_kwarg: 1}"],
      ["bogus_kwarg", "unknown argument", "restitution"]),
     # a key given twice: PyYAML kept the last silently
+    ("env-kwargs-no-space-after-colon",  # was "max_forse:1: unknown argument (got None)"
+     lambda t: ["train", "--env-kwargs", "{restitution:0.5}"],
+     ["--env-kwargs", "'restitution:0.5' reads as one key", "'{restitution: 0.5}'"]),
     ("env-kwargs-duplicate-key",
      lambda t: ["train", "--env-kwargs", "{restitution: 0.5, restitution: 0.7}"],
      ["--env-kwargs", "found the key 'restitution' twice"]),

@@ -225,18 +225,23 @@ def test_the_readmes_variant_is_the_batched_env_under_make_vec(user_module):
             assert np.array_equal(a, b)
 
 
-def test_a_variants_scene_file_is_recorded_with_the_run(user_module, capsys):
+@pytest.mark.parametrize("registered", ["{'scene': 'table.yaml'}",
+                                        "{'config': {'scene': 'table.yaml'}}"])
+def test_a_variants_scene_file_is_recorded_with_the_run(user_module, capsys, registered):
     """A variant registered with ``scene="table.yaml"``: its run's ``config.yml`` recorded no
     scene, so after the file was edited ``evaluate`` silently rebuilt the edited table. The
-    run records the scene as read; evaluating after an edit gives the same numbers."""
+    run records the scene as read; evaluating after an edit gives the same numbers. Registered
+    in the env's ``config`` form, the record kept the path (RLlib walk W10: ``evaluate`` from
+    another folder could not open it); the record now holds it flat, as read."""
     table = Path("table.yaml")
     source = (Path(__file__).resolve().parents[2] / "configs" / "scenes" / "rod_control.yaml")
     table.write_text(source.read_text())
-    user_module("spinstrike_scene_lab", (
+    module = f"spinstrike_scene_lab{len(registered)}"
+    user_module(module, (
         "import gymnasium as gym\n"
         "gym.register('SceneLab/Table-v0', entry_point='spinstrike.envs.control:RodSpinControlEnv',"
-        " kwargs={'scene': 'table.yaml'}, max_episode_steps=20)\n"))
-    variant = "spinstrike_scene_lab:SceneLab/Table-v0"
+        f" kwargs={registered}, max_episode_steps=20)\n"))
+    variant = f"{module}:SceneLab/Table-v0"
     assert main(["train", "--env", variant, "--timesteps", "128", "--n-envs", "2",
                  "--eval-episodes", "2", "--no-video", "--no-progress", "--out", "run"]) == 0
     recorded = yaml.safe_load(Path("run/config.yml").read_text())

@@ -11,6 +11,7 @@ import os
 import pickle
 import subprocess
 import sys
+import textwrap
 import time
 from pathlib import Path
 
@@ -237,6 +238,17 @@ def test_check_config_checks_what_the_runners_will_make(tmp_path, monkeypatch, u
         " kwargs={'config': {'restitution': 0.3}}, max_episode_steps=1)\n"))
     config = configure(PPOConfig(), "spinstrike_rllib_config_lab:ConfigLab/Rod-v0")
     assert config.env_config == {"restitution": 0.3, "max_episode_steps": 1}
+    # an env_config that is not a dict: "dictionary update sequence element #0 has length 9"
+    with pytest.raises(ConfigError, match=r"^env_config: must be a mapping.*got list"):
+        configure(PPOConfig(), CONTROL, ["max_force", 8.0])
+    # a Tune search space in configure's env_config: "max_force: Input should be a valid
+    # number (got {'grid_search': [...]})"; it goes after configure (docs/rllib.md)
+    from ray import tune
+
+    for space in (tune.grid_search([4.0, 8.0]), tune.uniform(4.0, 8.0)):
+        with pytest.raises(ConfigError, match=r"^env_config\['max_force'\]: a Tune search "
+                                              r"space .* set it in the config after configure"):
+            configure(PPOConfig(), CONTROL, {"max_force": space})
     for bad in (2.7, True, "8", 0):
         with pytest.raises(ConfigError, match=r"^num_envs_per_env_runner: must be an int >= 1"):
             configure(PPOConfig(), STRIKE, num_envs_per_env_runner=bad)
@@ -541,6 +553,35 @@ def test_cli_backend_rllib_address_auto_without_a_cluster_is_one_error_line(
     assert not (tmp_path / "run").exists() and not (tmp_path / "run.partial").exists()
 
 
+def test_cli_backend_rllib_address_where_nothing_answers_is_refused_at_once(
+        tmp_path, monkeypatch, capsys):
+    """``--address HOST:PORT`` where nothing listens (a typo, a head node not yet up) waited
+    ~14 minutes in ``ray.init``, a Ray warning every ~35 s, before its error (RLlib walk W10):
+    refused within seconds, one error line, no run folder, no Ray started."""
+    import socket
+    import time
+
+    from spinstrike.agents.cli import main
+
+    if ray.is_initialized():
+        ray.shutdown()
+    with socket.socket() as s:  # a port nothing listens on once closed
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    monkeypatch.chdir(tmp_path)
+    start = time.monotonic()
+    for address in (f"127.0.0.1:{port}", f"ray://127.0.0.1:{port}"):
+        assert main(["train", "--backend", "rllib", "--env", STRIKE, "--address", address,
+                     "--timesteps", "256", "--no-video", "--out", "run"]) == 2
+        err = capsys.readouterr().err
+        [line] = [x for x in err.splitlines() if x.startswith("error:")]
+        assert f"--address {address}: no Ray cluster to join: nothing answers at " \
+               f"127.0.0.1:{port}" in line and "ray start --head" in line
+        assert "Traceback" not in err and not ray.is_initialized()
+    assert time.monotonic() - start < 60
+    assert not (tmp_path / "run").exists() and not (tmp_path / "run.partial").exists()
+
+
 def test_cli_backend_rllib_refuses_more_runners_than_the_cluster_has_cpus(tmp_path):
     """Was a silent wait without end after "Started a local Ray instance" (Ray places one
     runner per CPU), and no run folder."""
@@ -698,6 +739,38 @@ def test_cli_backend_rllib_says_it_compiles_the_kernels_before_ray_starts(tmp_pa
     assert any((tmp_path / "empty-cache").rglob("*.nbi"))
 
 
+def test_configure_compiles_every_kernel_the_runners_use_in_the_driver(tmp_path):
+    """``configure`` builds the env once to check it; it only reset it, so on a cold kernel
+    cache the step's kernels were left to each runner, which compiled them silently (its
+    output is the runner's): a first iteration ~45 s longer (RLlib walk W10). It steps it too:
+    the one compile notice is the driver's, and a runner's log shows none."""
+    script = tmp_path / "configure_cold.py"
+    script.write_text(textwrap.dedent(f"""
+        import ray
+        from ray.rllib.algorithms.ppo import PPOConfig
+        from spinstrike.envs.rllib import configure
+        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=True)
+        config = configure(PPOConfig(), {CONTROL!r}, num_envs_per_env_runner=2)
+        print("CONFIGURED", flush=True)
+        algo = config.env_runners(num_env_runners=1).training(
+            train_batch_size_per_learner=64, minibatch_size=32, num_epochs=1).build_algo()
+        algo.train()
+        algo.stop()
+        ray.shutdown()
+        print("TRAINED", flush=True)
+    """))
+    env = dict(os.environ, SDL_VIDEODRIVER="dummy", SDL_AUDIODRIVER="dummy", MPLBACKEND="Agg",
+               SPINSTRIKE_CACHE_DIR=str(tmp_path / "empty-cache"))
+    env.pop("SPINSTRIKE_QUIET", None)
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          env=env, timeout=900, cwd=tmp_path)
+    both = done.stdout + done.stderr
+    assert done.returncode == 0 and "TRAINED" in done.stdout, both[-3000:]
+    notice = "spinstrike: compiling the physics kernels for this machine"
+    assert both.count(notice) == 1, both[-3000:]
+    assert not [line for line in both.splitlines() if notice in line and "pid=" in line]
+
+
 def test_runners_import_the_drivers_spinstrike_from_a_checkouts_root(local_ray, tmp_path,
                                                                        monkeypatch):
     """Ray puts the driver's working directory first on the runners' sys.path. From the root
@@ -738,6 +811,9 @@ class LoudRodVector(RodSpinVectorEnv):
 gym.register("RLlibLab/BouncyRod-v0", entry_point="spinstrike.envs.strike:RodSpinEnv",
              kwargs={"restitution": 0.95}, max_episode_steps=3)
 gym.register("RLlibLab/LoudRod-v0", entry_point=LoudRod, vector_entry_point=LoudRodVector)
+gym.register("RLlibLab/NestedRod-v0", entry_point="spinstrike.envs.strike:RodSpinEnv",
+             kwargs={"config": {"restitution": 0.95, "scene": "table.yaml"}},
+             max_episode_steps=3)
 """
 
 
@@ -779,18 +855,28 @@ def test_a_registered_variant_trains_on_rllib_runners_with_its_arguments(local_r
 def test_cli_backend_rllib_trains_and_evaluates_a_variant(rllib_lab):
     """``spinstrike train --backend rllib --env module:Namespace/Name-vN`` (``spinstrike
     train`` took variants with SB3 only): the run's record names the variant, and
-    ``spinstrike evaluate RUN`` finds it again through its module."""
+    ``spinstrike evaluate RUN`` finds it again through its module. The variant registers its
+    arguments in the env's ``config`` form with a scene file, which the CLI refused
+    (``config: unknown argument``; ``configure`` took it, RLlib walk W10): the run records
+    them flat, the scene as read, so the run evaluates after the file is gone."""
+    from spinstrike.envs.config import load_packaged_scene
+
+    (rllib_lab / "table.yaml").write_text(yaml.safe_dump(load_packaged_scene("rod_spin")))
     out = rllib_lab / "run"
     env = dict(os.environ, SDL_VIDEODRIVER="dummy", SDL_AUDIODRIVER="dummy", MPLBACKEND="Agg")
-    variant = f"{LAB}:RLlibLab/BouncyRod-v0"
+    variant = f"{LAB}:RLlibLab/NestedRod-v0"
     cmd = [sys.executable, "-m", "spinstrike.agents.cli", "train", "--backend", "rllib",
            "--env", variant, "--num-env-runners", "1", "--timesteps", "64", "--n-envs", "4",
            "--eval-episodes", "3", "--no-video", "--out", str(out)]
     done = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=900,
                           cwd=rllib_lab)
     assert done.returncode == 0, done.stderr[-3000:]
-    assert yaml.safe_load((out / "config.yml").read_text())["env"] == variant
-    assert "RLlibLab/BouncyRod-v0" in (out / "summary.md").read_text()
+    record = yaml.safe_load((out / "config.yml").read_text())
+    assert record["env"] == variant
+    kwargs = record["hyperparameters"][record["env"]]["env_kwargs"]
+    assert kwargs["restitution"] == 0.95 and kwargs["scene"] == load_packaged_scene("rod_spin")
+    assert "RLlibLab/NestedRod-v0" in (out / "summary.md").read_text()
+    (rllib_lab / "table.yaml").unlink()
     evaluated = subprocess.run([sys.executable, "-m", "spinstrike.agents.cli", "evaluate",
                                 str(out), "--episodes", "3", "--no-save"],
                                capture_output=True, text=True, env=env, timeout=300,
