@@ -56,7 +56,6 @@ MAX_JAM_PAIRS = 10
 #: the per-pair rows it returns: unit normal (a to b), lever terms r x n of a and b, contact
 #: point (m), normal relative velocity (m/s); the lever terms r x t of a and b and the tangential
 #: relative velocity (m/s) along t = (-n_y, n_x), for the friction block
-
 JAM = Table("jam pair", "nx", "ny", "cross_a", "cross_b", "px", "py", "vn", "cross_ta", "cross_tb",
             "vt", prefix="JAM_")
 (JAM_NX, JAM_NY, JAM_CROSS_A, JAM_CROSS_B, JAM_PX, JAM_PY, JAM_VN, JAM_CROSS_TA, JAM_CROSS_TB,
@@ -259,11 +258,39 @@ def _rtr_solve(M, k, rhs):
         for q in range(c):
             acc -= M[q, c] * rhs[q]
         rhs[c] = acc / M[c, c]
-    for c in range(k - 1, -1, -1):  # R x = z
+    _r_solve(M, k, rhs)
+
+
+@jit
+def _r_solve(M, k, rhs):
+    """Solve ``R x = rhs`` in place, ``R`` the upper triangle of ``M``."""
+    for c in range(k - 1, -1, -1):
         acc = rhs[c]
         for q in range(c + 1, k):
             acc -= M[c, q] * rhs[q]
         rhs[c] = acc / M[c, c]
+
+
+@jit
+def _poisson(Pm, PA, PB, idx, geo, rows, side, ids, lam, rotation, e):
+    """The factor ``k`` of Poisson's restitution on the compression impulses ``lam`` of the
+    rows: ``1 + e``, capped by the energy guard; 0 where ``lam`` does not compress
+    (``lam.v >= 0`` or ``lam.A.lam <= 0``: nothing to apply).
+
+    ``k lam`` changes the kinetic energy by ``k lam.v + k^2/2 lam.A.lam``. With exact
+    arithmetic ``lam.v = lam.w - lam.A.lam``, ``lam.w = 0`` without friction and ``<= 0`` with
+    it (it only dissipates), so the change is ``<= 0`` up to ``k = 2``. What round-off is left
+    in ``lam`` could add energy at e = 1, so ``k`` is capped where the change computed from
+    this ``lam`` is zero, ``-2 lam.v / lam.A.lam`` (the cap loses what the round-off would
+    have added)."""
+    lv = 0.0
+    for r in range(rows):
+        lv += lam[r] * geo[r, JAM_VN]
+    lal = _apply_delassus(Pm, PA, PB, idx, geo, rows, side, ids, lam, rotation, np.empty(rows),
+                          np.empty(rows))
+    if not (lv < 0.0 and lal > 0.0):
+        return 0.0
+    return min(1.0 + e, -2.0 * lv / lal)
 
 
 #: refinement steps of an active set's solution (each: the residual from the impulse sums, one
@@ -349,18 +376,9 @@ def jam_impulses(S, Pm, hw, PA, PB, MAT, slop, rotation, idx, geo, lam):
             break
     if not found:
         return 0
-    # Energy guard. With exact arithmetic lam.vn = -lam.A.lam, and k lam (k = 1 + e) changes
-    # the kinetic energy by k lam.vn + k^2/2 lam.A.lam <= 0. What round-off is left in lam
-    # could add energy at e = 1, so k is capped where the change computed from this lam is
-    # zero, -2 lam.vn / lam.A.lam (the cap loses what the round-off would have added).
-    lv = 0.0
-    for i in range(m):
-        lv += sol[i] * vn[i]
-    w = np.empty(m)
-    lal = _apply_delassus(Pm, PA, PB, idx, geo, m, side, ids, sol, rotation, w, np.empty(m))
-    if not (lv < 0.0 and lal > 0.0):
+    k = _poisson(Pm, PA, PB, idx, geo, m, side, ids, sol, rotation, e)
+    if k == 0.0:
         return 0
-    k = min(1.0 + e, -2.0 * lv / lal)
     for i in range(m):
         lam[i] = k * sol[i]
     return m
@@ -486,11 +504,7 @@ def _friction_set(Pm, PA, PB, m, idx2, geo2, B, side, ids, mu, state, lam2, w, s
     for _ in range(_REFINEMENTS + 1):
         if not _lu_solve(Mx[:k, k:], k, d):
             return False
-        for c in range(k - 1, -1, -1):  # R dx = d
-            acc = d[c]
-            for q in range(c + 1, k):
-                acc -= Mx[c, q] * d[q]
-            d[c] = acc / Mx[c, c]
+        _r_solve(Mx, k, d)
         lam2[:] = 0.0
         for u in range(k):
             x[u] += d[u]
@@ -517,10 +531,8 @@ def jam_friction_impulses(S, Pm, hw, PA, PB, MAT, slop, rotation, idx, geo, lam,
     out ``-e`` times what it was, and a sliding pair's friction stays ``mu`` times its normal
     impulse (as a lone contact's). Repeating only the normal impulses instead (a lone contact's
     stuck friction is not repeated) kicked a locked wedge's 1 kg puck out at 25 m/s at e = 1:
-    the stuck friction that balanced the heavy disk's push was missing. The energy changes by
-    ``k lam.v + k^2/2 lam.A.lam`` for impulses ``k lam``, never above 0 up to k = 2 (friction
-    only dissipates: ``lam.v <= -lam.A.lam``), and ``k`` is capped where the change computed
-    from the solved ``lam`` is zero, so no round-off gives energy.
+    the stuck friction that balanced the heavy disk's push was missing. No energy is gained:
+    the frictionless block's guard, :func:`_poisson`.
 
     Args:
         idx, geo, lam, lamt: scratch of ``MAX_JAM_PAIRS`` pair indices, geometry rows and
@@ -569,16 +581,9 @@ def jam_friction_impulses(S, Pm, hw, PA, PB, MAT, slop, rotation, idx, geo, lam,
             break
     if not found:
         return -1
-    # energy (the frictionless block's guard): k lam changes it by k lam.v + k^2/2 lam.A.lam,
-    # where lam.v = lam.w - lam.A.lam <= -lam.A.lam (friction dissipates: lam.w <= 0), so
-    # <= 0 up to k = 2; k is capped where the change computed from this lam is zero
-    lv = 0.0
-    for r in range(2 * m):
-        lv += lam2[r] * geo2[r, JAM_VN]
-    lal = _apply_delassus(Pm, PA, PB, idx2, geo2, 2 * m, side, ids, lam2, rotation, w, scale)
-    if not (lv < 0.0 and lal > 0.0):
+    k = _poisson(Pm, PA, PB, idx2, geo2, 2 * m, side, ids, lam2, rotation, e)
+    if k == 0.0:
         return -1
-    k = min(1.0 + e, -2.0 * lv / lal)
     for r in range(2 * m):
         lam2[r] *= k
     for i in range(m):
