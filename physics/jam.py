@@ -47,8 +47,8 @@ from spinstrike.physics.layout import (
     Y,
 )
 
-__all__ = ["JAM_COLUMNS", "MAX_FRICTION_PAIRS", "MAX_JAM_PAIRS", "jam_friction_impulses",
-           "jam_impulses"]
+__all__ = ["JAM_COLUMNS", "MAX_FRICTION_PAIRS", "MAX_JAM_PAIRS", "collect",
+           "jam_friction_impulses", "jam_impulses"]
 
 
 #: most touching pairs the block solve takes (it tries up to 2^n active sets)
@@ -64,8 +64,10 @@ JAM_COLUMNS = len(JAM)
 
 
 @jit
-def _collect(S, Pm, hw, PA, PB, slop, idx, geo):
-    """The pairs within ``slop``: their indices and geometry rows. -1 if there are too many."""
+def collect(S, Pm, hw, PA, PB, slop, idx, geo):
+    """A jam's pairs, those within ``slop``: their indices and geometry rows (``JAM``) in the
+    scratch ``idx`` and ``geo`` of ``MAX_JAM_PAIRS`` rows. Returns how many, -1 if there are
+    too many. Both block solves take these rows; the solvers collect them once a jam."""
     n = S.shape[0]
     m = 0
     for p in range(PA.shape[0]):
@@ -344,19 +346,18 @@ def _try_active_set(Pm, PA, PB, idx, geo, m, B, side, ids, vn, mask, lam, eps, r
 
 
 @jit
-def jam_impulses(S, Pm, hw, PA, PB, MAT, slop, rotation, idx, geo, lam):
+def jam_impulses(n, Pm, PA, PB, MAT, rotation, m, idx, geo, lam):
     """Impulses of the block solve (see the module docstring), not yet applied.
 
     Args:
-        idx, geo, lam: scratch of ``MAX_JAM_PAIRS`` pair indices, geometry rows
-            (``JAM_COLUMNS``) and impulses, filled for the first m rows.
+        n: the number of bodies.
+        m, idx, geo: the jam's pairs, as :func:`collect` returns them (m < 0: too many).
+        lam: scratch of ``MAX_JAM_PAIRS`` impulses, filled for the first m rows.
 
     Returns:
         m, the number of rows to apply (0: nothing to do, or more than ``MAX_JAM_PAIRS`` pairs
         touching, or no solution found).
     """
-    n = S.shape[0]
-    m = _collect(S, Pm, hw, PA, PB, slop, idx, geo)
     if m <= 0:
         return 0
     vn = geo[:m, JAM_VN].copy()
@@ -518,7 +519,7 @@ def _friction_set(Pm, PA, PB, m, idx2, geo2, B, side, ids, mu, state, lam2, w, s
 
 
 @jit
-def jam_friction_impulses(S, Pm, hw, PA, PB, MAT, slop, rotation, idx, geo, lam, lamt):
+def jam_friction_impulses(n, Pm, PA, PB, MAT, rotation, m, idx, geo, lam, lamt):
     """The block solve of a jam with contact friction: normal and tangential impulses of all
     touching pairs at once, not yet applied (the frictionless :func:`jam_impulses` loses the
     friction, and a self-locking wedge squirts out).
@@ -535,16 +536,16 @@ def jam_friction_impulses(S, Pm, hw, PA, PB, MAT, slop, rotation, idx, geo, lam,
     the frictionless block's guard, :func:`_poisson`.
 
     Args:
-        idx, geo, lam, lamt: scratch of ``MAX_JAM_PAIRS`` pair indices, geometry rows and
-            normal and tangential impulses, filled for the first m rows.
+        n: the number of bodies.
+        m, idx, geo: the jam's pairs, as :func:`collect` returns them (m < 0: too many).
+        lam, lamt: scratch of ``MAX_JAM_PAIRS`` normal and tangential impulses, filled for the
+            first m rows.
 
     Returns:
         m, the number of rows to apply (0: nothing to do); -1 where this solve does not apply
         (no pair with friction, more than ``MAX_FRICTION_PAIRS`` pairs, no consistent set):
         the frictionless block is the caller's fallback.
     """
-    n = S.shape[0]
-    m = _collect(S, Pm, hw, PA, PB, slop, idx, geo)
     if m <= 0 or m > MAX_FRICTION_PAIRS:
         return -1
     mu = np.empty(m)

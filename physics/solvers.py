@@ -77,6 +77,7 @@ from spinstrike.physics.jam import (
     JAM_PY,
     MAX_JAM_PAIRS,
     _solve_small,
+    collect,
     jam_friction_impulses,
     jam_impulses,
 )
@@ -376,7 +377,7 @@ def _watched_pass(S, Pm, F, hw, PA, PB, MAT, slop, zeno_speed, t, rotation, flat
 
 
 @jit
-def _no_friction_block(S, Pm, hw, PA, PB, MAT, slop, rotation, idx, geo, lam, lamt):
+def _no_friction_block(n, Pm, PA, PB, MAT, rotation, m, idx, geo, lam, lamt):
     """A world without contact friction has no friction block (``_friction_block_if``)."""
     return -1
 
@@ -399,11 +400,12 @@ def _jam(S, Pm, hw, PA, PB, MAT, slop, t, rotation, contact_friction, changed, c
     lam = np.zeros(MAX_JAM_PAIRS)
     lamt = np.zeros(MAX_JAM_PAIRS)
     n = S.shape[0]
-    m = _friction_block_if(contact_friction, S, Pm, hw, PA, PB, MAT, slop, rotation, idx, geo,
-                           lam, lamt)
+    pairs = collect(S, Pm, hw, PA, PB, slop, idx, geo)
+    m = _friction_block_if(contact_friction, n, Pm, PA, PB, MAT, rotation, pairs, idx, geo, lam,
+                           lamt)
     lost = m < 0
     if lost:
-        m = jam_impulses(S, Pm, hw, PA, PB, MAT, slop, rotation, idx, geo, lam)
+        m = jam_impulses(n, Pm, PA, PB, MAT, rotation, pairs, idx, geo, lam)
     for i in range(m):
         if lam[i] <= 0.0:
             continue
