@@ -476,7 +476,13 @@ def cmd_envs(args) -> int:
 
 
 def cmd_cache(args) -> int:
-    from spinstrike.physics.cache import ENV_VAR, cache_info, clear_cache, prune_cache
+    from spinstrike.physics.cache import (
+        ENV_VAR,
+        cache_info,
+        clear_cache,
+        prune_cache,
+        prune_outdated,
+    )
 
     if args.clear:
         removed = clear_cache()
@@ -485,6 +491,9 @@ def cmd_cache(args) -> int:
         return 0
     if args.prune:
         print(f"removed {prune_cache()} cache folders of source directories that are gone")
+        files, size = prune_outdated()
+        print(f"removed {files} files ({size / 1e6:.1f} MB) of this install's kernels that its "
+              "edited sources have outdated")
         return 0
     info = cache_info()
     where = (f"from {ENV_VAR}" if os.environ.get(ENV_VAR)
@@ -495,6 +504,10 @@ def cmd_cache(args) -> int:
     if info["stale"]:
         print(f"{info['stale']} of them ({info['stale_bytes'] / 1e6:.1f} MB) belong to source "
               f"directories that are gone: spinstrike cache --prune removes them")
+    if info["outdated"]:
+        print(f"{info['outdated']} files ({info['outdated_bytes'] / 1e6:.1f} MB) are this "
+              "install's kernels that its edited sources have outdated (numba names them by "
+              "line, so an edit leaves them behind): spinstrike cache --prune removes them")
     if info["fallback"]:
         print(f"fallback (the directory above was not writable): {info['fallback']}")
     return 0
@@ -712,8 +725,9 @@ def build_parser() -> argparse.ArgumentParser:
     what = c.add_mutually_exclusive_group()
     what.add_argument("--clear", action="store_true", help="remove every cached kernel")
     what.add_argument("--prune", action="store_true",
-                   help="remove the kernels of source directories that are gone (deleted "
-                        "clones, virtual environments)")
+                   help="remove the kernels no run will load again: those of source "
+                        "directories that are gone (deleted clones, virtual environments) and "
+                        "this install's that its edited sources have outdated")
     c.set_defaults(func=cmd_cache)
 
     b = sub.add_parser("bench", help="benchmarks: accuracy vs time, speed")

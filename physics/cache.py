@@ -21,9 +21,11 @@ behaviour, ``NUMBA_CACHE_DIR`` included):
 * ``spinstrike cache`` shows the location and size; ``spinstrike cache --clear`` removes the
   kernel folders (those with a ``SOURCE`` marker or numba's files; anything else in a folder
   ``SPINSTRIKE_CACHE_DIR`` names stays);
-  ``--prune`` removes only the folders of source directories that are gone (each clone,
-  virtual environment or CI checkout compiles into a folder of its own, and a deleted one's
-  kernels would otherwise stay).
+  ``--prune`` removes only what no run will load again: the folders of source directories that
+  are gone (each clone, virtual environment or CI checkout compiles into a folder of its own,
+  and a deleted one's kernels would otherwise stay), and in this install's own folders the
+  kernels its edited sources have outdated (numba names a kernel's files by its function's
+  line, so an edit that moves a function leaves the old files beside the new ones).
 
 On a cache miss the first compilation in a process prints one line to stderr (what, why, first
 run only), so a first run that takes a minute does not look hung.
@@ -39,9 +41,11 @@ for :data:`LOCK_TIMEOUT` s is not waited for longer (the waiting process compile
 from __future__ import annotations
 
 import ast
+import glob
 import hashlib
 import importlib.util
 import os
+import pickle
 import shutil
 import sys
 import tempfile
@@ -51,13 +55,14 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
+import numba
 from filelock import FileLock, Timeout
 from numba.core import sigutils
 from numba.core.caching import CompileResultCacheImpl, FunctionCache, UserWideCacheLocator
 from numba.core.compiler_lock import global_compiler_lock
 
 __all__ = ["LOCK_TIMEOUT", "KernelCache", "cache_dir", "cache_info", "clear_cache",
-           "module_stamp", "prune_cache", "take_turns"]
+           "module_stamp", "prune_cache", "prune_outdated", "take_turns"]
 
 #: environment variable overriding the cache directory
 ENV_VAR = "SPINSTRIKE_CACHE_DIR"
@@ -333,20 +338,87 @@ def _stale_folders() -> list[Path]:
     return stale
 
 
+def _install_sources() -> set[Path]:
+    """The source directories of the running ``spinstrike``'s subpackages: the only ones whose
+    kernels' stamps this process can compute (another install's imports resolve to its own
+    files, which this process does not import)."""
+    found: set[Path] = set()
+    for sub in ("physics", "envs", "agents", "benchmarks"):
+        spec = importlib.util.find_spec(f"spinstrike.{sub}")
+        if spec is not None and spec.submodule_search_locations:
+            found.update(Path(p).resolve() for p in spec.submodule_search_locations)
+    return found
+
+
+def _fresh_index(index: Path, source: Path) -> dict | None:
+    """The entries (signature -> data file) of a numba index whose stamp matches its module's
+    sources now; None if it is outdated: another stamp, its module gone, unreadable. An index of
+    another numba version (another venv on the same sources) is not this process's to judge:
+    ``{"*": None}``, which keeps it and its data."""
+    module = source / f"{index.name.split('.', 1)[0]}.py"  # numba: <module>.<qualname>-<line>
+    if not module.is_file():
+        return None
+    try:
+        with open(index, "rb") as f:
+            if pickle.load(f) != numba.__version__:
+                return {"*": None}
+            stamp, overloads = pickle.loads(f.read())
+    except FileNotFoundError:  # removed meanwhile (another prune, a --clear)
+        return {"*": None}
+    except Exception:  # noqa: BLE001  (a truncated or foreign file: numba would not load it)
+        return None
+    return overloads if stamp == module_stamp(module) else None
+
+
+def _outdated_files() -> list[Path]:
+    """The files in this install's cache folders that no run will load again: numba's indexes
+    whose stamp no longer matches their module's sources (:func:`_fresh_index`), with their
+    data and lock files, and data files no fresh index lists (numba numbers a kernel's data
+    files and leaves the higher numbers of an outdated index behind)."""
+    sources = _install_sources()
+    outdated: list[Path] = []
+    for root in _kernel_dirs():
+        for folder in _kernel_folders(root):
+            marker = folder / SOURCE_MARKER
+            source = Path(marker.read_text().strip()) if marker.is_file() else None
+            if source is None or source.resolve() not in sources:
+                continue
+            listed: set[str] = set()
+            kept: set[str] = set()
+            for index in sorted(folder.glob("*.nbi")):
+                base = index.name[:-len(".nbi")]
+                entries = _fresh_index(index, source)
+                if entries is None:
+                    outdated.append(index)
+                    outdated.extend(folder.glob(f"{glob.escape(base)}.*.lock"))
+                elif "*" in entries:
+                    kept.add(base)
+                else:
+                    listed.update(entries.values())
+            outdated.extend(f for f in folder.glob("*.nbc") if f.name not in listed
+                            and f.name.rsplit(".", 2)[0] not in kept)
+    return outdated
+
+
 def cache_info() -> dict:
-    """``{"path", "files", "bytes", "fallback", "folders", "stale", "stale_bytes"}`` of the
-    kernel cache (``folders``: one per source directory that compiled kernels; ``stale``: those
-    whose source directory is gone, what :func:`prune_cache` removes)."""
+    """``{"path", "files", "bytes", "fallback", "folders", "stale", "stale_bytes", "outdated",
+    "outdated_bytes"}`` of the kernel cache (``folders``: one per source directory that
+    compiled kernels; ``stale``: those whose source directory is gone, what
+    :func:`prune_cache` removes; ``outdated``: the files of this install's kernels that its
+    edited sources have outdated, what :func:`prune_outdated` removes)."""
     folders = [f for root in _kernel_dirs() for f in _kernel_folders(root)]
     files = [f for d in folders for f in d.rglob("*") if _kernel_file(f)]
     stale = _stale_folders()
+    outdated = [f for f in _outdated_files() if _kernel_file(f)]
     return {"path": str(cache_dir()), "files": len(files),
             "bytes": sum(f.stat().st_size for f in files),
             "fallback": str(_fallback_dir()) if _fallback_dir().is_dir() else None,
             "folders": len(folders),
             "stale": len(stale),
             "stale_bytes": sum(f.stat().st_size for d in stale for f in d.rglob("*")
-                               if f.is_file())}
+                               if f.is_file()),
+            "outdated": len(outdated),
+            "outdated_bytes": sum(f.stat().st_size for f in outdated)}
 
 
 def prune_cache() -> int:
@@ -356,6 +428,23 @@ def prune_cache() -> int:
     for folder in stale:
         shutil.rmtree(folder, ignore_errors=True)
     return len(stale)
+
+
+def prune_outdated() -> tuple[int, int]:
+    """Remove the files of this install's kernels that its edited sources have outdated
+    (:func:`cache_info`'s ``outdated``); returns (files, bytes) removed, lock files not counted.
+    Current kernels stay, and so do other installs' (their stamps cannot be computed here)."""
+    files = size = 0
+    for path in _outdated_files():
+        try:
+            n = path.stat().st_size
+            path.unlink()
+        except FileNotFoundError:
+            continue
+        if path.suffix != ".lock":
+            files += 1
+            size += n
+    return files, size
 
 
 def clear_cache() -> int:

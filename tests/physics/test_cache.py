@@ -152,6 +152,60 @@ def test_cache_prune_removes_the_folders_of_deleted_installs_only(tmp_path):
     assert sorted(d.name for d in cache.iterdir()) == ["physics_here"]
 
 
+def _cache_cli(tree: Path, cache: Path, *args: str) -> str:
+    """``python -m spinstrike cache ARGS`` run by the package copy in ``tree``."""
+    env = dict(os.environ, PYTHONPATH=str(tree), SPINSTRIKE_CACHE_DIR=str(cache))
+    out = subprocess.run([sys.executable, "-m", "spinstrike", "cache", *args], env=env, cwd=tree,
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    return out.stdout
+
+
+def test_cache_prune_removes_the_kernels_an_edit_has_outdated(tmp_path):
+    """numba names a kernel's files by its function's line: an edit that moves a function left
+    the old files beside the new ones, so an edited checkout's cache grew until ``--clear``.
+    ``spinstrike cache`` counts them, ``--prune`` removes them: the kernels of the sources as
+    they are stay (the next run loads every one, compiles none), and another install's
+    outdated kernels stay too (its stamps are its own process's to compute)."""
+    tree, other = tmp_path / "tree", tmp_path / "other"
+    root, other_root = _copy_package(tree), _copy_package(other)
+    cache = tmp_path / "cache"
+    for t in (tree, other):
+        _probe(t, cache)
+    for r in (root, other_root):  # moves every function of contacts.py down a line
+        contacts = r / "physics" / "contacts.py"
+        contacts.write_text("# an edit\n" + contacts.read_text())
+    for t in (tree, other):
+        edited = _probe(t, cache)
+        assert edited["capsule_capsule"][1] > 0 and edited["slide"][1] == 0, edited
+
+    def folder(r: Path) -> Path:
+        return next(d for d in cache.iterdir()
+                    if Path((d / "SOURCE").read_text().strip()) == (r / "physics").resolve())
+
+    here, there = folder(root), folder(other_root)
+    old = sorted(here.glob("contacts.capsule_capsule-*.nbi"),
+                 key=lambda p: int(p.name.split("-")[1].split(".")[0]))
+    assert len(old) == 2, old  # the function's first line before and after the edit
+    files_before = {p.name for p in there.iterdir()}
+
+    report = _cache_cli(tree, cache)
+    assert "this install's kernels that its edited sources have outdated" in report, report
+    out = _cache_cli(tree, cache, "--prune")
+    assert "removed 0 cache folders" in out
+    removed = int(out.split("removed ")[2].split()[0])
+    assert removed >= 2, out  # at least the old capsule_capsule index and its data
+    left = sorted(here.glob("contacts.capsule_capsule-*"))
+    assert old[0] not in left and old[1] in left, left  # the newer line is the current one
+    assert not [p for p in here.glob("*.nbc")
+                if not (here / (p.name.rsplit(".", 2)[0] + ".nbi")).is_file()]
+    assert {p.name for p in there.iterdir()} == files_before, "another install's: kept"
+    assert "outdated" not in _cache_cli(tree, cache)
+
+    again = _probe(tree, cache)
+    assert all(hits > 0 and misses == 0 for hits, misses, _ in again.values()), again
+
+
 def test_importing_creates_no_cache_directory(tmp_path):
     cache = tmp_path / "never"
     env = dict(os.environ, SPINSTRIKE_CACHE_DIR=str(cache))
