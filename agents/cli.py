@@ -694,7 +694,8 @@ def build_parser() -> argparse.ArgumentParser:
             e.add_argument("--json", action="store_true")
             e.add_argument("--no-save", action="store_true")
         else:
-            e.add_argument("--out", help="video file, .mp4 or .gif, replaced if there "
+            e.add_argument("--out", help="video file, .mp4 or .gif, replaced if there, its "
+                           "folders made if missing "
                            "(default: rollout.mp4 in the run directory; else, in the working "
                            "folder, oracle-ENV.mp4, random-, planner- or the --scene's name)")
             e.add_argument("--episodes", type=int,
