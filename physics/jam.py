@@ -7,9 +7,11 @@ millions; after ``MAX_SWEEPS`` the solvers call :func:`jam_impulses` instead.
 
 The normal impulses ``lam >= 0`` of all pairs within ``slop`` are found together as the solution
 of the linear complementarity problem ``w = vn + A lam >= 0, lam . w = 0`` (A: the pairs' Delassus
-matrix, from inverse masses and lever arms), by trying active sets (up to ``MAX_JAM_PAIRS``
-pairs, 2^n sets). That is the compression phase: the minimiser of the kinetic energy over
-non-negative impulses, which leaves no pair approaching. Restitution follows Poisson's
+matrix, from inverse masses and lever arms). That is the compression phase: the minimiser of
+the kinetic energy over non-negative impulses, which leaves no pair approaching, a
+non-negative least-squares problem, solved by Lawson and Hanson's active-set method
+(:func:`_nnls`, up to ``MAX_JAM_PAIRS`` pairs; trying every active set, 2^n, took 10, and a
+struck row of 50 touching pucks was left to the settle). Restitution follows Poisson's
 hypothesis with the smallest ``e`` of the touching pairs: the impulses are ``(1 + e) lam``, which
 change the kinetic energy by ``-(1 - e^2)/2 lam.A.lam <= 0`` (0 for e = 1). Friction is not part
 of this block; where pairs have contact friction :func:`jam_friction_impulses` solves them with
@@ -51,8 +53,9 @@ __all__ = ["JAM_COLUMNS", "MAX_FRICTION_PAIRS", "MAX_JAM_PAIRS", "collect",
            "jam_friction_impulses", "jam_impulses"]
 
 
-#: most touching pairs the block solve takes (it tries up to 2^n active sets)
-MAX_JAM_PAIRS = 10
+#: most touching pairs the block solve takes (a jam of 64 pairs costs ~50 ms: a QR of the
+#: set's columns at each of its steps); a larger jam is settled (``solvers._settle``)
+MAX_JAM_PAIRS = 64
 #: the per-pair rows it returns: unit normal (a to b), lever terms r x n of a and b, contact
 #: point (m), normal relative velocity (m/s); the lever terms r x t of a and b and the tangential
 #: relative velocity (m/s) along t = (-n_y, n_x), for the friction block
@@ -301,13 +304,14 @@ _REFINEMENTS = 2
 
 
 @jit
-def _try_active_set(Pm, PA, PB, idx, geo, m, B, side, ids, vn, mask, lam, eps, rotation):
-    """Solve ``A_SS lam_S = -vn_S`` for the set S in ``mask``; True if lam >= 0 and every pair's
-    ``w = vn + A lam >= -eps`` (allowing for the round-off of the terms ``A lam`` sums)."""
+def _solve_set(Pm, PA, PB, idx, geo, m, B, side, ids, vn, active, lam, rotation):
+    """Solve ``A_SS lam_S = -vn_S`` for the set S of rows marked in ``active`` (QR of their
+    columns of ``B``, then refinement from the impulse sums), into ``lam`` (0 off S); False if
+    a column of S is a combination of the others (no unique solution)."""
     sel = np.empty(m, np.int64)
     k = 0
     for i in range(m):
-        if mask >> i & 1:
+        if active[i]:
             sel[k] = i
             k += 1
     M = np.empty((B.shape[0], k))
@@ -321,28 +325,141 @@ def _try_active_set(Pm, PA, PB, idx, geo, m, B, side, ids, vn, mask, lam, eps, r
     _rtr_solve(M, k, x)
     w = np.empty(m)
     scale = np.empty(m)
+    d = np.empty(k)
     for _ in range(_REFINEMENTS):
         lam[:] = 0.0
         for r in range(k):
             lam[sel[r]] = x[r]
         _apply_delassus(Pm, PA, PB, idx, geo, m, side, ids, lam, rotation, w, scale)
-        d = np.empty(k)
         for r in range(k):
             d[r] = -vn[sel[r]] - w[sel[r]]
         _rtr_solve(M, k, d)
         for r in range(k):
             x[r] += d[r]
-    for r in range(k):
-        if x[r] < 0.0:
-            return False
     lam[:] = 0.0
     for r in range(k):
         lam[sel[r]] = x[r]
+    return True
+
+
+@jit
+def _complementary(Pm, PA, PB, idx, geo, m, side, ids, vn, lam, eps, rotation, w, scale):
+    """Whether ``lam`` solves the LCP: ``lam >= 0`` and every pair's ``w = vn + A lam >= -eps``
+    (allowing for the round-off of the terms ``A lam`` sums). Leaves ``A lam`` in ``w``."""
+    for i in range(m):
+        if lam[i] < 0.0:
+            return False
     _apply_delassus(Pm, PA, PB, idx, geo, m, side, ids, lam, rotation, w, scale)
     for i in range(m):
         if vn[i] + w[i] < -(eps + 1e-14 * scale[i]):
             return False
     return True
+
+
+@jit
+def _entering(m, vn, w, scale, active, skip, eps):
+    """The pair outside the set that approaches most (``vn + A lam`` most negative, beyond
+    ``eps`` and round-off), -1 if none does."""
+    t = -1
+    for i in range(m):
+        wi = vn[i] + w[i]
+        if (not active[i] and not skip[i] and wi < -(eps + 1e-14 * scale[i])
+                and (t < 0 or wi < vn[t] + w[t])):
+            t = i
+    return t
+
+
+@jit
+def _nnls_add(Pm, PA, PB, idx, geo, m, B, side, ids, vn, lam, rotation, active, skip, t, s):
+    """One outer step of :func:`_nnls`: pair ``t`` enters the set, whose solution ``s`` is
+    taken where every impulse in it is positive, else ``lam`` steps towards it up to the first
+    impulse that reaches zero, that pair leaves, and the set is solved again. Returns False on
+    round-off that leaves no way on (a set of once independent columns no longer solves)."""
+    active[t] = True
+    for inner in range(m + 1):
+        if not _solve_set(Pm, PA, PB, idx, geo, m, B, side, ids, vn, active, s, rotation):
+            if inner > 0:  # a subset of columns that were independent: round-off
+                return False
+            active[t] = False  # a redundant contact: passed over until the set changes
+            skip[t] = True
+            return True
+        if inner == 0 and s[t] <= 0.0:  # round-off: the pair cannot enter
+            active[t] = False
+            skip[t] = True
+            return True
+        alpha = 1.0
+        drop = -1
+        for i in range(m):
+            if active[i] and s[i] <= 0.0:
+                a = lam[i] / (lam[i] - s[i])
+                if a < alpha:
+                    alpha = a
+                    drop = i
+        if drop < 0:
+            lam[:] = s
+            skip[:] = False
+            return True
+        for i in range(m):
+            if active[i]:
+                lam[i] += alpha * (s[i] - lam[i])
+        lam[drop] = 0.0
+        active[drop] = False
+        for i in range(m):
+            if active[i] and lam[i] <= 0.0:
+                lam[i] = 0.0
+                active[i] = False
+    return False
+
+
+@jit
+def _nnls(Pm, PA, PB, idx, geo, m, B, side, ids, vn, lam, eps, rotation):
+    """The LCP's solution by Lawson and Hanson's active-set method for non-negative least
+    squares: the compression impulses minimise the kinetic energy ``|c + B lam|^2 / 2`` over
+    ``lam >= 0`` (``B^T c = vn``), whose optimality conditions are the LCP's. From ``lam = 0``
+    it adds the most approaching pair to the set (:func:`_entering`) and solves the set,
+    stepping back where an impulse would turn negative (:func:`_nnls_add`); each set's energy
+    is lower than the last, so no set comes back and it ends after a few passes per pair, where
+    trying every set took 2^n solves. True if it ends on a solution (:func:`_complementary`)."""
+    active = np.zeros(m, np.bool_)
+    skip = np.zeros(m, np.bool_)
+    s = np.zeros(m)
+    w = np.zeros(m)
+    scale = np.zeros(m)
+    lam[:] = 0.0
+    for _ in range(3 * m + 10):
+        t = _entering(m, vn, w, scale, active, skip, eps)
+        if t < 0:
+            return _complementary(Pm, PA, PB, idx, geo, m, side, ids, vn, lam, eps, rotation,
+                                  w, scale)
+        if not _nnls_add(Pm, PA, PB, idx, geo, m, B, side, ids, vn, lam, rotation, active, skip,
+                         t, s):
+            return False
+        _apply_delassus(Pm, PA, PB, idx, geo, m, side, ids, lam, rotation, w, scale)
+    return False
+
+
+#: most pairs whose sets :func:`_enumerate` tries, where :func:`_nnls` ends on no solution
+MAX_ENUMERATED_PAIRS = 10
+
+
+@jit
+def _enumerate(Pm, PA, PB, idx, geo, m, B, side, ids, vn, lam, eps, rotation):
+    """The LCP's solution by trying every set of pairs in turn (2^m solves, only up to
+    ``MAX_ENUMERATED_PAIRS``): the first whose solution is complementary. The fallback of
+    :func:`_nnls`, which a degenerate jam (redundant contacts) can leave without one."""
+    if m > MAX_ENUMERATED_PAIRS:
+        return False
+    active = np.zeros(m, np.bool_)
+    w = np.empty(m)
+    scale = np.empty(m)
+    for mask in range(1, 1 << m):
+        for i in range(m):
+            active[i] = (mask >> i & 1) == 1
+        if _solve_set(Pm, PA, PB, idx, geo, m, B, side, ids, vn, active, lam, rotation) and \
+                _complementary(Pm, PA, PB, idx, geo, m, side, ids, vn, lam, eps, rotation, w,
+                               scale):
+            return True
+    return False
 
 
 @jit
@@ -369,13 +486,9 @@ def jam_impulses(n, Pm, PA, PB, MAT, rotation, m, idx, geo, lam):
         e = min(e, MAT[idx[i], RESTITUTION])
     B, side, ids = _weighted_jacobian(Pm, PA, PB, n, idx, geo, m, rotation)
     sol = np.zeros(m)
-    found = False
-    for mask in range(1, 1 << m):
-        if _try_active_set(Pm, PA, PB, idx, geo, m, B, side, ids, vn, mask, sol, 1e-12 * vmax,
-                           rotation):
-            found = True
-            break
-    if not found:
+    eps = 1e-12 * vmax
+    if not (_nnls(Pm, PA, PB, idx, geo, m, B, side, ids, vn, sol, eps, rotation)
+            or _enumerate(Pm, PA, PB, idx, geo, m, B, side, ids, vn, sol, eps, rotation)):
         return 0
     k = _poisson(Pm, PA, PB, idx, geo, m, side, ids, sol, rotation, e)
     if k == 0.0:

@@ -232,10 +232,11 @@ def render(results: dict, long_results: list[tuple[str, dict]]) -> str:
         "cradle; a disk striking two at once gets the sequential result, which depends on the "
         "pair order (bodies in scene order, cushions last). If the sweeps do not converge (a "
         "*jam*: a light body pinned between a heavy one and a cushion, where each sweep removes "
-        "only m_light / m_heavy of the approach) all touching pairs are solved together (an "
-        "LCP, plastic compression then Poisson restitution with the pairs' smallest e; with "
+        "only m_light / m_heavy of the approach; a long touching row struck at e = 0) all "
+        "touching pairs, up to 64, are solved together (an LCP, as non-negative least squares: "
+        "plastic compression then Poisson restitution with the pairs' smallest e; with "
         "contact friction, up to 5 pairs, each stuck, sliding or apart by Coulomb's law), which "
-        "never adds energy and leaves nothing approaching.",
+        "never adds energy and leaves nothing approaching. A larger jam is settled (below).",
         "* **Zeno bounces and resting contact.** An inelastic body pinned by the driven mallet "
         "against a cushion makes infinitely many ever-smaller bounces in finite time. The exact "
         "solver counts bounces closing slower than `zeno_speed` (1 mm/s), and searches that "
