@@ -20,6 +20,7 @@ from hypothesis import strategies as st
 from spinstrike import physics
 from spinstrike.physics.jam import MAX_FRICTION_PAIRS
 from tests.stability.catalogue import WEDGE_LOCKED
+from tests.stability.catalogue import plastic_row_scene as _row
 from tests.stability.catalogue import wedge_scene as _wedge
 
 TOL = 1e-9  # the exact solver's default contact tolerance, m
@@ -210,40 +211,13 @@ def test_a_wedge_below_its_locking_friction_squirts_as_fixed_substeps_converge(m
     assert exact.state.velocities[0, 0] == pytest.approx(fixed.state.velocities[0, 0], rel=2e-3)
 
 
-def _row(n: int, masses, e: float = 0.0, cushion: bool = True, v: float = 10.0,
-         dy=None) -> dict:
-    """A touching row of ``n`` pucks (r = 1 cm; masses in kg, cycled), struck along it by the
-    first mass at ``v``; with ``cushion`` the row rests on the right cushion of a 2.6 m table.
-    ``dy``: each puck's offset off the line (a zig-zag row: contacts not collinear)."""
-    r, width = 0.01, 2.6
-    x_end = width / 2 - r if cushion else 0.0
-    dy = dy or [0.0] * n
-    bodies = [{"name": f"c{k}", "shape": "disk", "radius": r, "mass": masses[k % len(masses)],
-               "position": [x_end - (n - 1 - k) * 2 * r, 0.0]} for k in range(n)]
-    for k in range(1, n):  # pull each puck back along the line so that it still touches
-        prev = bodies[k - 1]["position"]
-        off = dy[k] - dy[k - 1]
-        bodies[k]["position"] = [prev[0] + math.sqrt((2 * r) ** 2 - off ** 2), dy[k]]
-    bodies[0]["position"][1] = dy[0]
-    bodies.insert(0, {"name": "s", "shape": "disk", "radius": r, "mass": masses[0],
-                      "position": [bodies[0]["position"][0] - 2 * r - 0.005, dy[0]],
-                      "velocity": [v, 0.0]})
-    scene = {"effects": ["rotation"], "materials": {"restitution": e}, "bodies": bodies}
-    if cushion:
-        shift = width / 2 - r - bodies[-1]["position"][0]
-        for b in bodies:
-            b["position"][0] += shift
-        scene.update(table={"size": [width, 0.4]}, effects=["rotation", "walls"])
-    return scene
-
-
 def test_a_plastic_row_of_fifty_stops_against_the_cushion_in_one_step():
     """W12 (many bodies): 50 touching 1 kg pucks resting on a cushion, struck along the row at
     10 m/s (e = 0): everything stops in the strike's step and the cushion takes the 10 N s.
     The block solve took at most 10 pairs (2^n sets), so this jam of 51 went to the settle,
     which after the step left the row pressing on the cushion with 9 of the 10 kg m/s, 0.3 m/s
     in bodies that did not move, and overlaps 670x the tolerance, decaying over ~24 steps."""
-    world = physics.World(_row(50, [1.0]), max_contacts=100_000)
+    world = physics.World(_row(50, [1.0], cushion=True), max_contacts=100_000)
     right = world.names.index("wall_right")
     contacts = world.step(0.004)
     assert contacts.impulse[contacts.body_b == right].sum() == pytest.approx(10.0, rel=1e-12)
