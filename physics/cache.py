@@ -326,16 +326,22 @@ def _kernel_folders(root: Path) -> list[Path]:
         (f / SOURCE_MARKER).is_file() or any(f.glob("*.nbi")) or any(f.glob("*.nbc")))]
 
 
-def _stale_folders() -> list[Path]:
-    """Cache folders whose source directory (recorded in their ``SOURCE`` file) is gone: a
-    deleted clone, virtual environment or CI checkout; each source directory has its own."""
-    stale = []
+def _sourced_folders() -> list[tuple[Path, Path]]:
+    """(folder, source directory) of every kernel folder with a ``SOURCE`` marker (folders
+    from before the marker have none: they are never judged stale or outdated)."""
+    out = []
     for root in _kernel_dirs():
         for folder in _kernel_folders(root):
             marker = folder / SOURCE_MARKER
-            if marker.is_file() and not Path(marker.read_text().strip()).is_dir():
-                stale.append(folder)
-    return stale
+            if marker.is_file():
+                out.append((folder, Path(marker.read_text().strip())))
+    return out
+
+
+def _stale_folders() -> list[Path]:
+    """Cache folders whose source directory (recorded in their ``SOURCE`` file) is gone: a
+    deleted clone, virtual environment or CI checkout; each source directory has its own."""
+    return [folder for folder, source in _sourced_folders() if not source.is_dir()]
 
 
 def _install_sources() -> set[Path]:
@@ -377,26 +383,23 @@ def _outdated_files() -> list[Path]:
     files and leaves the higher numbers of an outdated index behind)."""
     sources = _install_sources()
     outdated: list[Path] = []
-    for root in _kernel_dirs():
-        for folder in _kernel_folders(root):
-            marker = folder / SOURCE_MARKER
-            source = Path(marker.read_text().strip()) if marker.is_file() else None
-            if source is None or source.resolve() not in sources:
-                continue
-            listed: set[str] = set()
-            kept: set[str] = set()
-            for index in sorted(folder.glob("*.nbi")):
-                base = index.name[:-len(".nbi")]
-                entries = _fresh_index(index, source)
-                if entries is None:
-                    outdated.append(index)
-                    outdated.extend(folder.glob(f"{glob.escape(base)}.*.lock"))
-                elif "*" in entries:
-                    kept.add(base)
-                else:
-                    listed.update(entries.values())
-            outdated.extend(f for f in folder.glob("*.nbc") if f.name not in listed
-                            and f.name.rsplit(".", 2)[0] not in kept)
+    for folder, source in _sourced_folders():
+        if source.resolve() not in sources:
+            continue
+        listed: set[str] = set()
+        kept: set[str] = set()
+        for index in sorted(folder.glob("*.nbi")):
+            base = index.name[:-len(".nbi")]
+            entries = _fresh_index(index, source)
+            if entries is None:
+                outdated.append(index)
+                outdated.extend(folder.glob(f"{glob.escape(base)}.*.lock"))
+            elif "*" in entries:
+                kept.add(base)
+            else:
+                listed.update(entries.values())
+        outdated.extend(f for f in folder.glob("*.nbc") if f.name not in listed
+                        and f.name.rsplit(".", 2)[0] not in kept)
     return outdated
 
 
