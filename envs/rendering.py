@@ -194,6 +194,10 @@ def _mix(colour, background, fade: float) -> tuple[int, int, int]:
     return tuple(int(round(b + (c - b) * f)) for c, b in zip(colour, background, strict=True))
 
 
+#: a cushion's width in pixels
+CUSHION_PX = 5
+
+
 class Renderer:
     """Draws :class:`Frame` objects into ``(height, width, 3)`` uint8 arrays.
 
@@ -441,8 +445,14 @@ class Renderer:
             x0, y0 = self._px(-hw, hh)
             x1, y1 = self._px(hw, -hh)
             pg.draw.rect(surf, COLOURS["table"], pg.Rect(x0, y0, x1 - x0, y1 - y0))
-            if frame.walls:
-                pg.draw.rect(surf, COLOURS["cushion"], pg.Rect(x0, y0, x1 - x0, y1 - y0), 5)
+            if frame.walls:  # video frames: the cushions outside the cloth, whose edge is
+                #             the wall a body touches (drawn inside, they hid the last 5 px of
+                #             cloth, and a body at rest on a cushion seemed sunk into it);
+                #             plain frames (pixel observations) keep their pixels
+                out = CUSHION_PX if frame.smooth else 0
+                pg.draw.rect(surf, COLOURS["cushion"],
+                             pg.Rect(x0 - out, y0 - out, x1 - x0 + 2 * out, y1 - y0 + 2 * out),
+                             CUSHION_PX)
         else:
             surf.fill(COLOURS["table"])
         if self.band:

@@ -907,3 +907,45 @@ def test_a_gif_holds_its_frames_as_the_gif_does(tmp_path):
     images[0].save(pillow, save_all=True, append_images=images[1:], loop=0,
                    duration=np.diff(ends).astype(int).tolist(), optimize=True)
     assert path.read_bytes() == pillow.read_bytes()
+
+
+@pytest.mark.parametrize("env_id", CONTROL_IDS)
+def test_a_body_resting_on_a_cushion_is_drawn_against_it_not_sunk_in(env_id):
+    """A video frame's cushions lie outside the cloth, whose edge is the wall: a target put
+    touching the right cushion (``set_physics_state``) is drawn up to the cushion's inner edge,
+    at most a pixel of rounding into it (the cushions were drawn 5 px inside the cloth, and a
+    body at rest against one seemed sunk 5-6 px into it). Pixel observations keep their
+    pixels: there the cushions stay inside the cloth's rectangle."""
+    env = gym.make(env_id, render_mode="rgb_array")
+    env.reset(seed=0)
+    u = env.unwrapped
+    w = u.task.world
+    hw = float(w.table_half_size[0, 0])
+    target, mallet = u.task.it, u.task.im
+    reach = float(w.radius[0, target] + w.half_length[0, target])
+    state = u.get_physics_state()
+    s = state["world"]["state"].copy()
+    # a rod along x, its cap at the wall; a puck's spin mark turned away from the row measured
+    angle = 0.0 if w.half_length[0, target] > 0 else math.pi / 2
+    s[0, target, [X, Y, ANGLE]] = (hw - reach, 0.1, angle)
+    s[0, mallet, [X, Y]] = (-hw / 2, 0.0)
+    state["world"]["state"] = s
+    u.set_physics_state(state)
+    frame = env.render()
+    cushion = np.all(frame == COLOURS["cushion"], axis=-1)
+    body = np.all(frame == COLOURS[u.task.TARGET], axis=-1)
+    ren = u.task.renderer
+    _, row = ren._px(hw, 0.1)
+    _, empty = ren._px(0.0, -0.1)
+    half = ren.width // 2
+    inner = np.flatnonzero(cushion[empty, half:])[0] + half
+    assert np.flatnonzero(body[row])[-1] <= inner  # at most the rounding pixel
+    assert np.flatnonzero(cushion[empty, inner:]).size == 5  # the cushion's width, whole
+    env.close()
+    env = gym.make(env_id, obs_mode="pixels")
+    obs, _ = env.reset(seed=0)
+    env.close()
+    row = obs[obs.shape[0] // 2]
+    cloth = np.flatnonzero(np.any(row != COLOURS["cloth_edge"], axis=-1))
+    cushion = np.flatnonzero(np.all(row == COLOURS["cushion"], axis=-1))
+    assert cushion.size == 10 and cushion[0] == cloth[0] and cushion[-1] == cloth[-1]
