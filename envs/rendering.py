@@ -353,17 +353,33 @@ class Renderer:
     def _marker(self, surf, m: Marker) -> None:
         pg = self._pygame
         colour = _mix(COLOURS["impulse"], COLOURS["table"], m.fade)
-        length = min(1.0, m.j / self.impulse_scale) * 0.25 * self.height
         start = self._px(m.x, m.y)
-        end = (start[0] + m.nx * length, start[1] - m.ny * length)
+        end = self._marker_end(m)
         width = max(2, self.height // 160)
         self._arrow(surf, start, end, colour, width)
         pg.draw.circle(surf, colour, start, max(4, self.height // 80) + int(6 * m.fade), 2)
-        label = self._small.render(f"j = {m.j:.3f} N s", True, colour)
-        at = self._label_at(end, label.get_width(), label.get_height())
-        box = pg.Surface((label.get_width() + 4, label.get_height() + 2), pg.SRCALPHA)
-        box.fill((*COLOURS["panel"], int(PANEL_ALPHA * m.fade)))
-        surf.blit(box, (at[0] - 2, at[1] - 1))
+
+    def _marker_end(self, m: Marker) -> tuple[float, float]:
+        """Pixels of the head of a marker's arrow."""
+        length = min(1.0, m.j / self.impulse_scale) * 0.25 * self.height
+        start = self._px(m.x, m.y)
+        return start[0] + m.nx * length, start[1] - m.ny * length
+
+    def _label(self, surf, m: Marker, taken: list) -> None:
+        """A marker's impulse label beside its arrow's head, unless its box would overlap one
+        in ``taken`` (boxes drawn before in this frame; it joins them)."""
+        pg = self._pygame
+        text = f"j = {m.j:.3f} N s"
+        w, h = self._small.size(text)
+        at = self._label_at(self._marker_end(m), w, h)
+        box = pg.Rect(at[0] - 2, at[1] - 1, w + 4, h + 2)
+        if box.collidelist(taken) >= 0:
+            return
+        taken.append(box)
+        label = self._small.render(text, True, _mix(COLOURS["impulse"], COLOURS["table"], m.fade))
+        back = pg.Surface(box.size, pg.SRCALPHA)
+        back.fill((*COLOURS["panel"], int(PANEL_ALPHA * m.fade)))
+        surf.blit(back, box.topleft)
         surf.blit(label, at)
 
     def _label_at(self, end, w: int, h: int) -> tuple[int, int]:
@@ -468,6 +484,12 @@ class Renderer:
             self._vector(surf, v)
         for m in frame.markers:
             self._marker(surf, m)
+        # the labels over every arrow: the strongest first (the freshest, then the largest
+        # impulse), each where it overlaps none drawn (a jam's hundreds of contacts in one
+        # frame piled their labels into an unreadable block)
+        taken: list = []
+        for m in sorted(frame.markers, key=lambda m: (-m.fade, -m.j)):
+            self._label(surf, m, taken)
         if frame.text:
             surf.blit(self._font.render(frame.text, True, COLOURS["text"]), (8, 6))
         left = self._panel(surf, frame.panel) if frame.panel and self.panels else 0

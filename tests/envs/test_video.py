@@ -673,6 +673,23 @@ def test_impulse_labels_stay_whole_inside_the_frame():
         assert label_box(x, y, nx, ny) == whole, (x, y)
 
 
+def test_impulse_labels_do_not_pile_up():
+    """Labels that would overlap are drawn once, the strongest's: 50 contacts at one point draw
+    the frame one draws (the 50 translucent boxes had piled into one opaque block, and a jam's
+    hundreds of contacts in a ``record --scene`` frame into an unreadable heap); labels apart
+    are all drawn."""
+    r = Renderer((720, 480), (1.0, 0.5))
+
+    def image(markers):
+        return r.draw(Frame([], (0.9, 0.4), True, markers=markers, smooth=True))
+
+    one = Marker(0.2, 0.1, 1.0, 0.0, 0.3)
+    assert np.array_equal(image([one] * 50), image([one]))
+    apart = [one, Marker(-0.5, -0.2, 1.0, 0.0, 0.3)]
+    background = (image(apart) != image([one])).any(axis=2).sum()
+    assert background > 0.8 * (image([one]) != image([])).any(axis=2).sum()
+
+
 def test_strike_times_law():
     times, factor = strike_times(0.1, 30, np.array([0.0123, 0.05]))
     assert factor == 10 and times[0] == 0 and times[-1] == 0.1
