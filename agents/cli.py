@@ -404,6 +404,7 @@ def cmd_record(args) -> int:
     from spinstrike.agents.config import AgentConfigError
     from spinstrike.agents.record import record
 
+    _require_video(args.out or "rollout.mp4")  # before an env or a scene compiles its kernels
     if args.scene is not None:
         return _record_scene(args)
     given = [flag for flag in RECORD_SCENE if getattr(args, flag[2:]) is not None]
@@ -848,6 +849,15 @@ def _require_extra(command: str, modules: dict[str, str]) -> None:
         raise AgentConfigError(_needs_extras(command, missing,
                                              sorted({modules[m] for m in missing}),
                                              cpu_torch="torch" in missing))
+
+
+def _require_video(out: str) -> None:
+    """Refuse ``spinstrike record`` without what draws and writes its video (pygame, and
+    imageio-ffmpeg for an mp4 or Pillow for a GIF), before the film's kernels compile (it
+    compiled for up to a minute, then named the render extra)."""
+    _require_extra("record", {"pygame": "render",
+                              ("PIL" if out.lower().endswith(".gif") else "imageio_ffmpeg"):
+                              "render"})
 
 
 def _needs_extras(command: str, missing: list[str], extras: list[str], cpu_torch: bool) -> str:

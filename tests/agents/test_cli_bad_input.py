@@ -6,6 +6,7 @@ Nothing here trains: where a run directory is needed its files are written by ha
 """
 
 import hashlib
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -682,6 +683,31 @@ def test_train_without_the_train_extra_names_the_extra(tmp_path):
     assert "Traceback" not in out.stderr
     assert "comes with the 'train' extra: pip install \"spinstrike[train]\"" in out.stderr
     assert not (tmp_path / "run").exists() and not (tmp_path / "run.partial").exists()
+
+
+@pytest.mark.parametrize("argv,missing", [
+    (["record", "--scene", "break", "--seconds", "0.1"], "pygame"),
+    (["record", "--scene", "break", "--seconds", "0.1", "--out", "b.gif"], "PIL"),
+    (["record", "--oracle", "--env", "SpinStrike/PuckSpeed-v1", "--episodes", "1"],
+     "imageio_ffmpeg"),
+])
+def test_record_without_the_render_extra_says_so_before_compiling(tmp_path, argv, missing):
+    """Installed without ``[render]`` (the wheel alone), ``spinstrike record --scene break``
+    compiled the scene's kernels (up to a minute on a cold cache) and only then named the
+    render extra. Now the error line comes first, on an empty kernel cache, and nothing is
+    compiled or written."""
+    code = (f"import sys; sys.modules[{missing!r}] = None; "
+            "from spinstrike.agents.cli import main; "
+            f"sys.exit(main({argv!r}))")
+    env = dict(os.environ, SPINSTRIKE_CACHE_DIR=str(tmp_path / "cache"))
+    (tmp_path / "work").mkdir()
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         cwd=tmp_path / "work", env=env, timeout=600)
+    assert out.returncode == 2, out.stderr
+    assert out.stderr == (f"error: spinstrike record needs {missing}, which comes with the "
+                          "'render' extra: pip install \"spinstrike[render]\"\n")
+    assert not list((tmp_path / "work").iterdir())
+    assert not (tmp_path / "cache").exists() or not any((tmp_path / "cache").rglob("*.nbi"))
 
 
 def test_train_checks_every_module_it_uses_before_training(monkeypatch, tmp_path, capsys):
