@@ -372,6 +372,10 @@ def _us(seconds: float) -> str:
 
 
 def _e(x: float) -> str:
+    """An error as the tables show it; ``-`` where nothing was measured (NaN: no off-line
+    variant among the cases run, a case a setting did not run)."""
+    if math.isnan(x):
+        return "-"
     return "0" if x == 0 else f"{x:.1e}"
 
 
@@ -457,7 +461,9 @@ def report(ms: list[Measurement], effects: list[dict] | None, argv: Sequence[str
         "*Worst*: over every variant and phase of the accuracy cases (all but `tunnel`, which is "
         "reported by its misses). *Median off-line*: over the variants whose answer depends on "
         "where the contact is taken (oblique and off-centre impacts, the spinning rod) — head-on "
-        "impacts are exact for every solver and would only pull the median to round-off.",
+        "impacts are exact for every solver and would only pull the median to round-off "
+        "(`-`: the cases run have no such variant, e.g. a `--quick` or `--cases` subset of "
+        "head-on ones).",
         "",
         "The exact solver's tolerance is a bound, not the error: its worst error stays within "
         "~20x the tolerance, and where the time of impact lands closer than it must, a looser "
@@ -538,9 +544,10 @@ def _acceptance(rows: list[dict], raw_step: float | None) -> list[str]:
         r = ref[0]
         missed, total = r["tunnel_missed"]
         med, worst_off = r["per_case"].get("offline_disk_rod", (math.nan, math.nan))
+        offline = (f"velocity error on the off-line disk-rod impacts {_e(med)} median, "
+                   f"{_e(worst_off)} worst; " if "offline_disk_rod" in r["per_case"] else "")
         out.append(f"- **pymunk**, {PYMUNK_REFERENCE[0]} steps per approach, "
-                   f"{PYMUNK_REFERENCE[1]} iterations: velocity error on the off-line disk-rod "
-                   f"impacts {_e(med)} median, {_e(worst_off)} worst; worst over the accuracy "
+                   f"{PYMUNK_REFERENCE[1]} iterations: {offline}worst over the accuracy "
                    f"cases {_e(r['vel_max'])}; tunnel misses {missed}/{total}; "
                    f"**{_us(r['seconds'])} µs** per collision.")
     if raw_step is not None:

@@ -4,6 +4,7 @@ Physics only (errors against known answers), never timings.
 """
 
 import math
+import re
 import time
 from itertools import pairwise
 
@@ -259,6 +260,9 @@ def test_main_quick_writes_markdown_and_plot(tmp_path):
     assert "python -m spinstrike.benchmarks.accuracy" in text
     assert "cores" in text and "pymunk 7" in text
     assert (tmp_path / "accuracy.png").stat().st_size > 10_000
+    # the quick seed variants are head-on: no off-line median, shown as '-' (it was 'nan')
+    assert "nan" not in text
+    assert re.search(r"\| exact \| tolerance 1e-03 m \| [0-9.e+-]+ \| - \|", text)
     # the reference cases list what this (quick) run measured, not every variant
     for name in ("seed", "tunnel"):
         n = len(get_case(name).variants)
