@@ -9,7 +9,6 @@ reward is the spin (or speed) the mallet's hits add to the rod (or puck) during 
 from __future__ import annotations
 
 import math
-from collections import deque
 from typing import ClassVar
 
 import numpy as np
@@ -56,6 +55,7 @@ class _ControlTask(Task):
     CONFIG = ControlConfig
     ACTIONS = ("force_x", "force_y")
     OBS_CLIPPED = True
+    TRACES_EVERY_ELEMENT = True
     UNIFORMS = len(ControlConfig.RANDOMIZABLE) + 5
     SHAPES = {"mallet": ("disk", "the agent drives a mallet disk (its angle is not observed)")}
     NEEDS = {"walls": "its mallet and target play on a walled table (the observation and the "
@@ -91,9 +91,14 @@ class _ControlTask(Task):
         self.kcfg = k
         self._never = np.zeros(batch_size, dtype=bool)
         self._never.flags.writeable = False
-        # element 0's recent poses and return, for the video frames (``record_trace``)
-        self._trail: deque[list[list[tuple[float, float]]]] = deque(maxlen=TRAIL_STEPS)
-        self._return = 0.0
+        # every element's recent poses and return, for the video frames (``record_trace``):
+        # the poses (x, y, angle of each body) of the last TRAIL_STEPS steps in a ring
+        # ``[TRAIL_STEPS, B, N, 3]`` every element writes at once (made when first needed),
+        # ``_kept[b]`` of them element b's own (its episode's), the newest at ``_head - 1``
+        self._poses: np.ndarray | None = None
+        self._kept = np.zeros(batch_size, dtype=np.int64)
+        self._head = 0
+        self._returns = np.zeros(batch_size)
 
     def _check_room(self) -> None:
         """A reset puts the target at any angle in the right half and the mallet in the left,
@@ -150,16 +155,46 @@ class _ControlTask(Task):
         buf = w.buffers
         fast.control_observe(buf.fbuf, buf.ibuf, self.tbuf, self.kcfg,
                              np.asarray(env, dtype=np.int64))
-        if self.record_trace and 0 in env:
-            self._trail.clear()
-            self._return = 0.0
-            self._remember()
+        if self.record_trace:
+            self._returns[env] = 0.0
+            self._restart_trails(env)
         return {}
 
     def _remember(self) -> None:
-        """Add element 0's pose to its motion trail (when recording)."""
-        if self.record_trace:
-            self._trail.append([body_points(b) for b in body_draws(self.world, 0)])
+        """Add every element's pose to its motion trail (when recording)."""
+        if not self.record_trace:
+            return
+        if self._poses is None:
+            self._poses = np.zeros((TRAIL_STEPS, self.batch_size, self.world.n_bodies, 3))
+        st = self.world.state
+        self._poses[self._head, :, :, :2] = st.positions
+        self._poses[self._head, :, :, 2] = st.angles
+        self._head = (self._head + 1) % TRAIL_STEPS
+        np.minimum(self._kept + 1, TRAIL_STEPS, out=self._kept)
+
+    def _restart_trails(self, env) -> None:
+        """Elements ``env``'s trails start again at their current poses (a reset, a state put
+        back): the newest slot of the ring holds them, and only it."""
+        if self._poses is None:
+            self._poses = np.zeros((TRAIL_STEPS, self.batch_size, self.world.n_bodies, 3))
+        st = self.world.state
+        newest = (self._head - 1) % TRAIL_STEPS
+        self._poses[newest, env, :, :2] = st.positions[env]
+        self._poses[newest, env, :, 2] = st.angles[env]
+        self._kept[env] = 1
+
+    def _trail(self, b: int) -> list[list[list[tuple[float, float]]]]:
+        """Element b's motion trail, oldest step first: each step's points of every body
+        (``rendering.body_points``: a centre, and a rod's tips)."""
+        k = int(self._kept[b]) if self._poses is not None else 0
+        w = self.world
+        steps = []
+        for i in range(k):
+            pose = self._poses[(self._head - k + i) % TRAIL_STEPS, b]
+            steps.append([body_points(BodyDraw(w.names[j], pose[j, 0], pose[j, 1], pose[j, 2],
+                                               w.radius[b, j], w.half_length[b, j], 0.0, 0.0,
+                                               0.0)) for j in range(w.n_bodies)])
+        return steps
 
     def step(self, actions, batch_info: bool = True):
         a = np.asarray(actions)
@@ -171,7 +206,7 @@ class _ControlTask(Task):
         t = self.tbuf
         reward = t[:, fast.T_REWARD].copy()
         if self.record_trace:
-            self._return += reward[0]
+            self._returns += reward
             self._remember()
         if not batch_info:
             return reward, self._never, None
@@ -199,22 +234,29 @@ class _ControlTask(Task):
 
     def snapshot(self) -> dict:
         # what element 0's frame says: its episode's return (kept while recording, else 0)
-        return {"return": self._return}
+        return {"return": float(self._returns[0])}
 
     def trace(self) -> dict:
-        return {"trail": list(self._trail), "return": self._return}
+        k = int(self._kept[0]) if self._poses is not None else 0
+        slots = [(self._head - k + i) % TRAIL_STEPS for i in range(k)]
+        return {"poses": [] if not k else self._poses[slots, 0].copy(),
+                "return": float(self._returns[0])}
 
     def put_trace(self, trace: dict) -> None:
-        self._trail = deque(trace.get("trail", ()), maxlen=TRAIL_STEPS)
-        self._return = float(trace.get("return", 0.0))
+        poses = trace.get("poses", ())  # (a trace pickled before poses were kept: no trail)
+        self._returns[0] = float(trace.get("return", 0.0))
+        self._kept[0] = len(poses)
+        if len(poses):
+            self._poses = np.zeros((TRAIL_STEPS, self.batch_size, self.world.n_bodies, 3))
+            self._poses[:len(poses), 0] = poses
+            self._head = len(poses) % TRAIL_STEPS
 
     def restore(self, snap: dict) -> None:
         # the trail starts again at the restored pose (it joined the poses before the jump to
         # the restored ones with streaks across the table); the frame says the snapshot's return
-        self._return = float(snap.get("return", 0.0))
+        self._returns[0] = float(snap.get("return", 0.0))
         if self.record_trace:
-            self._trail.clear()
-            self._remember()
+            self._restart_trails(np.array([0]))
 
     def frame(self, b: int, decorate: bool = True) -> Frame:
         w = self.world
@@ -232,10 +274,11 @@ class _ControlTask(Task):
             markers = [Marker.on(self.it, c.body_a[i], c.body_b[i], c.point[i], c.normal[i],
                                  c.impulse[i]) for i in np.flatnonzero(c.batch == b)]
         trails = []
-        if b == 0 and self._trail:
-            trails = [[pose[i][k] for pose in self._trail]
-                      for i in range(len(bodies)) for k in range(len(self._trail[-1][i]))]
-        ret = f"   return {self._return:+.3f}" if b == 0 and self.record_trace else ""
+        trail = self._trail(b) if self.record_trace else []
+        if trail:
+            trails = [[pose[i][k] for pose in trail]
+                      for i in range(len(bodies)) for k in range(len(trail[-1][i]))]
+        ret = f"   return {self._returns[b]:+.3f}" if self.record_trace else ""
         name = self.TARGET
         return Frame(bodies, half, walls=True, trails=trails, markers=markers, smooth=True,
                      gauge=Gauge(self.GAUGE, self._gauge_value(target), None, 0.0,

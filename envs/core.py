@@ -107,10 +107,15 @@ class Task(ABC):
         self.obs_low = np.array([f.low for f in self.LAYOUT], dtype=np.float32)
         self.obs_high = np.array([f.high for f in self.LAYOUT], dtype=np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (len(self.ACTIONS),), dtype=np.float32)
-        #: record element 0's steps for video frames (set by a single env that renders)
+        #: record element 0's steps for video frames (set by a single env that renders; by a
+        #: vector env that renders, where the task traces every element)
         self.record_trace = False
         self._renderer: Renderer | None = None
         self._obs_renderer: Renderer | None = None
+
+    #: whether ``record_trace`` records every element's past (a motion trail and return, for
+    #: a vector env's frames) or element 0's only (a strike's clip)
+    TRACES_EVERY_ELEMENT: ClassVar[bool] = False
 
     # --- to implement ---------------------------------------------------------------------
     @abstractmethod
@@ -577,6 +582,9 @@ class SpinStrikeVectorEnv(_SpecOfScene, VectorEnv):
         self._registered_limit = max_episode_steps is None
         self.cfg = parse_config(self.TASK.CONFIG, config, kwargs)
         self.task = self.TASK(self.cfg, self.num_envs)
+        # frames as the single envs draw them, where the task traces every element (a control
+        # env's trail and return); a strike's clip is element 0's only, so not traced here
+        self.task.record_trace = render_mode is not None and self.task.TRACES_EVERY_ELEMENT
         self.metadata["render_fps"] = self.task.render_fps  # as the single env's (a control dt)
         self.single_action_space = self.task.action_space
         self.action_space = batch_space(self.single_action_space, self.num_envs)

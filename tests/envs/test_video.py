@@ -15,6 +15,7 @@ import imageio_ffmpeg
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
+from gymnasium.vector import AutoresetMode
 from gymnasium.wrappers import RecordVideo, RenderCollection
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
@@ -811,6 +812,37 @@ def test_a_copied_env_renders_what_the_original_would(env_id, how):
                                           else env.render())
         env.close()
         twin.close()
+
+
+@pytest.mark.parametrize("env_id", CONTROL_IDS)
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_a_native_control_vector_envs_frames_are_the_single_envs(env_id, mode):
+    """A native control vector env's ``render()`` is ``SyncVectorEnv``'s of single envs, bit for
+    bit, over episodes longer than the motion trail and across autoresets: every element's
+    frame has its trail and its return (they were element 0's only, and the native frames had
+    neither)."""
+    n = 3
+    kw = dict(render_mode="rgb_array", max_episode_steps=25, render_size=(240, 160))
+    native = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point",
+                          autoreset_mode=mode, **kw)
+    sync = gym.make_vec(env_id, n, vectorization_mode="sync",
+                        vector_kwargs={"autoreset_mode": mode}, **kw)
+    native.reset(seed=5)
+    sync.reset(seed=5)
+    chase = oracle_for(env_id)  # chase-and-hit, which hits: the returns are not all zero
+    returns = np.zeros(n)
+    for _ in range(60):
+        a = np.stack([chase(e, None) for e in sync.envs])
+        _, reward, *_ = native.step(a)
+        sync.step(a)
+        returns += reward
+        for mine, theirs in zip(native.render(), sync.render(), strict=True):
+            np.testing.assert_array_equal(mine, theirs)
+    assert returns.any()  # the panels' returns were not all zero
+    trails = native.unwrapped.task.frame(n - 1).trails
+    assert trails and len(trails[0]) > 1
+    native.close()
+    sync.close()
 
 
 def test_a_native_vector_envs_frame_says_the_strike_is_done():
