@@ -500,7 +500,8 @@ def cmd_cache(args) -> int:
     where = (f"from {ENV_VAR}" if os.environ.get(ENV_VAR)
              else f"set {ENV_VAR} to move it")
     print(f"compiled kernels: {info['path']} ({info['files']} files, "
-          f"{info['bytes'] / 1e6:.1f} MB in {info['folders']} folders, one per source "
+          f"{info['bytes'] / 1e6:.1f} MB in {info['folders']} "
+          f"folder{'' if info['folders'] == 1 else 's'}, one per source "
           f"directory; {where})")
     if info["stale"]:
         print(f"{info['stale']} of them ({info['stale_bytes'] / 1e6:.1f} MB) belong to source "

@@ -319,11 +319,16 @@ def _kernel_dirs() -> list[Path]:
 
 
 def _kernel_folders(root: Path) -> list[Path]:
-    """The folders of ``root`` that hold compiled kernels (a ``SOURCE`` marker, or numba's
-    index and data files, in folders from before the marker): what the cache commands count
-    and remove. Anything else in ``SPINSTRIKE_CACHE_DIR`` (a shared folder) is not theirs."""
+    """The folders of ``root`` that hold SpinStrike's compiled kernels: what the cache commands
+    count and remove. A folder with a ``SOURCE`` marker; in SpinStrike's own folders (the
+    default and the fallback) also one of numba's index and data files without it (made
+    before the marker). A folder ``SPINSTRIKE_CACHE_DIR`` names may be shared with other numba
+    caches (``NUMBA_CACHE_DIR`` set to the same place): there only marked folders are
+    SpinStrike's (``--clear`` removed another project's numba cache whole)."""
+    own = not os.environ.get(ENV_VAR) or root == _fallback_dir()
     return [f for f in sorted(root.iterdir()) if f.is_dir() and (
-        (f / SOURCE_MARKER).is_file() or any(f.glob("*.nbi")) or any(f.glob("*.nbc")))]
+        (f / SOURCE_MARKER).is_file()
+        or own and (any(f.glob("*.nbi")) or any(f.glob("*.nbc"))))]
 
 
 def _sourced_folders() -> list[tuple[Path, Path]]:

@@ -83,44 +83,61 @@ def test_cache_lives_in_its_own_directory_and_follows_the_import_closure(tmp_pat
     assert edited["slide"][0] > 0 and edited["slide"][1] == 0, "motion.py does not depend on it"
 
 
-def test_cache_command_reports_and_clears(tmp_path):
-    cache = tmp_path / "cache"
+@pytest.mark.parametrize("where", ["SPINSTRIKE_CACHE_DIR", "default"])
+def test_cache_command_reports_and_clears(tmp_path, where):
+    """In a folder ``SPINSTRIKE_CACHE_DIR`` names, a kernel folder is one with SpinStrike's
+    ``SOURCE`` marker; in the default folder, SpinStrike's own, also one from before the
+    marker (numba's files alone)."""
+    env = {k: v for k, v in os.environ.items() if k != "SPINSTRIKE_CACHE_DIR"}
+    env.update(XDG_CACHE_HOME=str(tmp_path / "xdg"), TMPDIR=str(tmp_path / "tmp"))
+    (tmp_path / "tmp").mkdir()
+    if where == "default":
+        cache = tmp_path / "xdg" / "spinstrike" / "kernels"
+    else:
+        cache = tmp_path / "cache"
+        env["SPINSTRIKE_CACHE_DIR"] = str(cache)
     (cache / "physics_x").mkdir(parents=True)
     (cache / "physics_x" / "k.nbi").write_bytes(b"x" * 10)
     (cache / "physics_x" / "k.py311.0123abcd.lock").touch()  # processes' turns: not a kernel
-    env = dict(os.environ, SPINSTRIKE_CACHE_DIR=str(cache))
+    if where != "default":
+        (cache / "physics_x" / "SOURCE").write_text(str(tmp_path))
     script = Path(sys.executable).with_name("spinstrike")
     out = subprocess.run([str(script), "cache"], env=env, capture_output=True, text=True,
                          cwd=tmp_path, timeout=300)
-    assert out.returncode == 0 and str(cache) in out.stdout and "1 files" in out.stdout
+    files = 1 if where == "default" else 2  # the index (and the marker)
+    assert out.returncode == 0 and str(cache) in out.stdout
+    assert f"({files} files, 0.0 MB in 1 folder," in out.stdout
     out = subprocess.run([str(script), "cache", "--clear"], env=env, capture_output=True,
                          text=True, cwd=tmp_path, timeout=300)
-    assert out.returncode == 0 and "removed 1" in out.stdout
+    assert out.returncode == 0 and f"removed {files}" in out.stdout
     assert not (cache / "physics_x").exists()
 
 
 def test_clearing_a_shared_cache_folder_removes_the_kernels_only(tmp_path):
     """``SPINSTRIKE_CACHE_DIR`` may name a folder that holds other things (``~/.cache``,
-    ``/scratch/$USER``): ``--clear`` removed the whole folder, and ``spinstrike cache``
-    counted its files as kernels."""
+    ``/scratch/$USER``, a numba cache shared with other projects through
+    ``NUMBA_CACHE_DIR``): ``--clear`` removed the whole folder, then (W16) every folder with
+    numba's files, another project's numba cache too, and ``spinstrike cache`` counted its
+    files as kernels. Only SpinStrike's kernel folders (a ``SOURCE`` marker) are touched."""
     cache = tmp_path / "shared"
     (cache / "other_tool").mkdir(parents=True)
     (cache / "other_tool" / "blob").write_text("x")
     (cache / "notes.txt").write_text("my data")
-    for name, marker in (("physics_new", "SOURCE"), ("physics_old", "k.nbi")):  # old: no SOURCE
+    for name, marker in (("physics_new", "SOURCE"), ("myproj_numba", "k.nbi")):
         (cache / name).mkdir()
         (cache / name / marker).write_text(str(tmp_path))
         (cache / name / "k.nbc").write_bytes(b"x" * 10)
-    env = dict(os.environ, SPINSTRIKE_CACHE_DIR=str(cache))
+    env = dict(os.environ, SPINSTRIKE_CACHE_DIR=str(cache), TMPDIR=str(tmp_path))
     script = Path(sys.executable).with_name("spinstrike")
     out = subprocess.run([str(script), "cache"], env=env, capture_output=True, text=True,
                          cwd=tmp_path, timeout=300)
-    assert out.returncode == 0 and "4 files" in out.stdout and "in 2 folders" in out.stdout
+    assert out.returncode == 0 and "(2 files, 0.0 MB in 1 folder," in out.stdout
     out = subprocess.run([str(script), "cache", "--clear"], env=env, capture_output=True,
                          text=True, cwd=tmp_path, timeout=300)
-    assert out.returncode == 0 and "removed 4" in out.stdout
-    assert sorted(p.name for p in cache.iterdir()) == ["notes.txt", "other_tool"]
+    assert out.returncode == 0 and "removed 2" in out.stdout
+    assert sorted(p.name for p in cache.iterdir()) == ["myproj_numba", "notes.txt", "other_tool"]
     assert (cache / "other_tool" / "blob").read_text() == "x"
+    assert sorted(p.name for p in (cache / "myproj_numba").iterdir()) == ["k.nbc", "k.nbi"]
 
 
 def test_a_relative_cache_dir_is_made_absolute(tmp_path, monkeypatch):
