@@ -30,7 +30,6 @@ import json
 import os
 import platform
 import shlex
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -39,6 +38,7 @@ import numpy as np
 
 from spinstrike import envs
 from spinstrike.agents.config import ALGOS, env_file_name, load_agent_config
+from spinstrike.agents.config import commit as _commit
 from spinstrike.benchmarks import cpu_model
 
 __all__ = ["main"]
@@ -60,20 +60,6 @@ def _machine() -> str:
 
 def _name(algo: str, env_id: str, tag: str, seed: int) -> str:
     return f"{algo}-{env_file_name(env_id)}{tag}-s{seed}"
-
-
-def _commit() -> str:
-    """The commit of the code that runs (the checkout this module is in; not the folder the
-    command runs from, which recorded another repository's commit), or "unknown" (a wheel)."""
-    here = Path(__file__).resolve().parent
-    try:
-        # this file tracked there: an installed copy inside some repository is not its code
-        subprocess.run(["git", "-C", str(here), "ls-files", "--error-unmatch", Path(__file__).name],
-                       capture_output=True, check=True)
-        return subprocess.run(["git", "-C", str(here), "rev-parse", "--short", "HEAD"],
-                              capture_output=True, text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 def _scores(run: Path, env_id: str) -> dict:

@@ -620,11 +620,24 @@ def _one_or_more(steps: int, text: str) -> int:
     return steps
 
 
+class _Version(argparse.Action):
+    """``spinstrike --version``: the version and the commit a run's ``config.yml`` records."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from spinstrike.agents.config import code_version
+
+        v = code_version()
+        print(f"spinstrike {v['spinstrike']} (commit {v['spinstrike_commit']})")
+        parser.exit()
+
+
 def build_parser() -> argparse.ArgumentParser:
     from spinstrike.agents.config import ALGOS
 
     p = argparse.ArgumentParser(prog="spinstrike", description=__doc__.replace("``", "`"),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--version", action=_Version, nargs=0,
+                   help="SpinStrike's version and commit (unknown: an installed wheel), and exit")
     sub = p.add_subparsers(dest="command", required=True)
 
     t = sub.add_parser("train", help="train an SB3 agent from an rl-zoo3 hyperparameter file")

@@ -502,3 +502,32 @@ def _resolve(algo: str, env_id: str, entry: dict, where: str, source: str) -> Ru
                                f"(got {entry['ent_coef']!r})")
     return RunConfig(algo, env_id, n_timesteps, policy, n_envs, normalize, env_kwargs, entry,
                      source, raw, where)
+
+
+def commit() -> str:
+    """The commit of the code that runs (the checkout this module is in; not the folder the
+    command runs from, which recorded another repository's commit), or "unknown" (a wheel)."""
+    import subprocess
+
+    here = Path(__file__).resolve().parent
+    try:
+        # this file tracked there: an installed copy inside some repository is not its code
+        subprocess.run(["git", "-C", str(here), "ls-files", "--error-unmatch", Path(__file__).name],
+                       capture_output=True, check=True)
+        return subprocess.run(["git", "-C", str(here), "rev-parse", "--short", "HEAD"],
+                              capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def code_version() -> dict[str, str]:
+    """SpinStrike's version and commit (``unknown`` where it runs from an installed wheel),
+    which a run records beside its libraries' versions: builds share one version number, so
+    the commit tells them apart."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        number = version("spinstrike")
+    except PackageNotFoundError:  # the source tree on sys.path, never installed
+        number = "unknown"
+    return {"spinstrike": number, "spinstrike_commit": commit()}

@@ -149,7 +149,9 @@ def _versions() -> dict[str, str]:
     versions = {"python": sys.version.split()[0], "numpy": np.__version__,
                 "ray": ray.__version__, "gymnasium": gymnasium.__version__,
                 "torch": torch.__version__}
-    return {k: str(v) for k, v in versions.items()}
+    from spinstrike.agents.config import code_version
+
+    return {**code_version(), **{k: str(v) for k, v in versions.items()}}
 
 
 def _steps(result: dict) -> int:

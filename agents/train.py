@@ -70,7 +70,9 @@ def _versions() -> dict[str, str]:
     versions = {"python": sys.version.split()[0], "numpy": np.__version__,
                 "numba": numba.__version__, "gymnasium": gymnasium.__version__,
                 "stable_baselines3": stable_baselines3.__version__, "torch": torch.__version__}
-    return {k: str(v) for k, v in versions.items()}
+    from spinstrike.agents.config import code_version
+
+    return {**code_version(), **{k: str(v) for k, v in versions.items()}}
 
 
 def _make_env(cfg: RunConfig, seed: int, n_envs: int):

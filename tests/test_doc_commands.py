@@ -93,8 +93,8 @@ def test_a_command_the_docs_show_parses(command, monkeypatch, capsys):
         main(argv)
     except _Parsed:
         return
-    except SystemExit as exc:  # --help exits 0 once printed; a refused option exits 2
+    except SystemExit as exc:  # --help, --version exit 0 once printed; a refused option exits 2
         error = capsys.readouterr().err.strip().splitlines()[-1:]  # argparse's last line
-        assert exc.code == 0 and argv[-1:] == ["--help"], f"{command!r}: {error}"
+        assert exc.code == 0 and argv[-1:] in (["--help"], ["--version"]), f"{command!r}: {error}"
         return
     pytest.fail(f"{command!r} ran past its parser")

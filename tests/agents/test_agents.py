@@ -17,7 +17,7 @@ import yaml
 
 from spinstrike import envs
 from spinstrike.agents.cli import main
-from spinstrike.agents.config import ALGOS, AgentConfigError, load_agent_config
+from spinstrike.agents.config import ALGOS, AgentConfigError, code_version, load_agent_config
 from spinstrike.agents.evaluate import evaluate, load_model_policy
 from spinstrike.agents.train import train
 from tests.agents.signals import ctrl_c_after, signal_after_checkpoint
@@ -63,6 +63,10 @@ def test_the_cli_trains_on_dict_and_pixel_observations(kwargs, policy, tmp_path,
     assert "(128 steps, " in out and "rounded up" not in out  # 2 envs x n_steps 64: whole
     meta = yaml.safe_load((run / "config.yml").read_text())
     assert meta["hyperparameters"]["SpinStrike/RodSpin-v0"]["policy"] == policy
+    # which SpinStrike trained it (W16: every build is 0.1.0, and the record did not say)
+    code = code_version()
+    assert meta["versions"]["spinstrike"] == code["spinstrike"] != "unknown"
+    assert meta["versions"]["spinstrike_commit"] == code["spinstrike_commit"]
     assert (run / "model.zip").stat().st_size < 20e6
     load_model_policy(run)  # loads
     assert main(["evaluate", str(run), "--episodes", "2", "--no-save"]) == 0
@@ -472,3 +476,26 @@ def test_evaluate_of_a_no_eval_run_titles_the_summary_with_the_run(tmp_path, cap
     lines = (run / "summary.md").read_text().splitlines()
     assert lines[0].startswith("## PPO on SpinStrike/RodSpin-v0 (seed 3, 256 steps, "), lines
     assert lines[2] == "Evaluated by `spinstrike evaluate`: 2 episodes from seed 1000."
+
+
+def test_spinstrike_version_names_the_commit_of_the_code_that_runs(tmp_path):
+    """``spinstrike --version`` (it was a usage error): the version, and the commit where the
+    code runs from a git checkout (an unpacked sdist or a wheel: unknown), as a run records."""
+    import subprocess
+    import sys
+    from importlib.metadata import version
+    from pathlib import Path
+
+    import spinstrike.agents
+
+    out = subprocess.run([sys.executable, "-m", "spinstrike", "--version"], capture_output=True,
+                         text=True, cwd=tmp_path, timeout=300)
+    assert out.returncode == 0, out.stderr
+    here = Path(spinstrike.agents.__file__).parent
+    git = subprocess.run(["git", "-C", str(here), "rev-parse", "--short", "HEAD"],
+                         capture_output=True, text=True)
+    tracked = subprocess.run(["git", "-C", str(here), "ls-files", "--error-unmatch",
+                              "config.py"], capture_output=True).returncode == 0
+    commit = git.stdout.strip() if git.returncode == 0 and tracked else "unknown"
+    assert out.stdout == f"spinstrike {version('spinstrike')} (commit {commit})\n"
+
