@@ -32,7 +32,14 @@ class RandomPolicy:
     """Uniform random actions from a seeded generator."""
 
     def __init__(self, seed: int = 0) -> None:
+        self.seed = seed
         self.rng = np.random.default_rng(seed)
+
+    def for_episode(self, k: int) -> RandomPolicy:
+        """The policy of the k-th of several episodes filmed (``record``): seeded ``seed + k``,
+        as the episodes' envs are, so an episode's actions do not depend on the episodes
+        before it or beside it (a grid)."""
+        return RandomPolicy(self.seed + k)
 
     def __call__(self, env, obs) -> np.ndarray:
         space = env.action_space

@@ -21,11 +21,15 @@ same parameters), so the planner's only approximations are its horizon and its s
 Rewards in these envs are sparse (only steps with a hit earn), so a sequence that hits nothing
 scores 0; ``approach`` (0.3 by default) subtracts ``approach x distance(mallet, target)`` (m) at
 the horizon's end, which ranks the sequences that hit nothing (a hit is worth more than the
-whole table's width of it). On short horizons it matters: 15 steps, 32 samples, 60-step
-PuckSpeedControl episodes: 3.39 without it, 6.30 with it (RodSpinControl 5.43, 10.11).
+whole table's width of it). On short horizons it matters: 15 steps, 32 samples, 10
+episodes of 60 steps (``run_episodes`` seeds 1000...): PuckSpeedControl 1.73 without it, 6.25
+with it (RodSpinControl 5.66, 11.20).
 """
 
 from __future__ import annotations
+
+import copy
+import math
 
 import gymnasium as gym
 import numpy as np
@@ -41,18 +45,22 @@ class CEMPlanner:
     The defaults (10 steps = 0.2 s ahead, 64 samples, 3 iterations) are where the sweep in
     ``docs/planner.md`` plateaus: more samples do not raise the return, longer horizons lower it
     (with 3 CEM iterations a 40-step plan is a 80-dimensional search), at 7-11 ms of CPU per
-    decision.
+    decision. From 256 samples the scratch world runs its parallel kernel: on busy cores a
+    decision can take 25x the wall time of 255 samples (``NUMBA_NUM_THREADS=1`` avoids it).
+    Asked twice at one state with no step between, it decides once (the same action).
 
     Args:
         horizon: steps planned ahead (``dt`` each: 0.02 s by default).
         samples: action sequences evaluated per CEM iteration (the scratch batch size).
         iterations: CEM refits per decision.
-        elites: sequences that refit the Gaussian.
+        elites: sequences that refit the Gaussian (default 6; below 6 samples, half of them).
         init_std: the Gaussian's initial standard deviation (actions live in [-1, 1]).
         gamma: discount of the planned rewards.
         approach: weight of the terminal term ``-distance(mallet, target)`` (m); 0 disables it.
-        seed: the sampling generator's seed; it is reseeded at every episode start (env clock 0),
-            so an episode's actions depend only on the episode and this seed.
+        seed: the sampling generator's seed; it is reseeded at every episode start (the env's
+            clock at 0, or behind the last decision's: an episode whose first steps another
+            policy took), so an episode's actions depend only on the episode and this seed.
+            Call :meth:`reset` where an episode starts that the clock cannot tell.
         warm_start: seed each decision's Gaussian with the last decision's best plan shifted by
             one step (the default). With ``False`` every decision starts from a zero mean, so
             the action depends on the current state (and the sampling) only, as a reactive
@@ -66,9 +74,12 @@ class CEMPlanner:
     """
 
     def __init__(self, horizon: int = 10, samples: int = 64, iterations: int = 3,
-                 elites: int = 6, init_std: float = 0.7, gamma: float = 1.0,
+                 elites: int | None = None, init_std: float = 0.7, gamma: float = 1.0,
                  approach: float = 0.3, seed: int = 0, warm_start: bool = True,
                  common_noise: bool = False) -> None:
+        if elites is None:  # 6; fewer samples than that: half of them (6 was refused)
+            elites = 6 if not isinstance(samples, (int, np.integer)) or samples >= 6 else \
+                max(1, int(samples) // 2)
         for name, value, low in (("horizon", horizon, 1), ("samples", samples, 2),
                                  ("iterations", iterations, 1), ("elites", elites, 1)):
             if not isinstance(value, (int, np.integer)) or value < low:
@@ -79,6 +90,14 @@ class CEMPlanner:
             raise ValueError(f"init_std: must be > 0 (got {init_std!r})")
         if not 0 < gamma <= 1:
             raise ValueError(f"gamma: must be in (0, 1] (got {gamma!r})")
+        if not (isinstance(approach, (int, float, np.integer, np.floating))
+                and math.isfinite(approach) and approach >= 0):
+            # (NaN made every plan's value NaN: the planner stood still, silently)
+            raise ValueError(f"approach: must be a finite number >= 0 (got {approach!r})")
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise ValueError(f"seed: must be an integer >= 0 (got {seed!r})")
+        if not math.isfinite(init_std):
+            raise ValueError(f"init_std: must be finite (got {init_std!r})")
         self.horizon, self.samples, self.iterations = int(horizon), int(samples), int(iterations)
         self.elites, self.init_std, self.gamma = int(elites), float(init_std), float(gamma)
         self.approach = float(approach)
@@ -89,6 +108,8 @@ class CEMPlanner:
         self._scratch: _ControlTask | None = None
         self._source: _ControlTask | None = None
         self._mean: np.ndarray | None = None
+        self._last_time = math.inf
+        self._last: tuple[np.ndarray, np.ndarray] | None = None  # (state, action) decided
         #: batched steps taken by the last decision (iterations x horizon)
         self.last_steps = 0
 
@@ -103,14 +124,28 @@ class CEMPlanner:
         """Forget the warm start and reseed (called by itself at an episode's start)."""
         self.rng = np.random.default_rng(self.seed)
         self._mean = None
+        self._last = None
+
+    def for_episode(self, k: int) -> CEMPlanner:
+        """A planner of its own for the k-th of several episodes run at once (``record
+        --grid``): it keeps memory of the one env it drives (its warm start, its generator),
+        and one planner handed another env each step started every decision afresh."""
+        return copy.deepcopy(self)
 
     def plan(self, task: _ControlTask) -> np.ndarray:
         """The first action of the best plan from element 0 of ``task``'s world, ``[2]``."""
         if not isinstance(task, _ControlTask):
             raise TypeError(f"the planner drives the control envs (RodSpinControl, "
                             f"PuckSpeedControl), not {type(task).__name__}")
-        if task is not self._source or task.world.time[0] == 0.0:
-            self._source = task
+        now = float(task.world.time[0])
+        st = task.world.state
+        state = np.concatenate([st.positions[0].ravel(), st.angles[0], st.velocities[0].ravel(),
+                                st.omegas[0]])
+        if (task is self._source and now == self._last_time and self._last is not None
+                and np.array_equal(self._last[0], state)):
+            return self._last[1].copy()  # asked again, nothing stepped: the same decision
+        if task is not self._source or now == 0.0 or now <= self._last_time:
+            self._source = task  # another env, or a new episode (its clock restarted)
             self.reset()
         elif self.common_noise:
             self.rng = np.random.default_rng(self.seed)
@@ -142,6 +177,8 @@ class CEMPlanner:
             mean = elite.mean(0)
             std = np.maximum(elite.std(0), 0.05)
         self.last_steps = self.iterations * H
+        self._last_time = now
+        self._last = (state.copy(), best_seq[0].copy())
         # warm start: the best plan shifted by one step, the last action repeated
         if self.warm_start:
             self._mean = np.concatenate([best_seq[1:], best_seq[-1:]])
@@ -150,7 +187,9 @@ class CEMPlanner:
     def __call__(self, env, obs) -> np.ndarray:
         """The action for ``env`` (a single env, ``gym.make``: one planner per env, since its
         warm start is the plan carried over from that env's last step)."""
-        if isinstance(env.unwrapped, gym.vector.VectorEnv):  # it planned element 0 alone
+        if not isinstance(getattr(env, "unwrapped", None), gym.Env):
+            # a Gymnasium vector env: it planned element 0 alone; an SB3 VecEnv: an
+            # AttributeError (no task)
             raise TypeError("the planner drives one env (gym.make), not a vector env: plan "
                             "each element with its own planner on a single env")
         return self.plan(env.unwrapped.task).astype(np.float32)

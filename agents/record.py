@@ -95,7 +95,13 @@ def record(policy, env_id: str, path: str | Path, episodes: int = 3, seed: int =
     kwargs = dict(env_kwargs or {})
     if size is not None:
         kwargs["render_size"] = _check_size(size)
-    runs = [_Episode(policy, env_id, seed + k, kwargs) for k in range(episodes)]
+    # a policy with memory of its env or its episode (``for_episode``: the planner's warm
+    # start, the random policy's stream) gets one of its own per episode: a grid's episodes,
+    # stepped in turn, handed one planner a new env each step, and it started every decision
+    # afresh (half the return, silently); a random grid's episodes drew another policy's
+    # actions than the same seeds filmed one after the other
+    runs = [_Episode(policy.for_episode(k) if hasattr(policy, "for_episode") else policy,
+                     env_id, seed + k, kwargs) for k in range(episodes)]
     fps = runs[0].env.metadata["render_fps"]
     held = int(round(hold * fps))
     columns = math.ceil(math.sqrt(episodes))
