@@ -506,7 +506,8 @@ def _resolve(algo: str, env_id: str, entry: dict, where: str, source: str) -> Ru
 
 def commit() -> str:
     """The commit of the code that runs (the checkout this module is in; not the folder the
-    command runs from, which recorded another repository's commit), or "unknown" (a wheel)."""
+    command runs from, which recorded another repository's commit), ``+dirty`` where tracked
+    files are edited, or "unknown" (a wheel)."""
     import subprocess
 
     here = Path(__file__).resolve().parent
@@ -514,8 +515,13 @@ def commit() -> str:
         # this file tracked there: an installed copy inside some repository is not its code
         subprocess.run(["git", "-C", str(here), "ls-files", "--error-unmatch", Path(__file__).name],
                        capture_output=True, check=True)
-        return subprocess.run(["git", "-C", str(here), "rev-parse", "--short", "HEAD"],
+        head = subprocess.run(["git", "-C", str(here), "rev-parse", "--short", "HEAD"],
                               capture_output=True, text=True, check=True).stdout.strip()
+        # edited and not committed: the commit alone named code that no longer matches (W16)
+        edited = subprocess.run(["git", "-C", str(here), "status", "--porcelain",
+                                 "--untracked-files=no"],
+                                capture_output=True, text=True, check=True).stdout.strip()
+        return head + ("+dirty" if edited else "")
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
 

@@ -496,6 +496,9 @@ def test_spinstrike_version_names_the_commit_of_the_code_that_runs(tmp_path):
                          capture_output=True, text=True)
     tracked = subprocess.run(["git", "-C", str(here), "ls-files", "--error-unmatch",
                               "config.py"], capture_output=True).returncode == 0
-    commit = git.stdout.strip() if git.returncode == 0 and tracked else "unknown"
+    edited = subprocess.run(["git", "-C", str(here), "status", "--porcelain",
+                             "--untracked-files=no"], capture_output=True, text=True).stdout
+    commit = (git.stdout.strip() + ("+dirty" if edited.strip() else "")
+              if git.returncode == 0 and tracked else "unknown")
     assert out.stdout == f"spinstrike {version('spinstrike')} (commit {commit})\n"
 
