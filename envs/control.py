@@ -164,33 +164,41 @@ class _ControlTask(Task):
         """Add every element's pose to its motion trail (when recording)."""
         if not self.record_trace:
             return
-        if self._poses is None:
-            self._poses = np.zeros((TRAIL_STEPS, self.batch_size, self.world.n_bodies, 3))
+        poses = self._ring()
         st = self.world.state
-        self._poses[self._head, :, :, :2] = st.positions
-        self._poses[self._head, :, :, 2] = st.angles
+        poses[self._head, :, :, :2] = st.positions
+        poses[self._head, :, :, 2] = st.angles
         self._head = (self._head + 1) % TRAIL_STEPS
         np.minimum(self._kept + 1, TRAIL_STEPS, out=self._kept)
 
     def _restart_trails(self, env) -> None:
         """Elements ``env``'s trails start again at their current poses (a reset, a state put
         back): the newest slot of the ring holds them, and only it."""
-        if self._poses is None:
-            self._poses = np.zeros((TRAIL_STEPS, self.batch_size, self.world.n_bodies, 3))
+        poses = self._ring()
         st = self.world.state
         newest = (self._head - 1) % TRAIL_STEPS
-        self._poses[newest, env, :, :2] = st.positions[env]
-        self._poses[newest, env, :, 2] = st.angles[env]
+        poses[newest, env, :, :2] = st.positions[env]
+        poses[newest, env, :, 2] = st.angles[env]
         self._kept[env] = 1
+
+    def _ring(self) -> np.ndarray:
+        """The ring of poses, made at its first use (only an env that records needs it)."""
+        if self._poses is None:
+            self._poses = np.zeros((TRAIL_STEPS, self.batch_size, self.world.n_bodies, 3))
+        return self._poses
+
+    def _slots(self, b: int) -> list[int]:
+        """The ring's slots of element b's trail, oldest first."""
+        k = int(self._kept[b]) if self._poses is not None else 0
+        return [(self._head - k + i) % TRAIL_STEPS for i in range(k)]
 
     def _trail(self, b: int) -> list[list[list[tuple[float, float]]]]:
         """Element b's motion trail, oldest step first: each step's points of every body
         (``rendering.body_points``: a centre, and a rod's tips)."""
-        k = int(self._kept[b]) if self._poses is not None else 0
         w = self.world
         steps = []
-        for i in range(k):
-            pose = self._poses[(self._head - k + i) % TRAIL_STEPS, b]
+        for slot in self._slots(b):
+            pose = self._poses[slot, b]
             steps.append([body_points(BodyDraw(w.names[j], pose[j, 0], pose[j, 1], pose[j, 2],
                                                w.radius[b, j], w.half_length[b, j], 0.0, 0.0,
                                                0.0)) for j in range(w.n_bodies)])
@@ -237,9 +245,8 @@ class _ControlTask(Task):
         return {"return": float(self._returns[0])}
 
     def trace(self) -> dict:
-        k = int(self._kept[0]) if self._poses is not None else 0
-        slots = [(self._head - k + i) % TRAIL_STEPS for i in range(k)]
-        return {"poses": [] if not k else self._poses[slots, 0].copy(),
+        slots = self._slots(0)
+        return {"poses": self._poses[slots, 0].copy() if slots else [],
                 "return": float(self._returns[0])}
 
     def put_trace(self, trace: dict) -> None:
@@ -247,8 +254,8 @@ class _ControlTask(Task):
         self._returns[0] = float(trace.get("return", 0.0))
         self._kept[0] = len(poses)
         if len(poses):
-            self._poses = np.zeros((TRAIL_STEPS, self.batch_size, self.world.n_bodies, 3))
-            self._poses[:len(poses), 0] = poses
+            self._poses = None  # a fresh ring: the copy's own poses, element 0's trail only
+            self._ring()[:len(poses), 0] = poses
             self._head = len(poses) % TRAIL_STEPS
 
     def restore(self, snap: dict) -> None:
