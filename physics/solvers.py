@@ -992,14 +992,18 @@ def _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, sweeps, tol, r
 HOLD_TURN = 1e-4
 #: Newton iterations of a held substep's position stage before it gives up (the step settles)
 HOLD_ITERATIONS = 30
+#: squared sine of the angle between two held rods below which the hold lets the step settle:
+#: near parallel, the contact is a line whose closest point jumps from one end to the other,
+#: which one impulse at one point cannot hold (:func:`_flat_rods`)
+HOLD_FLAT = 1e-4
 
 
 @jit_inline
 def _holdable(S, Pm, F, PA, PB, MAT, rotation, contact_friction, table_friction):
     """Whether the event loop may hold the sustained contact of its world's pair: one pair
     (nothing else can meet its bodies), two bodies (not a cushion), both free (mass and
-    inertia finite), turning (``rotation``), no applied force, no cloth friction, no contact
-    friction, and one of them a disk (the gap is then a smooth function of the poses)."""
+    inertia finite), turning (``rotation``), no applied force, no cloth friction and no contact
+    friction. (Two rods are held while they are not near parallel: :func:`_hold`.)"""
     n = S.shape[0]
     if PA.shape[0] != 1 or not rotation:
         return False
@@ -1009,8 +1013,6 @@ def _holdable(S, Pm, F, PA, PB, MAT, rotation, contact_friction, table_friction)
         return False
     if contact_friction and MAT[0, FRICTION] > 0.0:
         return False
-    if Pm[a, HALF_LENGTH] != 0.0 and Pm[b, HALF_LENGTH] != 0.0:
-        return False
     for i in (a, b):
         if Pm[i, INV_MASS] <= 0.0 or Pm[i, INV_INERTIA] <= 0.0:
             return False
@@ -1019,6 +1021,15 @@ def _holdable(S, Pm, F, PA, PB, MAT, rotation, contact_friction, table_friction)
         if table_friction and (Pm[i, FRICTION_DECEL] > 0.0 or Pm[i, SPIN_DECEL] > 0.0):
             return False
     return True
+
+
+@jit_inline
+def _flat_rods(S, Pm, a, b):
+    """Whether the pair is two rods within ``HOLD_FLAT`` of parallel (squared sine)."""
+    if Pm[a, HALF_LENGTH] == 0.0 or Pm[b, HALF_LENGTH] == 0.0:
+        return False
+    sine = math.sin(S[a, ANGLE] - S[b, ANGLE])
+    return sine * sine < HOLD_FLAT
 
 
 @jit_inline
@@ -1140,12 +1151,15 @@ def _hold(S, Pm, hw, PA, PB, t_now, dt, tol, zeno_speed, cpair, crec, stats, tra
     velocity there. Both act at the pair's one contact point along its normal, so linear and
     angular momentum are kept to round-off; any energy the O(h^2) error would add is taken
     back (:func:`_no_gain`). Substeps turn either body, or slide the pair, by at most
-    ``HOLD_TURN``. Each substep is recorded as a contact (its two impulses).
+    ``HOLD_TURN``. Each substep is recorded as a contact (its two impulses). Two rods are held
+    while they are not near parallel (:func:`_flat_rods`): the gap is then a smooth function of
+    the poses between the switches of the closest features (an end on a side, two ends), and
+    continuous across them.
 
     The contact is let go where it would have to pull (the first impulse comes out negative):
     the pair separates by its own motion. Returns (time reached, outcome): 1 held to ``dt``,
-    0 let go at that time (the event loop goes on), -1 the position stage did not converge
-    (the caller settles the rest of the step)."""
+    0 let go at that time (the event loop goes on), -1 the position stage did not converge or
+    two rods turned near parallel (the caller settles the rest of the step)."""
     # the one pair is two bodies; its wall (-1) and whether it is a cushion (False) are passed
     # as run-time values: as literal constants they compiled geometry and its callees, and
     # relative_velocity_of, a second time
@@ -1159,6 +1173,9 @@ def _hold(S, Pm, hw, PA, PB, t_now, dt, tol, zeno_speed, cpair, crec, stats, tra
     substeps = 0
     outcome = 1
     while t < dt:
+        if _flat_rods(S, Pm, a, b):
+            outcome = -1
+            break
         g0, nx, ny, oax, oay, ka, obx, oby, kb, vn = pair_geometry(S, Pm, a, b, wall, 0.0, 0.0)
         rna = oax * ny - oay * nx
         rnb = obx * ny - oby * nx
