@@ -15,6 +15,7 @@ import subprocess
 import sys
 import tarfile
 import textwrap
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -110,14 +111,9 @@ def test_the_sdist_holds_every_tracked_file(tmp_path):
     """An unpacked sdist is the checkout: its test suite, docs and CI script are there, so the
     README's test command runs in it (an sdist with only ``tests/test_*.py`` at the top ran 12
     tests, 3 of them failing for the missing ``.ci/run``)."""
-    listed = subprocess.run(["git", "ls-files", "-z"], cwd=REPO, capture_output=True, timeout=60)
-    if listed.returncode != 0:
-        pytest.skip("not a git checkout (an unpacked sdist): nothing to compare with")
-    tracked = {f for f in listed.stdout.decode().split("\0") if f and (REPO / f).is_file()}
-    src = tmp_path / "src"
-    for f in tracked:  # the working tree's tracked files, as `python -m build` would see them
-        (src / f).parent.mkdir(parents=True, exist_ok=True)
-        shutil.copy2(REPO / f, src / f)
+    # the working tree's tracked files, as `python -m build` would see them
+    src = _tracked_copy(tmp_path / "src")
+    tracked = {str(p.relative_to(src)) for p in src.rglob("*") if p.is_file()}
     out = subprocess.run(
         [sys.executable, "-c", "import sys; from setuptools import build_meta as b; "
          "print(b.build_sdist(sys.argv[1]))", str(tmp_path / "dist")],
@@ -131,6 +127,37 @@ def test_the_sdist_holds_every_tracked_file(tmp_path):
     assert not missing, f"tracked files the sdist leaves out (MANIFEST.in): {missing}"
     extra = sorted(members - tracked - generated)
     assert not extra, f"files in the sdist that the checkout does not track: {extra}"
+
+
+def _tracked_copy(dest: Path) -> Path:
+    """The checkout's tracked files, copied to ``dest`` (skips outside a git checkout)."""
+    listed = subprocess.run(["git", "ls-files", "-z"], cwd=REPO, capture_output=True, timeout=60)
+    if listed.returncode != 0:
+        pytest.skip("not a git checkout (an unpacked sdist): nothing to compare with")
+    for f in listed.stdout.decode().split("\0"):
+        if f and (REPO / f).is_file():
+            (dest / f).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(REPO / f, dest / f)
+    return dest
+
+
+def test_a_wheel_leaves_out_modules_an_earlier_build_left(tmp_path):
+    """``pip install .`` builds in the checkout's ``build/lib``, which setuptools reuses: a
+    module deleted since an earlier build (a ``git pull``) was put in the next wheel, and
+    installed, until ``setup.py``'s ``build_py`` started each build's package tree afresh."""
+    src = _tracked_copy(tmp_path / "src")
+    stale = src / "build" / "lib" / "spinstrike" / "physics" / "removed_since.py"
+    stale.parent.mkdir(parents=True)
+    stale.write_text("X = 1\n")
+    out = subprocess.run([sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps",
+                          "--no-build-isolation", "--no-index", str(src), "-w",
+                          str(tmp_path / "dist")], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-3000:]
+    wheel, = (tmp_path / "dist").glob("spinstrike-*.whl")
+    names = zipfile.ZipFile(wheel).namelist()
+    assert "spinstrike/physics/world.py" in names
+    assert "spinstrike/configs/scenes/rod_spin.yaml" in names
+    assert not [n for n in names if "removed_since" in n]
 
 
 def _imported_modules(path: Path):
