@@ -377,63 +377,75 @@ def _variant(name, bodies, *, e=1.0, half=None, horizon=1.0, normal_fixed=False,
 # ---------------------------------------------------------------------------------------------
 
 
-def seed_case(thetas=(0.0, 30.0, 60.0, 85.0), ratios=(1e-3, 1.0, 1e3)) -> Case:
-    """Seed §1 over theta (deg) and m1/m2: closed form ``rod_strike``."""
+def _named(name: str, e: float) -> str:
+    """A variant's name, with its restitution where it is not 1 (the names of e = 1 variants
+    are those of the tables before e < 1 variants were added)."""
+    return name if e == 1.0 else f"{name} e={e:g}"
+
+
+def seed_case(thetas=(0.0, 30.0, 60.0, 85.0), ratios=(1e-3, 1.0, 1e3),
+              inelastic=((30.0, 1.0, 0.5), (60.0, 1e-3, 0.0), (60.0, 1e3, 0.3))) -> Case:
+    """Seed §1 over theta (deg) and m1/m2 at e = 1, and the (theta, m1/m2, e) of ``inelastic``:
+    closed form ``rod_strike``."""
     r, V, gap, thickness, radius, m2 = 0.2, 1.0, 0.05, 1e-3, 0.005, 1.0
+    layouts = [(th, ratio, 1.0) for th in thetas for ratio in ratios] + list(inelastic)
     variants = []
-    for th in thetas:
+    for th, ratio, e in layouts:
         theta = math.radians(th)
         angle = math.pi / 2 - theta
         tip = (r * math.cos(angle), r * math.sin(angle))
-        for ratio in ratios:
-            m1 = ratio * m2
-            bodies = [
-                Body("rod", "rod", m1, m1 * r * r / 3.0, thickness / 2, r, angle=angle,
-                     velocity=(V, 0.0), inertia_spec="thin_rod"),
-                Body("disk", "disk", m2, 0.5 * m2 * radius**2, radius,
-                     position=(tip[0] + thickness / 2 + radius + gap, tip[1])),
-            ]
-            V1, V2, W1 = rod_strike(m1, m2, r, theta, V)
-            closed = ([[V1, 0.0], [V2, 0.0]], [W1, 0.0])  # upper tip pushed back: CCW spin
-            variants.append(_variant(f"theta={th:g} m1/m2={ratio:g}", bodies, horizon=0.2,
-                                     normal_fixed=True, closed_form=closed,
-                                     source="closed form physics.analytic.rod_strike"))
-    return Case("seed", "seed §1: rod tip strikes a resting disk (theta, m1/m2)", tuple(variants))
+        m1 = ratio * m2
+        bodies = [
+            Body("rod", "rod", m1, m1 * r * r / 3.0, thickness / 2, r, angle=angle,
+                 velocity=(V, 0.0), inertia_spec="thin_rod"),
+            Body("disk", "disk", m2, 0.5 * m2 * radius**2, radius,
+                 position=(tip[0] + thickness / 2 + radius + gap, tip[1])),
+        ]
+        V1, V2, W1 = rod_strike(m1, m2, r, theta, V, e)
+        closed = ([[V1, 0.0], [V2, 0.0]], [W1, 0.0])  # upper tip pushed back: CCW spin
+        variants.append(_variant(_named(f"theta={th:g} m1/m2={ratio:g}", e), bodies, e=e,
+                                 horizon=0.2, normal_fixed=True, closed_form=closed,
+                                 source="closed form physics.analytic.rod_strike"))
+    return Case("seed", "seed §1: rod tip strikes a resting disk (theta, m1/m2, e)",
+                tuple(variants))
 
 
-def rod_wall_case(thetas=(15.0, 30.0, 50.0, 70.0)) -> Case:
-    """A translating rod's leading tip strikes the right cushion: closed form ``rod_wall``."""
+def rod_wall_case(thetas=(15.0, 30.0, 50.0, 70.0), inelastic=((30.0, 0.5), (50.0, 0.0))) -> Case:
+    """A translating rod's leading tip strikes the right cushion, at e = 1 over ``thetas`` and
+    at the (theta, e) of ``inelastic``: closed form ``rod_wall``."""
     r, m, V, rho, gap = 0.2, 0.7, 2.0, 0.005, 0.05
     inertia = m * ((2 * r) ** 2 + (2 * rho) ** 2) / 12.0
     variants = []
-    for th in thetas:
+    for th, e in [(th, 1.0) for th in thetas] + list(inelastic):
         theta = math.radians(th)
         angle = math.pi / 2 - theta  # axis (sin t, cos t): the upper tip leads toward +x
         half = (r * math.sin(theta) + rho + gap, 1.0)
         bodies = [Body("rod", "rod", m, inertia, rho, r, angle=angle, velocity=(V, 0.0))]
-        j, v_after, w_after = rod_wall(m, inertia, r * math.cos(theta), V)
+        j, v_after, w_after = rod_wall(m, inertia, r * math.cos(theta), V, e)
         closed = ([[v_after, 0.0]], [w_after])  # the upper tip is pushed back: CCW
-        variants.append(_variant(f"theta={th:g}", bodies, half=half, horizon=0.2,
-                                 normal_fixed=True, closed_form=closed,
+        variants.append(_variant(_named(f"theta={th:g}", e), bodies, e=e, half=half,
+                                 horizon=0.2, normal_fixed=True, closed_form=closed,
                                  source="closed form physics.analytic.rod_wall"))
-    return Case("rod_wall", "rod tip strikes a cushion (theta)", tuple(variants))
+    return Case("rod_wall", "rod tip strikes a cushion (theta, e)", tuple(variants))
 
 
 def offline_disk_rod_case() -> Case:
     """A disk slides into a resting rod off its line of centres: side and end-cap hits."""
     m_rod, h, rho, m_disk, R, V = 0.1, 0.2, 0.01, 0.05, 0.02, 2.0
     inertia = m_rod * ((2 * h) ** 2 + (2 * rho) ** 2) / 12.0
-    layouts = [  # (rod angle deg, disk path y, normal fixed)
-        (90.0, 0.10, True), (90.0, 0.215, False), (90.0, 0.225, False), (60.0, 0.0, False),
-        (60.0, 0.12, False), (30.0, 0.05, False), (120.0, 0.15, False), (45.0, 0.16, False),
+    layouts = [  # (rod angle deg, disk path y, normal fixed, e)
+        (90.0, 0.10, True, 1.0), (90.0, 0.215, False, 1.0), (90.0, 0.225, False, 1.0),
+        (60.0, 0.0, False, 1.0), (60.0, 0.12, False, 1.0), (30.0, 0.05, False, 1.0),
+        (120.0, 0.15, False, 1.0), (45.0, 0.16, False, 1.0),
+        (60.0, 0.12, False, 0.5), (45.0, 0.16, False, 0.0), (90.0, 0.215, False, 0.2),
     ]
     variants = []
-    for deg, y, fixed in layouts:
+    for deg, y, fixed, e in layouts:
         bodies = [Body("rod", "rod", m_rod, inertia, rho, h, angle=math.radians(deg)),
                   Body("disk", "disk", m_disk, 0.5 * m_disk * R * R, R, position=(-0.35, y),
                        velocity=(V, 0.0))]
-        variants.append(_variant(f"rod {deg:g} deg, y={y:g}", bodies, horizon=0.5,
-                                 normal_fixed=fixed))
+        variants.append(_variant(_named(f"rod {deg:g} deg, y={y:g}", e), bodies, e=e,
+                                 horizon=0.5, normal_fixed=fixed))
     return Case("offline_disk_rod", "disk strikes a resting rod off-line", tuple(variants))
 
 
@@ -457,16 +469,18 @@ def spinning_rod_case() -> Case:
     """A translating, spinning rod sweeps its end into a resting disk (time of impact matters)."""
     h, thick, R, m_rod, m_disk = 0.2, 0.004, 0.02, 0.3, 0.1
     inertia = m_rod * ((2 * h) ** 2 + thick**2) / 12.0
-    layouts = [  # (omega, rod velocity, disk position)
-        (7.0, (0.4, -0.1), (0.05, 0.17)), (20.0, (0.4, -0.1), (0.05, 0.17)),
-        (4.0, (0.1, 0.1), (0.1, 0.17)), (-9.0, (0.3, 0.2), (0.1, -0.15)),
-        (40.0, (0.0, 0.0), (-0.08, 0.15)),
+    layouts = [  # (omega, rod velocity, disk position, e)
+        (7.0, (0.4, -0.1), (0.05, 0.17), 1.0), (20.0, (0.4, -0.1), (0.05, 0.17), 1.0),
+        (4.0, (0.1, 0.1), (0.1, 0.17), 1.0), (-9.0, (0.3, 0.2), (0.1, -0.15), 1.0),
+        (40.0, (0.0, 0.0), (-0.08, 0.15), 1.0),
+        (20.0, (0.4, -0.1), (0.05, 0.17), 0.5), (40.0, (0.0, 0.0), (-0.08, 0.15), 0.3),
+        (4.0, (0.1, 0.1), (0.1, 0.17), 0.0),  # at e = 0 the others stay in contact: no one impact
     ]
     variants = []
-    for w, vel, pos in layouts:
+    for w, vel, pos, e in layouts:
         bodies = [Body("rod", "rod", m_rod, inertia, thick / 2, h, velocity=vel, omega=w),
                   Body("disk", "disk", m_disk, 0.5 * m_disk * R * R, R, position=pos)]
-        variants.append(_variant(f"omega={w:g}", bodies, horizon=1.0))
+        variants.append(_variant(_named(f"omega={w:g}", e), bodies, e=e, horizon=1.0))
     return Case("spinning_rod", "spinning rod sweeps into a resting disk", tuple(variants))
 
 
