@@ -18,7 +18,9 @@ class FreshBuildPy(build_py):
     """``build_py`` over an empty ``build_lib/spinstrike``."""
 
     def run(self):
-        shutil.rmtree(Path(self.build_lib) / "spinstrike", ignore_errors=True)
+        built = (Path(self.build_lib) / "spinstrike").resolve()
+        if built != (Path(__file__).parent / "spinstrike").resolve():  # never the sources
+            shutil.rmtree(built, ignore_errors=True)
         super().run()
 
 
