@@ -318,10 +318,18 @@ def main(argv: list[str] | None = None) -> int:
                               ("--horizons", a.horizons, 1), ("--samples", a.samples, 2)):
         if min(values) < low:  # one line, not the planner's traceback
             p.error(f"{name}: must be >= {low} (got {min(values)})")
+    from spinstrike.envs import ConfigError, base_id
+
     for env_id in [table] if table else env_ids:
-        if env_id not in CONTROL_IDS:
-            p.error(f"the planner drives the control envs only, {list(CONTROL_IDS)} (got "
-                    f"{env_id!r})")
+        # a variant registered with gym.register ('module:Namespace/Name-vN') of a control env
+        # is one too (`spinstrike evaluate --planner` took it; this refused it, W14)
+        try:
+            base = base_id(env_id)
+        except ConfigError as exc:
+            p.error(str(exc))
+        if base not in CONTROL_IDS:
+            p.error(f"the planner drives the control envs only, {list(CONTROL_IDS)} or a "
+                    f"variant of one (got {env_id!r})")
     if table:
         print(warm_start_table(table, a.episodes))
         return 0

@@ -3,6 +3,7 @@ chase-and-hit on a fixed set of short episodes, it is deterministic given its se
 model is the env itself, and bad settings fail with the field named."""
 
 import json
+import textwrap
 
 import gymnasium as gym
 import imageio_ffmpeg
@@ -330,3 +331,27 @@ def test_planner_refuses_a_vector_env():
     sb3 = make_vec_env(CONTROL[0], n_envs=2)
     with pytest.raises(TypeError, match="not a vector env"):
         CEMPlanner(samples=4, elites=2)(sb3, sb3.reset())
+
+
+def test_planner_module_takes_a_registered_variant_of_a_control_env(user_module, capsys):
+    """``python -m spinstrike.agents.planner --envs module:Lab/Name-v0`` refused a variant that
+    ``spinstrike evaluate --planner`` takes (W14): both now resolve the id to its shipped base."""
+    from spinstrike.agents.planner import main as planner_main
+
+    user_module("planner_lab", textwrap.dedent("""
+        import gymnasium as gym
+        gym.register("PlannerLab/SlowPuck-v0",
+                     entry_point="spinstrike.envs.control:PuckSpeedControlEnv",
+                     kwargs={"restitution": 0.5})
+        gym.register("PlannerLab/Rod-v0", entry_point="spinstrike.envs.strike:RodSpinEnv")
+    """))
+    variant = "planner_lab:PlannerLab/SlowPuck-v0"
+    tiny = ["--episodes", "1", "--steps", "5", "--horizons", "2", "--samples", "4"]
+    assert planner_main([*tiny, "--envs", variant]) == 0
+    assert f"## {variant}" in capsys.readouterr().out
+    for bad, words in (("planner_lab:PlannerLab/Rod-v0", "drives the control envs only"),
+                       ("no_such_lab:Lab/X-v0", "no_such_lab")):
+        for option in ("--envs", "--warm-start-table"):  # (the table's episodes are long)
+            with pytest.raises(SystemExit):
+                planner_main([*tiny, option, bad])
+            assert words in capsys.readouterr().err
