@@ -543,10 +543,9 @@ def _energy_note(ms: list[Measurement]) -> str:
             "it. Every case is frictionless: friction's loss has no closed form here, and is "
             "checked by the property tests instead (`tests/physics/test_impulse.py`: never above "
             "mu j, never reversing the slip, never a gain). The e = 0 variants leave the pair "
-            "touching at no normal speed, separating only at second order; from a tolerance of "
-            "about 1e-10 m the exact solver's search stalls there (events above 1, then held "
-            "substeps, or for the rod on a cushion settled ones, flagged `fallback`), which the "
-            "events, substeps and time columns include; their errors stay within the tolerance.")
+            "touching at no normal speed, separating only at second order: there the exact "
+            "solver's search takes its second-order bound at once (its first-order one stalled "
+            "them into extra events, held or settled substeps until 2026-11-29).")
 
 
 def _acceptance(rows: list[dict], raw_step: float | None) -> list[str]:
