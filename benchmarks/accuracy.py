@@ -516,8 +516,7 @@ def report(ms: list[Measurement], effects: list[dict] | None, argv: Sequence[str
     lines += ["## Reference cases", ""]
     for name in cases:
         case = get_case(name)
-        measured = {m.variant for m in ms if m.case == name}  # a --quick run measures some
-        variants = [v for v in case.variants if v.name in measured]
+        variants = _measured(ms, name)
         srcs = sorted({v.source for v in variants})
         names = "; ".join(v.name for v in variants)
         of = "" if len(variants) == len(case.variants) else f" of {len(case.variants)}"
@@ -532,12 +531,17 @@ def _phases(ms: list[Measurement]) -> list[float]:
     return list(QUICK_PHASES if n == len(QUICK_PHASES) else PHASES)
 
 
+def _measured(ms: list[Measurement], name: str) -> list[Variant]:
+    """The variants of case ``name`` this run measured (a --quick run measures some)."""
+    measured = {m.variant for m in ms if m.case == name}
+    return [v for v in get_case(name).variants if v.name in measured]
+
+
 def _energy_note(ms: list[Measurement]) -> str:
     """What the energy column rests on: how many of the accuracy variants run lose energy."""
-    run = {(m.case, m.variant) for m in ms if m.case != "tunnel"}
-    lossy = [(c, n) for c, n in run
-             if next(v for v in get_case(c).variants if v.name == n)
-             .scene["materials"]["restitution"] < 1.0]
+    run = [v for name in dict.fromkeys(m.case for m in ms) if name != "tunnel"
+           for v in _measured(ms, name)]
+    lossy = [v for v in run if v.scene["materials"]["restitution"] < 1.0]
     return (f"*Energy*: {len(lossy)} of the {len(run)} accuracy variants run have e < 1 "
             "(named `e=...`), so their reference energy is below the incoming; the others keep "
             "it. Every case is frictionless: friction's loss has no closed form here, and is "
