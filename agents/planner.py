@@ -9,7 +9,10 @@ and steps all of them at once through the native batch (``Task.step``: the compi
 the env itself runs), summing the env's own reward. The best ``elites`` sequences refit the
 Gaussian; after ``iterations`` rounds the first action of the best sequence seen is applied, and
 the plan, shifted by one step, seeds the next decision. The model is the env itself (same kernel,
-same parameters), so the planner's only approximations are its horizon and its sampling.
+same parameters), so the planner's only approximations are its horizon and its sampling. With
+``solver: pymunk`` the copy is close, not exact: pymunk keeps contact state of its own between steps
+(its cached impulses warm-start the next step) that a copy starts without, so a step with a
+contact ends ~1e-5 m apart (1 step in 120 on each control env, measured).
 
     from spinstrike.agents.planner import CEMPlanner
     planner = CEMPlanner(horizon=10, samples=64)   # the defaults (docs/planner.md)
