@@ -368,6 +368,15 @@ def _size(text: str) -> tuple[int, int]:
     return w, h
 
 
+def _video_frames(result: dict) -> str:
+    """The frames filmed and their rate, and those a GIF keeps where it keeps fewer (above
+    50 fps it keeps every k-th frame and the last, each shown >= 20 ms)."""
+    said = f"{result['frames']} frames at {result['fps']:g} fps"
+    if result["kept"] != result["frames"]:
+        said += f"; the GIF keeps {result['kept']} of them, the last included, >= 20 ms each"
+    return said
+
+
 def _video_size(result: dict, asked: tuple[int, int] | None) -> str:
     """The video's ``WxH`` as written, saying so where H.264 rounded the asked size up."""
     w, h = result["size"]
@@ -422,7 +431,7 @@ def cmd_record(args) -> int:
     replaced = _replaces(out)
     result = record(policy, env_id, out, episodes=args.episodes, seed=args.seed,
                     env_kwargs=env_kwargs, size=size, grid=args.grid)
-    print(f"video: {result['path']} ({result['frames']} frames at {result['fps']} fps, "
+    print(f"video: {result['path']} ({_video_frames(result)}, "
           f"{_video_size(result, None if args.grid else size)}){replaced}")
     return 0
 
@@ -464,7 +473,7 @@ def _record_scene(args) -> int:
     size = _size(args.size) if args.size else (720, 480)
     replaced = _replaces(out)
     result = record_world(world, out, seconds=args.seconds, dt=args.dt, size=size)
-    print(f"video: {result['path']} ({result['frames']} frames at {result['fps']:g} fps, "
+    print(f"video: {result['path']} ({_video_frames(result)}, "
           f"{_video_size(result, size)}; {result['contacts']} contacts){replaced}")
     return 0
 

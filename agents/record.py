@@ -138,7 +138,7 @@ def record(policy, env_id: str, path: str | Path, episodes: int = 3, seed: int =
     finally:
         for run in runs:
             run.close()
-    return {"path": str(writer.path), "frames": writer.frames, "fps": fps,
+    return {"path": str(writer.path), "frames": writer.frames, "kept": writer.kept, "fps": fps,
             "returns": [run.total for run in runs], "size": writer.size}
 
 
@@ -232,7 +232,7 @@ def record_world(world, path: str | Path, seconds: float = 3.0, dt: float = 0.02
         writer.abort()
         raise
     writer.close()
-    return {"path": str(writer.path), "frames": writer.frames, "fps": fps,
+    return {"path": str(writer.path), "frames": writer.frames, "kept": writer.kept, "fps": fps,
             "size": writer.size, "contacts": total}
 
 

@@ -44,7 +44,8 @@ class VideoWriter:
     streamed to ffmpeg; an odd width or height is padded by one pixel, which yuv420p needs) or
     ``.gif`` (Pillow, looping, written on :meth:`close`; Pillow merges identical consecutive
     frames into one of their summed duration; above 50 fps only every k-th frame is kept, so
-    that each lasts 20 ms or more and viewers play it in real time).
+    that each lasts 20 ms or more and viewers play it in real time, and the last frame always:
+    it shows the final state; :attr:`kept` counts the frames the file holds).
 
     The frames go to ``<stem>.<random>.partial<suffix>`` beside ``path``, renamed to ``path`` by
     :meth:`close`: a recording stopped half way (Ctrl-C, an error) leaves no truncated video
@@ -85,9 +86,13 @@ class VideoWriter:
         self.fps = fps
         #: frames written so far
         self.frames = 0
+        #: frames the file holds, once closed: ``frames``, or for a GIF above 50 fps fewer
+        self.kept = 0
         self._size: tuple[int, int] | None = None
         self._encoder = None
         self._gif: list = []  # a GIF's frames, as PIL images in palette mode
+        self._gif_index: list[int] = []  # which frame each of them is
+        self._gif_tail: np.ndarray | None = None  # the latest frame, where it was not kept
         # viewers show a GIF frame shorter than 20 ms for 100 ms (a 500 fps recording, a --dt
         # of 0.002 s, played 10x slow): above 50 fps a GIF keeps every k-th frame only
         self._gif_every = max(1, math.ceil(fps / GIF_MAX_FPS - 1e-9))
@@ -116,14 +121,14 @@ class VideoWriter:
             raise ValueError(f"frame: size {frame.shape[:2]} differs from the video's "
                              f"{self._size}")
         if self.path.suffix.lower() == ".gif":
-            # kept as Pillow's GIF writer would convert it (a palette of the frame's own
-            # colours, one byte a pixel), and only the frames the GIF keeps: the RGB frames,
-            # all of them, took 3.1 GB for a 4-episode control grid (its mp4: 0.4 GB)
+            # kept as Pillow's GIF writer would convert it, and only the frames the GIF keeps
+            # (all of them, in RGB, took 3.1 GB for a 4-episode control grid; its mp4: 0.4 GB)
             if self.frames % self._gif_every == 0:
-                from PIL import Image
-
-                self._gif.append(Image.fromarray(frame).convert(
-                    "P", palette=Image.Palette.ADAPTIVE))
+                self._gif.append(_palette(frame))
+                self._gif_index.append(self.frames)
+                self._gif_tail = None
+            else:  # kept at close if it is the last (W17: the final state was never filmed)
+                self._gif_tail = frame.copy()
         else:
             h, w = self._size
             if h % 2 or w % 2:
@@ -144,22 +149,43 @@ class VideoWriter:
 
     def close(self) -> None:
         """Finish the file (nothing is written for a video without frames)."""
+        self.kept = self.frames
         if self._encoder is not None:
             self._encoder.close()
             self._encoder = None
         if self._gif:
-            k = self._gif_every
+            self._keep_last_gif_frame()
             images = self._gif
             # a GIF counts time in hundredths of a second: round the frames' cumulative times
-            # to those, so that the whole lasts what it should (30 fps: 30, 30, 40, 30...)
-            ends = np.round(np.arange(len(images) + 1) * 100 * k / self.fps) * 10
+            # to those, so that the whole lasts what it should (30 fps: 30, 30, 40, 30...);
+            # each frame lasts until the next one's time, the last until the video's end
+            # (at least 20 ms)
+            starts = np.round(np.asarray(self._gif_index) * 100 / self.fps) * 10
+            end = max(np.round(self.frames * 100 / self.fps) * 10, starts[-1] + 20)
+            ends = np.append(starts, end)
             images[0].save(self._partial, save_all=True, append_images=images[1:], loop=0,
-                           duration=np.diff(ends).astype(int).tolist(), optimize=True)
+                           duration=np.maximum(np.diff(ends), 20).astype(int).tolist(),
+                           optimize=True)
+            self.kept = len(images)
             self._gif = []
+            self._gif_index = []
         if self.frames == 0:  # (the file the constructor opened to see it can write there)
             self._partial.unlink(missing_ok=True)
         elif self._partial.exists():
             os.replace(self._partial, self.path)
+
+    def _keep_last_gif_frame(self) -> None:
+        """Put the last frame in a GIF that kept every k-th one: after the last kept frame when
+        it would last the 20 ms viewers play (``GIF_MAX_FPS``), else in that frame's place."""
+        if self._gif_tail is None:
+            return
+        last = self.frames - 1
+        if len(self._gif) > 1 and (last - self._gif_index[-1]) * GIF_MAX_FPS < self.fps:
+            self._gif.pop()
+            self._gif_index.pop()
+        self._gif.append(_palette(self._gif_tail))
+        self._gif_index.append(last)
+        self._gif_tail = None
 
     def abort(self) -> None:
         """Stop without a video: the partial file is removed, ``path`` left as it was."""
@@ -167,7 +193,7 @@ class VideoWriter:
             with contextlib.suppress(Exception):  # ffmpeg may have died with the signal too
                 self._encoder.close()
             self._encoder = None
-        self._gif = []
+        self._gif, self._gif_index, self._gif_tail = [], [], None
         self._partial.unlink(missing_ok=True)
 
     def __enter__(self) -> VideoWriter:
@@ -178,6 +204,14 @@ class VideoWriter:
             self.close()
         else:
             self.abort()
+
+
+def _palette(frame: np.ndarray):
+    """A frame as Pillow's GIF writer converts it: a palette of its own colours, one byte a
+    pixel."""
+    from PIL import Image
+
+    return Image.fromarray(frame).convert("P", palette=Image.Palette.ADAPTIVE)
 
 
 def tile(frames: Sequence[np.ndarray | None], columns: int) -> np.ndarray:

@@ -929,6 +929,47 @@ def test_a_fast_gif_keeps_frames_viewers_play_in_real_time(tmp_path, capsys):
         assert min(got) >= 20 and abs(sum(got) - 1000) <= 20, (fps, got)
 
 
+def test_a_fast_gif_ends_on_the_last_frame_and_says_what_it_keeps(tmp_path, capsys):
+    """W17: a GIF above 50 fps kept frames 0, k, 2k, ... only, so where the last frame was not
+    one of them the film stopped short of the final state (``--dt 0.003``: its last frame read
+    t = 2.98 s of 3 s), and the command's line counted frames the file does not have. The
+    last frame is kept now (in the place of the kept one before it when the two would be
+    under 20 ms apart), and the line says how many the GIF keeps."""
+    from PIL import Image, ImageSequence
+
+    gif, mp4 = tmp_path / "scene.gif", tmp_path / "scene.mp4"
+    said = {}
+    for out in (gif, mp4):
+        assert main(["record", "--scene", "break", "--seconds", "0.3", "--dt", "0.003",
+                     "--size", "160x90", "--out", str(out)]) == 0
+        said[out] = capsys.readouterr().out
+    # (101 frames at 333 fps: every 7th, 0..98, then 100 in the place of 98)
+    with Image.open(gif) as im:
+        kept = [np.asarray(f.convert("RGB"), dtype=float) for f in ImageSequence.Iterator(im)]
+        ms = [f.info["duration"] for f in ImageSequence.Iterator(im)]
+    assert "101 frames at 333.333 fps; the GIF keeps 15 of them" in said[gif], said[gif]
+    assert "101 frames at 333.333 fps" in said[mp4] and "keeps" not in said[mp4]
+    assert len(kept) == 15 and min(ms) >= 20 and abs(sum(ms) - 300) <= 20, ms
+    films = _decode(mp4)
+    assert len(films) == 101
+    # the GIF's last frame is the final state's (closer to the mp4's last frame than to any
+    # other of its frames: the header's clock, the bodies moved)
+    off = [np.abs(kept[-1] - f.astype(float)).mean() for f in films]
+    assert int(np.argmin(off)) == 100, off[-10:]
+    for fps, n in ((144, 144), (60, 61), (333.3, 101), (51, 3), (200, 2)):
+        path = tmp_path / f"{fps}-{n}.gif"
+        with VideoWriter(path, fps) as w:
+            for k in range(n):  # every frame different
+                w.write(np.full((4, 4, 3), k, np.uint8))
+        with Image.open(path) as im:
+            last = np.asarray(list(ImageSequence.Iterator(im))[-1].convert("RGB"))
+            got = [f.info["duration"] for f in ImageSequence.Iterator(im)]
+        assert last[0, 0, 0] == n - 1 and w.kept == len(got), (fps, n)
+        # (two frames 5 ms apart: each shown 20 ms, the least viewers play)
+        lasts = max(1000 * n / fps, 20 * len(got))
+        assert min(got) >= 20 and abs(sum(got) - lasts) <= 20, (fps, n, got)
+
+
 def test_a_gif_holds_its_frames_as_the_gif_does(tmp_path):
     """A GIF's frames were held as RGB arrays until the end (every one, those a fast GIF drops
     too): a 4-episode control grid took 3.1 GB, its mp4 0.4 GB. They are held now as Pillow's
