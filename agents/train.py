@@ -476,18 +476,36 @@ def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, epis
         """SB3's evaluation, reseeded before each so every point sees the same episodes, on
         the grid of ``every`` steps counted from the start of the run (SB3 counts calls from
         the start of ``learn``: a resumed run's points fell off the grid and its first one
-        repeated the checkpoint's)."""
+        repeated the checkpoint's), and one at the end.
+
+        Each evaluates the policy trained on the steps its point is labelled with: it runs
+        where the algorithm's loop starts a rollout (after the update on the steps so far),
+        the first at or after each mark, as the checkpoints are saved, and at the end of
+        training. SB3's runs on the step that completes the mark, inside PPO's rollout, before
+        its update: every point was the previous rollout's policy, and the curve's last point
+        was not the model the run saved (W17: 0.313 where the final model scored 0.483)."""
 
         def _init_callback(self) -> None:
             super()._init_callback()
             self._next = _next_mark(self.model.num_timesteps, every)
+            self._done = self.model.num_timesteps  # evaluated up to here (or the run's start)
 
         def _on_step(self) -> bool:
-            if self.model.num_timesteps < self._next:
-                return True
-            self._next = _next_mark(self.model.num_timesteps, every)
+            return True
+
+        def _evaluate(self) -> None:
+            self.num_timesteps = self._done = self.model.num_timesteps
+            self._next = _next_mark(self._done, every)
             self.eval_env.seed(EVAL_SEED)
-            return super()._on_step()  # eval_freq 1: SB3's evaluation, every time it is called
+            super()._on_step()  # eval_freq 1: SB3's evaluation, every time it is called
+
+        def _on_rollout_start(self) -> None:  # after the previous rollout's update
+            if self.model.num_timesteps >= self._next:
+                self._evaluate()
+
+        def _on_training_end(self) -> None:  # the final model's point
+            if self.model.num_timesteps > self._done:
+                self._evaluate()
 
     from spinstrike.envs.sb3 import make_sb3_vec_env
 

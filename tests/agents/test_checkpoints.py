@@ -79,7 +79,8 @@ def test_resumed_ppo_run_updates_and_evaluates_as_the_run_left_alone(tmp_path, m
     logged = {r: _progress(r, "train/n_updates") for r in (alone, run)}
     assert len(set(logged[run])) == len(logged[run]) and set(logged[run]) <= set(logged[alone])
     grid = {r: np.load(r / "evaluations.npz")["timesteps"].tolist() for r in (alone, run)}
-    assert grid[run] == grid[alone] == list(range(204, 2049, 204)), grid
+    # each evaluation between rollouts, the first at or after each mark of 204 steps
+    assert grid[run] == grid[alone] == list(range(ROLLOUT, 2049, ROLLOUT)), grid
 
 
 def test_off_policy_run_keeps_the_newest_replay_buffer_and_resumes_from_it(tmp_path,
@@ -159,4 +160,43 @@ def test_a_kill_while_a_checkpoint_is_written_leaves_the_run_resumable(tmp_path,
         256, 512]
     capsys.readouterr()
     assert main([*args, "--resume"]) == 0, capsys.readouterr().err
-    assert np.load(run / "evaluations.npz")["timesteps"].tolist() == list(range(204, 2049, 204))
+    assert np.load(run / "evaluations.npz")["timesteps"].tolist() == list(
+        range(ROLLOUT, 2049, ROLLOUT))
+
+
+def _curve_score(model_path, algo):
+    """A model scored as the learning curve's evaluations score it (``EVAL_SEED``'s 10
+    episodes, deterministic actions)."""
+    from stable_baselines3 import PPO, SAC
+    from stable_baselines3.common.evaluation import evaluate_policy
+
+    from spinstrike.agents.train import EVAL_SEED
+    from spinstrike.envs.sb3 import make_sb3_vec_env
+
+    model = {"ppo": PPO, "sac": SAC}[algo].load(model_path, device="cpu")
+    env = make_sb3_vec_env(ENV, n_envs=1, seed=EVAL_SEED)
+    env.seed(EVAL_SEED)
+    returns, _ = evaluate_policy(model, env, n_eval_episodes=10, deterministic=True,
+                                 return_episode_rewards=True)
+    return float(np.mean(returns))
+
+
+def test_each_learning_curve_point_scores_the_model_trained_on_its_steps(tmp_path):
+    """W17: SB3's ``EvalCallback`` scores PPO's policy at the step that completes a mark,
+    inside the rollout, before its update: every point of the learning curve
+    (``evaluations.npz``, ``learning_curve.png``, TensorBoard's ``eval/mean_reward``, the
+    baselines' IQM curves) was the previous rollout's policy, and the last point was not the
+    saved model (0.313 where it scored 0.483). Each point now scores the checkpoint of its own
+    steps, and the last one ``model.zip``."""
+    run = tmp_path / "run"
+    # the shipped entry (rollouts of 1024 steps), which learns within 5,000 steps
+    assert main(["train", "--algo", "ppo", "--env", ENV, "--timesteps", "5000", "--out",
+                 str(run), "--no-eval", "--no-video", "--no-progress"]) == 0
+    data = np.load(run / "evaluations.npz")
+    curve = dict(zip(data["timesteps"].tolist(), data["results"].mean(1).tolist()))
+    assert list(curve) == list(range(1024, 5121, 1024)), curve  # a point a rollout
+    checkpoints = {t: run / "checkpoints" / f"model_{t}_steps.zip" for t in curve}
+    scores = {t: _curve_score(path, "ppo") for t, path in checkpoints.items() if path.exists()}
+    assert len(scores) == 5 and all(scores[t] == curve[t] for t in scores), (scores, curve)
+    assert _curve_score(run / "model.zip", "ppo") == curve[5120]
+    assert len(set(curve.values())) > 2, curve  # the policy changed: the points tell it

@@ -64,8 +64,8 @@ def test_resume_keeps_the_learning_history(tmp_path, monkeypatch):
     data = np.load(run / "evaluations.npz")
     steps = data["timesteps"].tolist()
     assert steps[:len(before)] == before, steps  # the first part is kept
-    # on the grid of the run left alone (test_checkpoints.py): every 204 steps to the budget
-    assert steps == list(range(204, 2049, 204)), steps
+    # on the grid of the run left alone (test_checkpoints.py): a mark every 204 steps
+    assert steps == list(range(256, 2049, 256)), steps  # after each rollout (4 x 64 steps)
     assert data["results"].shape == (len(steps), 10)
     rows = _progress_steps(run / "progress.csv")
     kept = [s for s in rows_before if s <= ckpt]
