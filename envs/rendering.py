@@ -53,6 +53,8 @@ PANEL_ALPHA = 150
 VELOCITY_SCALE = 0.1
 #: padding of the panel's text, pixels
 PAD = 6
+#: the smallest font a line of text is shrunk to where it is wider than the frame, pixels
+MIN_TEXT = 9
 
 
 @dataclass
@@ -216,6 +218,7 @@ class Renderer:
                  panel_lines: int = 0) -> None:
         self.width, self.height = int(size[0]), int(size[1])
         self.text_size = max(14, self.height // 22)
+        self.header_size = max(14, self.height // 20)  # a plain frame's text
         # the band's height: pygame's default font takes 3/4 of its size per line
         self.band = (math.ceil(0.75 * self.text_size * panel_lines) + 2 * PAD
                      if panel_lines else 0)
@@ -233,6 +236,7 @@ class Renderer:
         self._surface = None
         self._font = None
         self._small = None
+        self._fonts: dict[int, object] = {}  # smaller fonts, by size, for text that must fit
         self._window = None
         self._clock = None
 
@@ -240,7 +244,7 @@ class Renderer:
         """Copies and pickles (a vector env that has drawn) keep the geometry; pygame, its
         surfaces, fonts and window are made again at the next draw."""
         return dict(self.__dict__, _pygame=None, _surface=None, _font=None, _small=None,
-                    _window=None, _clock=None)
+                    _window=None, _clock=None, _fonts={})
 
     def _init(self):
         if self._pygame is None:
@@ -255,7 +259,7 @@ class Renderer:
             pygame.font.init()
             self._pygame = pygame
             self._surface = pygame.Surface((self.width, self.height))
-            self._font = pygame.font.Font(None, max(14, self.height // 20))
+            self._font = pygame.font.Font(None, self.header_size)
             self._small = pygame.font.Font(None, self.text_size)
         return self._pygame
 
@@ -263,6 +267,18 @@ class Renderer:
         """Pixels of width a plain frame's ``text`` lacks (0: it fits; it starts 8 px in)."""
         self._init()
         return max(0, 8 + self._font.size(text)[0] - self.width)
+
+    def _fitted(self, text: str, font, size: int, room: int):
+        """``text`` rendered in ``font`` (of ``size``), or where it is wider than ``room``
+        pixels in a smaller one that fits (down to ``MIN_TEXT``): a narrow video cut its
+        caption, the only place a strike video states its goal, mid-word (walk W17)."""
+        out = font.render(text, True, COLOURS["text"])
+        while out.get_width() > room and size > MIN_TEXT:
+            size = max(MIN_TEXT, min(size - 1, int(size * room / out.get_width())))
+            if size not in self._fonts:
+                self._fonts[size] = self._pygame.font.Font(None, size)
+            out = self._fonts[size].render(text, True, COLOURS["text"])
+        return out
 
     def _px(self, x: float, y: float) -> tuple[int, int]:
         return (int(round(self.width / 2 + x * self.scale)),
@@ -402,7 +418,8 @@ class Renderer:
         """The information panel: lines of text at the top left (in the band, if any; else on
         a translucent box). Returns its width, pixels."""
         pg = self._pygame
-        rendered = [self._small.render(line, True, COLOURS["text"]) for line in lines]
+        rendered = [self._fitted(line, self._small, self.text_size, self.width - 2 * PAD)
+                    for line in lines]
         if not self.band:
             width = max(r.get_width() for r in rendered) + 2 * PAD
             height = sum(r.get_height() for r in rendered) + 2 * PAD
@@ -491,7 +508,10 @@ class Renderer:
         for m in sorted(frame.markers, key=lambda m: (-m.fade, -m.j)):
             self._label(surf, m, taken)
         if frame.text:
-            surf.blit(self._font.render(frame.text, True, COLOURS["text"]), (8, 6))
+            # (a plain frame's room as text_fits counts it: a pixel observation's caption,
+            # which must fit, is drawn as it always was; a video's keeps 8 px to the right)
+            room = self.width - (16 if frame.smooth else 8)
+            surf.blit(self._fitted(frame.text, self._font, self.header_size, room), (8, 6))
         left = self._panel(surf, frame.panel) if frame.panel and self.panels else 0
         if frame.gauge is not None and self.panels:
             self._gauge(surf, frame.gauge, left)

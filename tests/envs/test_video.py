@@ -650,7 +650,30 @@ def test_small_video_frames_show_the_table_not_the_panel(env_id):
         env.close()
 
 
-def test_impulse_labels_stay_whole_inside_the_frame():
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_a_narrow_video_frame_shrinks_its_text_to_fit(env_id, tmp_path):
+    """W17: at ``render_size=(240, 300)`` PuckSpeed's caption was cut mid-word (the target's
+    direction, the only place the video states its goal), and a 300 px wide scene film lost its
+    contact count. A line wider than the frame is drawn in a smaller font that fits: no text
+    reaches the frame's right margin."""
+    from spinstrike.envs.rendering import PAD
+
+    env = gym.make(env_id, render_mode="rgb_array", render_size=(240, 300))
+    obs, _ = env.reset(seed=0)
+    env.step(oracle_for(env_id)(env, obs))
+    frame = env.render()
+    band = env.unwrapped.task.renderer.band
+    assert band > 0
+    bright = frame[:band].min(axis=2) > 200  # the text's pixels
+    assert bright[:, :-PAD].any() and not bright[:, -PAD:].any()
+    env.close()
+    if env_id == ENV_IDS[0]:  # a scene film through the command line, 300 px wide
+        out = tmp_path / "tall.mp4"
+        assert main(["record", "--scene", "break", "--seconds", "0.1", "--size", "300x900",
+                     "--out", str(out)]) == 0
+        top = _decode(out)[-1][:40].min(axis=2) > 150
+        assert top[:, :150].any() and not top[:, -6:].any()
+
     """An impulse's label beside a contact at the right cushion, or at a corner, is drawn whole:
     as many of its pixels as beside a contact in the middle of the table (it was cut at the
     frame's edge)."""
