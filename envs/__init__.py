@@ -20,6 +20,7 @@ id                                 task
 from __future__ import annotations
 
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -29,7 +30,7 @@ from spinstrike.envs.config import ConfigError
 
 __all__ = ["ENV_IDS", "ConfigError", "as_registered", "base_id", "describe", "flat_kwargs",
            "native_vector", "registered_kwargs", "registration_changes", "scene_as_read",
-           "variant_kwargs"]
+           "unread_scene_file", "variant_kwargs"]
 
 #: registered ids and a one-line description each
 ENV_IDS: dict[str, str] = {
@@ -219,12 +220,25 @@ def registration_changes(env_id: str, env_kwargs: dict, registered: dict | None)
     env_kwargs = flat_kwargs(env_kwargs)  # (recorded nested before 2026-11-28)
     registered = None if registered is None else flat_kwargs(registered)
     for key, value in registered_kwargs(env_id).items():
+        if key == "scene" and unread_scene_file(value) and key in env_kwargs:
+            continue  # not readable from here: nothing to compare (W17 reported it changed)
         if key not in env_kwargs:
             changes.append(f"{key} (now {_short(value)}, not recorded)")
         elif registered is not None and _plain(registered.get(key)) != value:
             changes.append(f"{key} (now {_short(value)}, the run's "
                            f"{_short(_plain(env_kwargs[key]))})")
     return changes
+
+
+def unread_scene_file(scene: Any) -> str | None:
+    """``scene`` where it is a YAML file's path that is not found from the working directory
+    (a variant registered with a relative path, used from another folder), else None."""
+    from spinstrike.physics.scene import is_path
+
+    if isinstance(scene, str) and "\n" not in scene and \
+            Path(scene).suffix.lower() in (".yaml", ".yml") and not is_path(Path(scene), "is_file"):
+        return scene
+    return None
 
 
 def _short(value: Any) -> str:

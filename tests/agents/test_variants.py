@@ -250,7 +250,21 @@ def test_a_variants_scene_file_is_recorded_with_the_run(user_module, capsys, reg
     capsys.readouterr()
     evaluate = ["evaluate", "run", "--episodes", "3", "--no-save", "--json"]
     assert main(evaluate) == 0
-    before = capsys.readouterr().out
+    before, note = capsys.readouterr()
+    assert "note:" not in note
+    # from another folder, where 'table.yaml' is not found, the registration did not change
+    # (W17: the note said it had, "now 'table.yaml'"); it says the file is not compared
+    elsewhere = Path("elsewhere").resolve()
+    elsewhere.mkdir()
+    os.chdir(elsewhere)
+    try:
+        assert main([*evaluate[:1], "../run", *evaluate[2:]]) == 0
+    finally:
+        os.chdir(elsewhere.parent)
+    there, note = capsys.readouterr()
+    assert there == before and "other arguments" not in note
+    assert f"registers its scene as the file 'table.yaml', not found from {str(elsewhere)!r}" \
+        in note, note
     table.write_text(source.read_text().replace("size: [1.2, 0.8]", "size: [3.0, 2.0]")
                      .replace("mass: 0.1}", "mass: 2.0}"))
     assert yaml.safe_load(table.read_text()) != yaml.safe_load(source.read_text())
