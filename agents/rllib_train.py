@@ -39,7 +39,7 @@ from spinstrike.agents.config import (
 )
 from spinstrike.agents.train import (
     TrainResult,
-    _refuse_render_mode,
+    _check_entry_env_kwargs,
     _registered,
     _work_dir,
     finish_run,
@@ -188,7 +188,10 @@ def train_rllib(env_id: str, *, config: str | Path | None = None, seed: int = 0,
     cfg.env_kwargs = as_registered(env_id, cfg.env_kwargs)
     if cfg.normalize:
         raise AgentConfigError("normalize: not supported with --backend rllib")
-    _refuse_render_mode(cfg.env_kwargs)
+    # as the SB3 backend: a bad argument, max_episode_steps < 1 or a control env with no step
+    # limit (whose learning-curve and final evaluations in this process never ended: W17, a
+    # silent hang with both cores busy) is refused here, naming it
+    _check_entry_env_kwargs(env_id, cfg, env_kwargs)
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
         raise AgentConfigError(f"seed: must be an integer from 0 to 2**32 - 1, as the SB3 "
                                f"backend's (got {seed!r})")

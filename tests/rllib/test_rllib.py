@@ -489,7 +489,10 @@ def test_cli_train_backend_rllib_writes_the_run_folder(tmp_path):
 
 @pytest.mark.parametrize("kwargs,key", [("{no_such_key: 1}", "no_such_key"),
                                         ("{num_envs: 3}", "num_envs"),  # was: after Ray
-                                        ("{max_episode_steps: 0}", "max_episode_steps")])
+                                        ("{max_episode_steps: 0}", "max_episode_steps"),
+                                        # W17: a control env's episodes then never end, and
+                                        # the run hung in its first evaluation
+                                        ("{max_episode_steps: -1}", "max_episode_steps")])
 def test_cli_backend_rllib_bad_input_exits_2_before_writing(tmp_path, kwargs, key):
     out = tmp_path / "run"
     cmd = [sys.executable, "-m", "spinstrike.agents.cli", "train", "--backend", "rllib",
@@ -814,6 +817,9 @@ gym.register("RLlibLab/LoudRod-v0", entry_point=LoudRod, vector_entry_point=Loud
 gym.register("RLlibLab/NestedRod-v0", entry_point="spinstrike.envs.strike:RodSpinEnv",
              kwargs={"config": {"restitution": 0.95, "scene": "table.yaml"}},
              max_episode_steps=3)
+gym.register("RLlibLab/NoLimit-v0", entry_point="spinstrike.envs.control:RodSpinControlEnv",
+             vector_entry_point="spinstrike.envs.control:RodSpinControlVectorEnv",
+             kwargs={"max_force": 6.0})
 """
 
 
@@ -850,6 +856,23 @@ def test_a_registered_variant_trains_on_rllib_runners_with_its_arguments(local_r
         configure(PPOConfig(), f"{LAB}:RLlibLab/LoudRod-v0")
     with pytest.raises(ConfigError, match=r"unknown id 'RLlibLab/Nothing-v0'"):
         configure(PPOConfig(), "RLlibLab/Nothing-v0")
+
+
+def test_cli_backend_rllib_refuses_a_control_variant_without_a_step_limit(rllib_lab):
+    """W17: a control variant registered without ``max_episode_steps`` trained on the runners
+    (their vector env stops at 250 steps), then hung for ever in the driver's first
+    learning-curve evaluation (``gym.make`` adds no limit), both cores busy and nothing said.
+    The SB3 backend refused it in one line; so does this one, before Ray starts."""
+    out = rllib_lab / "run"
+    cmd = [sys.executable, "-m", "spinstrike.agents.cli", "train", "--backend", "rllib",
+           "--env", f"{LAB}:RLlibLab/NoLimit-v0", "--num-env-runners", "1", "--timesteps",
+           "64", "--n-envs", "2", "--no-video", "--out", str(out)]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=rllib_lab)
+    errors = [line for line in done.stderr.splitlines() if line.startswith("error: ")]
+    assert done.returncode == 2 and len(errors) == 1, done.stderr[-3000:]
+    assert "episodes never end" in errors[0] and "max_episode_steps" in errors[0], errors[0]
+    assert "Started a local Ray" not in done.stderr
+    assert not out.exists() and not Path(str(out) + ".partial").exists()
 
 
 def test_cli_backend_rllib_trains_and_evaluates_a_variant(rllib_lab):
