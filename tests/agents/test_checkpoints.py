@@ -193,7 +193,8 @@ def test_each_learning_curve_point_scores_the_model_trained_on_its_steps(tmp_pat
     assert main(["train", "--algo", "ppo", "--env", ENV, "--timesteps", "5000", "--out",
                  str(run), "--no-eval", "--no-video", "--no-progress"]) == 0
     data = np.load(run / "evaluations.npz")
-    curve = dict(zip(data["timesteps"].tolist(), data["results"].mean(1).tolist()))
+    curve = dict(zip(data["timesteps"].tolist(), data["results"].mean(1).tolist(),
+                     strict=True))
     assert list(curve) == list(range(1024, 5121, 1024)), curve  # a point a rollout
     checkpoints = {t: run / "checkpoints" / f"model_{t}_steps.zip" for t in curve}
     scores = {t: _curve_score(path, "ppo") for t, path in checkpoints.items() if path.exists()}
