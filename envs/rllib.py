@@ -142,7 +142,9 @@ def resolve(env_id: str, env_config: Any = None) -> tuple[str, dict]:
                           f"{type(env_config).__name__} {env_config!r:.60})")
     config = dict(env_config or {})
     if isinstance(env_id, str) and env_id.removeprefix(PREFIX) in ENV_IDS:
-        return env_id.removeprefix(PREFIX), config
+        # a config dict among them laid flat, as for a variant (W17: refused for a shipped id
+        # alone, as an unknown argument 'config')
+        return env_id.removeprefix(PREFIX), flat_kwargs(config)
     try:
         base = base_id(env_id)
     except ConfigError as exc:

@@ -23,6 +23,7 @@ import yaml
 ray = pytest.importorskip("ray")
 
 from ray.rllib.algorithms.ppo import PPOConfig  # noqa: E402
+from ray.rllib.callbacks.callbacks import RLlibCallback  # noqa: E402
 
 import spinstrike  # noqa: E402, F401  (registers the ids)
 from spinstrike.envs import ConfigError  # noqa: E402
@@ -632,6 +633,34 @@ def test_render_mode_in_env_config_renders_in_a_runner(local_ray):
         assert frame.shape == (480, 720, 3) and frame.dtype == np.uint8 and frame.std() > 0
 
 
+class _FrameSizes(RLlibCallback):
+    """docs/rllib.md's way to a frame in a callback: ``env.unwrapped.render()[env_index]``."""
+
+    def on_episode_step(self, *, env, env_index, metrics_logger, **kwargs):
+        frame = env.unwrapped.render()[env_index]
+        metrics_logger.log_value("frame_height", frame.shape[0], reduce="max")
+        metrics_logger.log_value("frame_width", frame.shape[1], reduce="max")
+        metrics_logger.log_value("frame_std", float(frame.std()), reduce="min")
+
+
+def test_a_callback_renders_an_element_of_the_native_vector_env(local_ray):
+    """W17: RLlib's example render callback takes ``env.unwrapped.envs[0]``, which the native
+    vector env lacks (every runner died, restarted without end). The frame of the element a
+    callback is called for is ``env.unwrapped.render()[env_index]``, as docs/rllib.md says:
+    a runner's callback gets it, every step, in the size asked."""
+    config = tiny(configure(PPOConfig(), CONTROL, {"render_mode": "rgb_array",
+                                                   "render_size": [96, 64],
+                                                   "max_episode_steps": 20}),
+                  runners=1, envs=2).callbacks(_FrameSizes)
+    algo = config.build_algo()
+    try:
+        runners = algo.train()["env_runners"]
+    finally:
+        algo.stop()
+    assert (runners["frame_height"], runners["frame_width"]) == (64, 96)
+    assert runners["frame_std"] > 0 and runners["num_env_steps_sampled"] >= 32
+
+
 def test_render_mode_in_env_config_of_single_envs_and_refused_modes():
     """vectorize=False (Gymnasium's SyncVectorEnv of single envs) takes every single-env mode;
     the native vector env renders rgb_array only, refused in the driver like any bad key."""
@@ -651,6 +680,21 @@ def test_render_mode_in_env_config_of_single_envs_and_refused_modes():
         configure(PPOConfig(), STRIKE, {"render_mode": "rgb_array_list"})
     with pytest.raises(ConfigError, match=r"render_mode'\]: must be one of"):
         configure(PPOConfig(), STRIKE, {"render_mode": "ascii"}, vectorize=False)
+
+
+def test_env_config_takes_gym_makes_nested_config_form_for_every_id(rllib_lab):
+    """``env_config={"config": {...}}``, ``gym.make``'s own form, was laid flat for a variant
+    and refused for a shipped id (``config: unknown argument``, W17); both are laid flat now,
+    in the driver's check and in the env a runner makes."""
+    for env_id in (STRIKE, f"spinstrike:{STRIKE}", f"{LAB}:RLlibLab/BouncyRod-v0"):
+        config = configure(PPOConfig(), env_id, {"config": {"goal": "max"},
+                                                 "restitution": 0.9})
+        assert config.env == STRIKE and config.env_config["goal"] == "max", env_id
+        env = make_env(env_id, {"config": {"goal": "max", "restitution": 0.5},
+                                "restitution": 0.9})
+        cfg = env.unwrapped.cfg
+        assert (cfg.goal, cfg.restitution) == ("max", 0.9)  # the keywords win, as gym.make's
+        env.close()
 
 
 def test_configure_takes_the_spinstrike_prefixed_id():
