@@ -446,6 +446,29 @@ def test_tune_sweep_over_two_seeds(local_ray, tmp_path):
         assert r.metrics["env_runners"]["num_env_steps_sampled_lifetime"] > 0
 
 
+def test_rllib_learning_curves_of_every_seed_score_the_same_episodes(local_ray, tmp_path,
+                                                                      monkeypatch):
+    """The learning curve's evaluations run on the SB3 backend's fixed episodes (EVAL_SEED), so
+    the curves of seeds 0..4 score one set of tasks, as the baselines' IQM curves need; the
+    RLlib backend's ran on ``seed + 10,000``'s (W17), other tasks for every seed."""
+    import spinstrike.agents.evaluate as evaluate
+    from spinstrike.agents.rllib_train import train_rllib
+    from spinstrike.agents.train import EVAL_SEED
+
+    seen, real = [], evaluate.run_episodes
+
+    def watched(policy, env_id, episodes, seed=1000, env_kwargs=None, name="policy"):
+        seen.append(seed)
+        return real(policy, env_id, episodes, seed, env_kwargs, name)
+
+    monkeypatch.setattr(evaluate, "run_episodes", watched)
+    for seed in (0, 3):
+        train_rllib(STRIKE, seed=seed, timesteps=64, n_envs=4, num_env_runners=0,
+                    out=tmp_path / f"s{seed}", evaluate=False, video=False,
+                    eval_every=1, eval_episodes_during=2)
+    assert len(seen) >= 2 and set(seen) == {EVAL_SEED}, seen
+
+
 def test_cli_train_backend_rllib_writes_the_run_folder(tmp_path):
     """... with a scene given as a path relative to the working folder: config.yml holds the
     scene itself (it held the path: evaluate from another folder failed), as SB3's does."""
