@@ -543,13 +543,14 @@ def _note_registration_changes(run: Path, meta: dict, env_kwargs: dict) -> None:
     matches what the run recorded (``registration_changes``): the run's arguments are used;
     one its record lacks (a run recorded before the record held them) comes from the
     registration now."""
-    from spinstrike.envs import registered_kwargs, registration_changes, unread_scene_file
+    from spinstrike.envs import registration_changes, unread_scene_file, variant_kwargs
 
     changes = registration_changes(meta["env"], env_kwargs, meta.get("registered"))
     if changes:
         print(f"note: {meta['env']} is registered with other arguments than when {run} "
               f"trained: {'; '.join(changes)}; the run's are used", file=sys.stderr)
-    unread = unread_scene_file(registered_kwargs(meta["env"]).get("scene"))
+    # (the registration as given: registered_kwargs would read its scene file a second time)
+    unread = unread_scene_file(variant_kwargs(meta["env"]).get("scene"))
     if unread and "scene" in env_kwargs:  # (the run recorded its scene as read)
         print(f"note: {meta['env']} registers its scene as the file {unread!r}, not found from "
               f"{str(Path.cwd())!r} (where relative paths start), so it is not compared with "

@@ -159,10 +159,8 @@ class VideoWriter:
             # a GIF counts time in hundredths of a second: round the frames' cumulative times
             # to those, so that the whole lasts what it should (30 fps: 30, 30, 40, 30...);
             # each frame lasts until the next one's time, the last until the video's end
-            # (at least 20 ms)
-            starts = np.round(np.asarray(self._gif_index) * 100 / self.fps) * 10
-            end = max(np.round(self.frames * 100 / self.fps) * 10, starts[-1] + 20)
-            ends = np.append(starts, end)
+            # (each at least 20 ms)
+            ends = np.round(np.append(self._gif_index, self.frames) * 100 / self.fps) * 10
             images[0].save(self._partial, save_all=True, append_images=images[1:], loop=0,
                            duration=np.maximum(np.diff(ends), 20).astype(int).tolist(),
                            optimize=True)
