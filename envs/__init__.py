@@ -233,10 +233,9 @@ def registration_changes(env_id: str, env_kwargs: dict, registered: dict | None)
 def unread_scene_file(scene: Any) -> str | None:
     """``scene`` where it is a YAML file's path that is not found from the working directory
     (a variant registered with a relative path, used from another folder), else None."""
-    from spinstrike.physics.scene import is_path
+    from spinstrike.physics.scene import is_path, names_yaml_file
 
-    if isinstance(scene, str) and "\n" not in scene and \
-            Path(scene).suffix.lower() in (".yaml", ".yml") and not is_path(Path(scene), "is_file"):
+    if names_yaml_file(scene) and not is_path(Path(scene), "is_file"):
         return scene
     return None
 

@@ -702,8 +702,8 @@ def read_scene(source: str | Path) -> Any:
                          f"{packaged_scenes()}, a YAML file's path, YAML text or a dict")
     path = Path(text)
     from_file = False
-    if isinstance(source, Path) or "\n" not in text and (
-            path.suffix.lower() in (".yaml", ".yml") or is_path(path, "exists")):
+    if isinstance(source, Path) or names_yaml_file(text) or "\n" not in text and \
+            is_path(path, "exists"):
         if not is_path(path, "is_file"):
             problem = "is not a file" if is_path(path, "exists") else "does not exist"
             raise SceneError(f"scene: {text!r} {problem} (relative paths start at "
@@ -729,6 +729,13 @@ def read_scene(source: str | Path) -> Any:
                          f"of a scene (relative paths start at {str(Path.cwd())!r}; packaged: "
                          f"{packaged_scenes()})")
     return data
+
+
+def names_yaml_file(text: Any) -> bool:
+    """Whether ``text`` is a string :func:`read_scene` reads as a YAML file's path whether the
+    file exists or not: one line ending in ``.yaml``/``.yml``."""
+    return isinstance(text, str) and "\n" not in text and \
+        Path(text).suffix.lower() in (".yaml", ".yml")
 
 
 def is_path(path: Path, test: str) -> bool:
