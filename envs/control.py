@@ -8,6 +8,7 @@ reward is the spin (or speed) the mallet's hits add to the rod (or puck) during 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import ClassVar
 
@@ -99,6 +100,13 @@ class _ControlTask(Task):
         self._kept = np.zeros(batch_size, dtype=np.int64)
         self._head = 0
         self._returns = np.zeros(batch_size)
+        # whether element b has stepped since its last reset or state put back: only then do
+        # the world's last contacts and the step reward in tbuf belong to what its frame shows
+        # (a reset frame drew the last episode's final impulse arrows and reward at t = 0);
+        # element 0's last step as a state put back brought it (its reward, its contacts'
+        # markers), else None
+        self._stepped = np.zeros(batch_size, dtype=bool)
+        self._put_back: tuple[float, list[Marker]] | None = None
 
     def _check_room(self) -> None:
         """A reset puts the target at any angle in the right half and the mallet in the left,
@@ -155,6 +163,9 @@ class _ControlTask(Task):
         buf = w.buffers
         fast.control_observe(buf.fbuf, buf.ibuf, self.tbuf, self.kcfg,
                              np.asarray(env, dtype=np.int64))
+        self._stepped[env] = False
+        if 0 in np.arange(self.batch_size)[env]:
+            self._put_back = None
         if self.record_trace:
             self._returns[env] = 0.0
             self._restart_trails(env)
@@ -213,6 +224,8 @@ class _ControlTask(Task):
             raise ValueError(action_error(actions))
         t = self.tbuf
         reward = t[:, fast.T_REWARD].copy()
+        self._stepped[:] = True
+        self._put_back = None
         if self.record_trace:
             self._returns += reward
             self._remember()
@@ -241,8 +254,23 @@ class _ControlTask(Task):
         return self.tbuf[:, fast.T_OBS:fast.T_OBS + fast.OBS_SIZE]
 
     def snapshot(self) -> dict:
-        # what element 0's frame says: its episode's return (kept while recording, else 0)
-        return {"return": float(self._returns[0])}
+        # what element 0's frame says: its episode's return (kept while recording, else 0), its
+        # last step's reward and impulse markers (none since a reset)
+        reward, markers = self._last_step(0)
+        return {"return": float(self._returns[0]), "step_reward": reward,
+                "markers": [dataclasses.astuple(m) for m in markers]}
+
+    def _last_step(self, b: int) -> tuple[float, list[Marker]]:
+        """Element ``b``'s last step as its frame shows it: the step reward and the markers of
+        its contacts (0 and none before its episode's first step)."""
+        if self._stepped[b]:
+            c = self.world.last_contacts
+            return float(self.tbuf[b, fast.T_REWARD]), [
+                Marker.on(self.it, c.body_a[i], c.body_b[i], c.point[i], c.normal[i],
+                          c.impulse[i]) for i in np.flatnonzero(c.batch == b)]
+        if b == 0 and self._put_back is not None:
+            return self._put_back
+        return 0.0, []
 
     def trace(self) -> dict:
         slots = self._slots(0)
@@ -262,6 +290,11 @@ class _ControlTask(Task):
         # the trail starts again at the restored pose (it joined the poses before the jump to
         # the restored ones with streaks across the table); the frame says the snapshot's return
         self._returns[0] = float(snap.get("return", 0.0))
+        # the last step's reward and markers are the snapshot's (those of this env's last step
+        # were another state's)
+        self._stepped[0] = False
+        self._put_back = (float(snap.get("step_reward", 0.0)),
+                          [Marker(*m) for m in snap.get("markers", ())])
         if self.record_trace:
             self._restart_trails(np.array([0]))
 
@@ -275,11 +308,7 @@ class _ControlTask(Task):
         speed = f"speed {math.hypot(target.vx, target.vy):.2f} m/s"
         if not decorate:  # the pixel observation (its pixels are a contract: keep it plain)
             return Frame(bodies, half, walls=True, text=f"{spin}   {speed}")
-        markers = []
-        c = w.last_contacts
-        if len(c):
-            markers = [Marker.on(self.it, c.body_a[i], c.body_b[i], c.point[i], c.normal[i],
-                                 c.impulse[i]) for i in np.flatnonzero(c.batch == b)]
+        step_reward, markers = self._last_step(b)
         trails = []
         trail = self._trail(b) if self.record_trace else []
         if trail:
@@ -292,7 +321,7 @@ class _ControlTask(Task):
                                  self.GAUGE_TOP),
                      panel=[f"{self.title}   t = {w.time[b]:5.2f} s   real time (x1)",
                             f"{name} {spin}   {speed}",
-                            f"reward {self.tbuf[b, fast.T_REWARD]:+.3f} (step){ret}"])
+                            f"reward {step_reward:+.3f} (step){ret}"])
 
     def view_half(self) -> tuple[float, float]:
         hw = self.world.table_half_size[0]
