@@ -726,6 +726,12 @@ class SpinStrikeVectorEnv(_SpecOfScene, VectorEnv):
         if not pending.any():
             reward, terminated, truncated, info = self._physics_step(actions)
         elif pending.all():  # every element starts a new episode (e.g. after a one-strike step)
+            # the actions are not used, but a wrong shape or type is refused as on every other
+            # step (it passed here, every other step on a one-strike env; NaN passes, as in
+            # SyncVectorEnv, whose resetting envs ignore their actions)
+            a = np.asarray(actions)
+            if a.shape != self.task.action_shape or a.dtype.kind not in "iuf":
+                check_actions(actions, self.task.action_shape)
             env = np.arange(n)
             info = _masked(self.task.reset(env, self._stream.draw(env)), env, n)
             self._steps[:] = 0

@@ -167,6 +167,35 @@ def test_a_refused_action_while_some_elements_autoreset_leaves_no_trace(bad):
     _same_step(native.step(ignored), sync.step(ignored), "NaN in the resetting element")
 
 
+@pytest.mark.parametrize("bad", [np.zeros((7, 5)), "hello", np.zeros((2, 3), dtype=bool)])
+def test_the_step_that_resets_every_element_refuses_actions_of_another_shape_or_type(bad):
+    """NEXT_STEP on a one-strike env: every other step resets every element and uses none of
+    the actions; actions of shape (7, 5) or a string passed there (W18b; SyncVectorEnv raises).
+    They are refused now as on the other steps, and the env goes on as if never asked; NaN
+    still passes there, as SyncVectorEnv's resetting envs ignore it."""
+    env_id = "SpinStrike/RodSpin-v0"
+
+    def struck():
+        env = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point")
+        env.reset(seed=0)
+        env.step(np.zeros((2, 3)))  # every element's strike: the next step resets them all
+        return env
+
+    env, reference = struck(), struck()
+    with pytest.raises(ValueError, match="action: "):
+        env.step(bad)
+    rng = np.random.default_rng(3)
+    for k in range(4):
+        a = rng.uniform(-1, 1, (2, 3))
+        _same_step(env.step(a), reference.step(a), f"step {k}")
+    native, sync = _pair(env_id, 2, AutoresetMode.NEXT_STEP)
+    for vec in (native, sync):
+        vec.reset(seed=0)
+        vec.step(np.zeros((2, 3)))
+    ignored = np.full((2, 3), np.nan)
+    _same_step(native.step(ignored), sync.step(ignored), "NaN in the resetting elements")
+
+
 @pytest.mark.parametrize("mode", ["vector_entry_point", "sync"])
 def test_seeds_that_are_not_integers_are_refused_as_gymnasium_refuses_them(mode):
     """The native vector env truncated float seeds (1.5 and 2.7 seeded 1 and 2, silently) and
