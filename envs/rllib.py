@@ -174,19 +174,98 @@ def check_env_config(env_id: str, env_config: Any = None, *, vector: bool = Fals
     ``ConfigError`` naming a bad key or value. ``vector``: for the native vector env (also when
     ``env_config`` holds ``num_envs``), whose ``render_mode`` can only be ``"rgb_array"``.
     ``env_id``: as :func:`resolve` takes it. Returns the parsed config."""
-    return _checked_env(env_id, env_config, vector)[0]
+    return _checked_env(env_id, env_config, vector)[0][0]
 
 
-def _checked_env(env_id: str, env_config: Any, vector: bool) -> tuple[EnvConfig, tuple]:
-    """:func:`check_env_config`, and the env's (observation space, action space)."""
+def _search_values(value: Any) -> tuple[str, list] | None:
+    """The values a Tune search space can give that the driver checks: a ``grid_search``'s and a
+    ``choice``'s every value, a ``uniform``/``randint``/... range's two ends (a sample can be
+    either end; ``randint``'s upper end is excluded), as (what it is, values); an empty list for
+    one with nothing to check (``sample_from``, ``randn``: unbounded); None for a plain value."""
+    if isinstance(value, Mapping) and set(value) == {"grid_search"}:
+        return "a value of its tune.grid_search", list(value["grid_search"])
+    if not type(value).__module__.startswith("ray.tune"):
+        return None
+    if hasattr(value, "categories"):
+        return "a value of its tune.choice", list(value.categories)
+    low, high = getattr(value, "lower", None), getattr(value, "upper", None)
+    if low is None or high is None or not np.isfinite([low, high]).all():
+        return type(value).__name__, []
+    exclusive = isinstance(low, numbers.Integral) and \
+        type(value.get_sampler()).__name__ == "_Uniform"  # (randint's end; qrandint's is in)
+    return "an end of its range", [low, high - 1 if exclusive else high]
+
+
+def _sweep_cases(env_config: Any) -> list[tuple[str, Any]]:
+    """``env_config`` as the envs of a Tune sweep over it get it: for each search space in it
+    (at any depth: ``randomize: {restitution: tune.grid_search(...)}``), one config per value to
+    check (:func:`_search_values`) with the other spaces at their first value, each labelled by
+    where the value comes from; ``[("", env_config)]`` when it holds no search space.
+
+    Raises:
+        ConfigError: a space with no values to check (``sample_from``, an unbounded ``randn``).
+    """
+    spaces: list[tuple[tuple, str, list]] = []
+
+    def find(node: Any, path: tuple) -> None:
+        if not isinstance(node, Mapping):
+            return
+        for key, value in node.items():
+            found = _search_values(value)
+            where = "".join(f"[{k!r}]" for k in (*path, key))
+            if found is None:
+                find(value, (*path, key))
+            elif not found[1]:
+                raise ConfigError(
+                    f"env_config{where}: a Tune search space ({type(value).__name__}) with no "
+                    f"values to check in the driver (a grid_search, a choice or a bounded range "
+                    f"have some); leave it out of configure() and check_config(), set it after "
+                    f"them, and each trial's runners check their own value only (a bad one "
+                    f"fails the trial with RLlib's IndexError, the env's ConfigError in the "
+                    f"console above it)")
+            else:
+                spaces.append(((*path, key), f"env_config{where} = {{}} ({found[0]})",
+                               found[1]))
+
+    find(env_config, ())
+    if not spaces:
+        return [("", env_config)]
+
+    def put(config: Any, path: tuple, value: Any) -> Any:
+        out = dict(config)
+        out[path[0]] = value if len(path) == 1 else put(out[path[0]], path[1:], value)
+        return out
+
+    first = env_config
+    for path, _, values in spaces:
+        first = put(first, path, values[0])
+    cases = []
+    for path, label, values in spaces:
+        cases += [(label.format(repr(v)), put(first, path, v)) for v in values]
+    return cases
+
+
+def _checked_env(env_id: str, env_config: Any, vector: bool) -> list[tuple[EnvConfig, tuple]]:
+    """:func:`check_env_config` and the env's (observation space, action space) of every
+    config a Tune sweep in ``env_config`` gives that the driver can check (:func:`_sweep_cases`:
+    one, without a sweep); the first is ``env_config``'s with every space at its first value.
+    A bad value's ``ConfigError`` names where in the sweep it is."""
+    checked = []
+    for label, concrete in _sweep_cases(env_config):
+        try:
+            checked.append(_checked_one(env_id, concrete, vector))
+        except ConfigError as exc:
+            if not label:
+                raise
+            raise ConfigError(f"{label}: {exc}") from None
+    return checked
+
+
+def _checked_one(env_id: str, env_config: Any, vector: bool) -> tuple[EnvConfig, tuple]:
+    """:func:`check_env_config` of an env_config without Tune search spaces, and the env's
+    (observation space, action space)."""
     env_id, env_config = resolve(env_id, env_config)
     cfg, args = _split(env_config)
-    for key, value in cfg.items():  # a Tune search space: no value to check
-        if (isinstance(value, Mapping) and set(value) == {"grid_search"}) or \
-                type(value).__module__.startswith("ray.tune"):
-            raise ConfigError(f"env_config[{key!r}]: a Tune search space ({value!r:.60}) is no "
-                              f"value to check: set it in the config after configure(), where "
-                              f"each trial's runners check their own (docs/rllib.md)")
     value = args.get("num_envs")
     if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
         raise ConfigError(f"env_config['num_envs']: must be an int >= 1 (got {value!r})")
@@ -291,7 +370,12 @@ def _read_scene(env_config: Any) -> None:
     relative path in an evaluation ``env_config`` failed in every runner, an ``IndexError`` in
     the driver)."""
     if isinstance(env_config, dict) and "scene" in env_config:
-        env_config["scene"] = resolve_scene(env_config["scene"])
+        scene = env_config["scene"]
+        if isinstance(scene, Mapping) and set(scene) == {"grid_search"}:  # a sweep over scenes
+            env_config["scene"] = {"grid_search": [resolve_scene(s)
+                                                   for s in scene["grid_search"]]}
+        else:
+            env_config["scene"] = resolve_scene(scene)
 
 
 def _check_algorithm_env(config, where: str) -> tuple | None:
@@ -328,7 +412,7 @@ def _check_algorithm_env(config, where: str) -> tuple | None:
                           f"spinstrike.envs.rllib.resolve gives)")
     vector = str(getattr(config.gym_env_vectorize_mode, "value", config.gym_env_vectorize_mode))
     try:
-        return _checked_env(env, env_config, vector == "vector_entry_point")[1]
+        return _checked_env(env, env_config, vector == "vector_entry_point")[0][1]
     except ConfigError as exc:
         raise ConfigError(f"{where}: {exc}") from None
 
@@ -397,16 +481,22 @@ def configure(config, env_id: str, env_config: dict | None = None, *,
             or num_envs_per_env_runner < 1):  # 2.7 was 2, True was 1, "8" was 8
         raise ConfigError(f"num_envs_per_env_runner: must be an int >= 1 (got "
                           f"{num_envs_per_env_runner!r})")
-    parsed, spaces = _checked_env(env_id, env_config, vectorize)
+    checked = _checked_env(env_id, env_config, vectorize)
+    spaces = checked[0][1]
     if "num_envs" in env_config:  # RLlib replaces it (it was ignored where given alone)
         per = ("" if num_envs_per_env_runner is None
                else f" ({num_envs_per_env_runner}; the CLI's --n-envs)")
         raise ConfigError(f"env_config['num_envs']: RLlib sets each runner's envs from "
                           f"num_envs_per_env_runner{per}; pass that instead")
     if default_encoders:
-        _check_default_encoders(parsed)
+        for parsed, _ in checked:
+            _check_default_encoders(parsed)
     register_envs()
-    config.environment(env_id, env_config=env_config)
+    config.environment(env_id)
+    # exactly these arguments: RLlib's environment() merges env_config into the config's own,
+    # so a config configured before for another env or variant kept that one's arguments
+    # beside these (W18a: a sweep loop over variants ran DeadRod with HeavyRod's rod)
+    config.env_config = dict(env_config)
     runners: dict[str, Any] = {"gym_env_vectorize_mode": ("vector_entry_point" if vectorize
                                                           else "sync")}
     if num_envs_per_env_runner is not None:

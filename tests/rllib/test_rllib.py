@@ -243,13 +243,34 @@ def test_check_config_checks_what_the_runners_will_make(tmp_path, monkeypatch, u
     with pytest.raises(ConfigError, match=r"^env_config: must be a mapping.*got list"):
         configure(PPOConfig(), CONTROL, ["max_force", 8.0])
     # a Tune search space in configure's env_config: "max_force: Input should be a valid
-    # number (got {'grid_search': [...]})"; it goes after configure (docs/rllib.md)
+    # number (got {'grid_search': [...]})"; then refused whole ("set it after configure"), and
+    # check_config refused one set after configure with that same advice (W18a). Each value a
+    # grid_search or a choice gives, and a range's ends, are checked now, at any depth; a space
+    # with none to check is refused, saying where it can go
     from ray import tune
 
-    for space in (tune.grid_search([4.0, 8.0]), tune.uniform(4.0, 8.0)):
-        with pytest.raises(ConfigError, match=r"^env_config\['max_force'\]: a Tune search "
-                                              r"space .* set it in the config after configure"):
-            configure(PPOConfig(), CONTROL, {"max_force": space})
+    for space in (tune.grid_search([4.0, 8.0]), tune.uniform(4.0, 8.0), tune.choice([4, 8]),
+                  tune.randint(1, 9)):
+        config = configure(PPOConfig(), CONTROL, {"max_force": space})
+        assert config.env_config == {"max_force": space}
+        check_config(config)
+    for space, words in (
+            ({"max_force": tune.grid_search([4.0, -8.0])},
+             r"\['max_force'\] = -8.0 \(a value of its tune.grid_search\): max_force: Input "
+             r"should be greater than 0"),
+            ({"restitution": tune.uniform(0.5, 1.2)},
+             r"\['restitution'\] = 1.2 \(an end of its range\): restitution: Input should be "
+             r"less than or equal to 1"),
+            ({"randomize": {"restitution": tune.grid_search([[0.1, 0.5], [0.5, 1.9]])}},
+             r"\['randomize'\]\['restitution'\] = \[0.5, 1.9\] \(a value of its "
+             r"tune.grid_search\): randomize: restitution: must lie in \[0, 1\]"),
+            ({"max_force": tune.sample_from(lambda _: 4.0)},
+             r"\['max_force'\]: a Tune search space \(Function\) with no values to check in "
+             r"the driver.*set it after them")):
+        with pytest.raises(ConfigError, match="^env_config" + words):
+            configure(PPOConfig(), CONTROL, space)
+        with pytest.raises(ConfigError, match="^env_config: env_config" + words):
+            check_config(configure(PPOConfig(), CONTROL).environment(env_config=space))
     for bad in (2.7, True, "8", 0):
         with pytest.raises(ConfigError, match=r"^num_envs_per_env_runner: must be an int >= 1"):
             configure(PPOConfig(), STRIKE, num_envs_per_env_runner=bad)
@@ -444,6 +465,55 @@ def test_tune_sweep_over_two_seeds(local_ray, tmp_path):
     assert seeds == [0, 1]
     for r in results:
         assert r.metrics["env_runners"]["num_env_steps_sampled_lifetime"] > 0
+
+
+class _TrialEnv(RLlibCallback):
+    """Puts what the runner's env really has (not the config's echo) in each result."""
+
+    def on_train_result(self, *, algorithm, result, **kwargs):
+        def env_of(runner):
+            world = runner.env.unwrapped.world
+            return (float(world.restitution("rod", "striker")[0]),
+                    float(world.mass[0, world.index("striker")]))
+
+        seen = algorithm.env_runner_group.foreach_env_runner(env_of, local_env_runner=False)
+        result["seen_restitution"], result["seen_striker_mass"] = seen[0]
+
+
+# importing RLlib's algorithm registry builds DreamerV3's debug CartPole, which warns
+@pytest.mark.filterwarnings("ignore::UserWarning")
+def test_a_tune_sweep_of_env_arguments_runs_each_trial_on_its_own_env(local_ray, tmp_path,
+                                                                         rllib_lab):
+    """W18a: ``configure`` merged its env_config into the one the config held (RLlib's
+    ``environment()`` deep-merges), so a config configured for one variant and then for another
+    env kept the first one's arguments: a sweep loop ran DeadRod with HeavyRod's rod, silently.
+    And a search space in configure's env_config was refused ("set it after configure"). Now a
+    grid in configure's env_config is checked value by value and each trial's runners make the
+    env of exactly ``gym.make(id, **env_config)``, nothing left from the config's past."""
+    from ray import tune
+
+    variant = f"{LAB}:RLlibLab/BouncyRod-v0"  # restitution 0.95, 3-step episodes
+    again = configure(configure(PPOConfig(), variant), STRIKE, {"striker_mass": 0.25})
+    assert again.env_config == {"striker_mass": 0.25}  # (was the variant's arguments too)
+    env = make_env(again.env, again.env_config)
+    assert env.unwrapped.world.restitution("rod", "striker")[0] == \
+        gym.make(STRIKE).unwrapped.world.restitution("rod", "striker")[0] != 0.95
+    base = configure(PPOConfig(), variant)
+    assert base.env_config == {"restitution": 0.95, "max_episode_steps": 3}
+    config = configure(base, STRIKE, {"striker_mass": tune.grid_search([0.25, 0.5])})
+    assert config.env_config == {"striker_mass": {"grid_search": [0.25, 0.5]}}
+    config = tiny(config, runners=1, envs=2, fragment=16).callbacks(_TrialEnv)
+    tuner = tune.Tuner("PPO", param_space=config,
+                       run_config=tune.RunConfig(stop={"training_iteration": 1},
+                                                 storage_path=str(tmp_path), verbose=0))
+    results = tuner.fit()
+    assert len(results) == 2 and not results.errors
+    plain = gym.make(STRIKE).unwrapped
+    default_e = float(plain.world.restitution("rod", "striker")[0])
+    assert default_e != 0.95
+    seen = sorted((r.metrics["seen_striker_mass"], r.metrics["seen_restitution"])
+                  for r in results)
+    assert seen == [(0.25, default_e), (0.5, default_e)]
 
 
 def test_rllib_learning_curves_of_every_seed_score_the_same_episodes(local_ray, tmp_path,
