@@ -7,7 +7,10 @@ accuracy-transfer study; writes ``docs/baselines.md`` and learning-curve plots.
     spinstrike baselines --envs SpinStrike/RodSpin-v0 --algos ppo --seeds 0 1 2 3 4
 
 Runs live in ``runs/baselines/<algo>-<env>-s<seed>`` and finished ones are reused, so an
-interrupted matrix picks up where it stopped. Every agent is evaluated on the same 50 episodes
+interrupted matrix picks up where it stopped; only if trained on what the report would train
+now, though: a run whose ``config.yml`` records other env arguments (a variant's registration
+edited since) or other hyperparameters (``configs/agents/*.yml`` edited) is trained again, and
+``--reuse-only`` refuses it. Every agent is evaluated on the same 50 episodes
 (seeds 1000..1049) as the random policy and the oracle, and its learning curve on the same 10
 episodes at every point. Results are reported as the field does (``agents.stats``, needs
 ``spinstrike[stats]``): the interquartile mean over seeds with a 95% stratified-bootstrap
@@ -72,13 +75,82 @@ def _scores(run: Path, env_id: str) -> dict:
     return {"mean": ev.mean, "std": ev.std, "returns": ev.returns}
 
 
+def _value(value) -> str:
+    from spinstrike.agents.train import short_value
+
+    return short_value(value)
+
+
+def _trained_otherwise(run: Path, env_id: str, planned: dict, where: str,
+                       scale: float) -> list[str]:
+    """How the finished ``run`` was trained otherwise than this report would train it now:
+    its ``config.yml``'s env arguments (a variant's registered ones among them) and
+    hyperparameters against ``planned`` (``train.new_run_record``: the current registration
+    and hyperparameter file, with this report's budget scaling and warm-up). A run without
+    the record (before config.yml, or one that cannot be read) has nothing to compare, and a
+    variant's argument its record lacks (recorded before its registration was, 2026-11-28) is
+    not known: both are kept as they were."""
+    import yaml
+
+    from spinstrike.envs import flat_kwargs
+
+    try:
+        meta = yaml.safe_load((run / "config.yml").read_text()) or {}
+        recorded = (meta.get("hyperparameters") or {}).get(env_id)
+    except (OSError, yaml.YAMLError, AttributeError):
+        return []
+    if not isinstance(recorded, dict):
+        return []
+    recorded = dict(recorded)
+    now = dict(planned["hyperparameters"][env_id])
+    then_kwargs = flat_kwargs(recorded.pop("env_kwargs", None) or {})
+    now_kwargs = now.pop("env_kwargs", None) or {}
+    registered_now = planned.get("registered") or {}
+    registered_then = meta.get("registered")
+    changes = []
+    for key in dict.fromkeys([*then_kwargs, *now_kwargs]):
+        if key not in then_kwargs and registered_then is None and key in registered_now:
+            continue
+        if then_kwargs.get(key, _NONE) == now_kwargs.get(key, _NONE):
+            continue
+        by = ("the registration now gives" if key in registered_now
+              or key in (registered_then or {}) else "this report now gives")
+        changes.append(_change(key, then_kwargs, now_kwargs, by))
+    for key in dict.fromkeys([*recorded, *now]):
+        if recorded.get(key, _NONE) != now.get(key, _NONE):
+            scaled = f" scaled by {scale:g}" if scale != 1 and key in (
+                "n_timesteps", "learning_starts") else ""
+            changes.append(_change(key, recorded, now, f"{where}{scaled} now gives"))
+    return changes
+
+
+_NONE = object()
+
+
+def _change(key: str, then: dict, now: dict, by: str) -> str:
+    was = f"with {key} {_value(then[key])}" if key in then else f"without {key}"
+    return f"trained {was}, {by} {_value(now[key]) if key in now else 'none'}"
+
+
 def _run(algo, env_id, seed, root: Path, scale: float, env_kwargs=None, tag="",
-         imitate: str | None = None, re_evaluate: bool = False) -> dict:
-    from spinstrike.agents.train import train
+         imitate: str | None = None, re_evaluate: bool = False,
+         reuse_only: bool = False) -> dict:
+    """One run of the matrix: the finished one under ``root`` if it was trained as this
+    report would train it now (else trained again, or with ``reuse_only`` refused), else
+    trained; scored on the evaluation episodes (again with ``re_evaluate``)."""
+    from spinstrike.agents.train import new_run_record, train
 
     name = _name(algo, env_id, tag, seed)
     run = root / name
     result_file = run / "baseline.json"
+    cfg = load_agent_config(algo, env_id)
+    steps = max(int(cfg.n_timesteps * scale), 256)
+    rounds = {} if imitate is None or scale >= 1 else {"imitate_rounds": 2,
+                                                       "imitate_episodes": 2}
+    # a scaled budget scales the off-policy warm-up too: --quick's SAC and TD3 (6,000 and 8,000
+    # steps on the control envs) never reached learning_starts (10,000) and never trained
+    warm_up = ({"learning_starts": int(cfg.raw["learning_starts"] * scale)}
+               if scale < 1 and "learning_starts" in cfg.raw else None)
     if result_file.exists():
         out = json.loads(result_file.read_text())
         if out.get("scale", 1.0) != scale:  # runs before the key were full runs
@@ -88,18 +160,23 @@ def _run(algo, env_id, seed, root: Path, scale: float, env_kwargs=None, tag="",
         if out.get("env", env_id) != env_id:
             raise SystemExit(f"{run}: holds a run of {out['env']}, not of {env_id}; pass "
                              "another --root")
-        if re_evaluate:  # the same model, scored by the current code (e.g. after a physics fix)
-            out.update(_scores(run, env_id), evaluated_at=_commit())
-            result_file.write_text(json.dumps(out))
-        return out
-    cfg = load_agent_config(algo, env_id)
-    steps = max(int(cfg.n_timesteps * scale), 256)
-    rounds = {} if imitate is None or scale >= 1 else {"imitate_rounds": 2,
-                                                       "imitate_episodes": 2}
-    # a scaled budget scales the off-policy warm-up too: --quick's SAC and TD3 (6,000 and 8,000
-    # steps on the control envs) never reached learning_starts (10,000) and never trained
-    warm_up = ({"learning_starts": int(cfg.raw["learning_starts"] * scale)}
-               if scale < 1 and "learning_starts" in cfg.raw else None)
+        # reused only if trained on what this report would train now: an edit of the
+        # variant's registration or of the hyperparameter file reported the old run's score
+        # beside random and the oracle on the new env (and --re-evaluate scored its model there)
+        planned = new_run_record(algo, env_id, timesteps=steps, env_kwargs=env_kwargs,
+                                 hyperparameters=warm_up)
+        changes = _trained_otherwise(run, env_id, planned, cfg.where or cfg.source, scale)
+        if not changes:
+            if re_evaluate:  # the same model, scored by the current code (e.g. a physics fix)
+                out.update(_scores(run, env_id), evaluated_at=_commit())
+                result_file.write_text(json.dumps(out))
+            return out
+        if reuse_only:
+            raise SystemExit(f"{run}: {'; '.join(changes)}, so this report would train it "
+                             f"again, and --reuse-only trains nothing: run without "
+                             f"--reuse-only to train it again, put the registration or the "
+                             f"hyperparameters back, or pass another --root")
+        print(f"{run}: {'; '.join(changes)}: training it again", flush=True)
     res = train(algo, env_id, seed=seed, timesteps=steps, out=run, force=True, progress=False,
                 evaluate=False, video=False, env_kwargs=env_kwargs, imitate=imitate,
                 hyperparameters=warm_up, **rounds)
@@ -181,7 +258,7 @@ def _seeds_row(label: str, algo: str, env_id: str, args, root: Path, scale: floa
         if not todo:
             return f"| {label} | not run in this budget | - | - | 0 | - | - |"
     results = [_run(algo, env_id, s, root, scale, tag=tag, imitate=imitate,
-                    re_evaluate=args.re_evaluate) for s in todo]
+                    re_evaluate=args.re_evaluate, reuse_only=args.reuse_only) for s in todo]
     means = np.array([r["mean"] for r in results])
     wall = f"{np.mean([r['wall_time'] for r in results]):.0f} s"
     if imitate is not None:
@@ -200,6 +277,17 @@ def _planner_row(env_id: str, episodes: int, reference: float) -> str:
     print(f"{env_id} planner: {ev.mean:.3f} ({cost:.0f} ms CPU per decision)", flush=True)
     return (f"| CEM planner (first {episodes} episodes) | - | {ev.mean:.3f} +/- {ev.std:.3f} | "
             f"{ev.mean / reference:.3f} | - | - | {cost:.0f} ms CPU per decision |")
+
+
+def _registration(env_id: str) -> list[str]:
+    """A variant's section says the arguments it is registered with (two registrations of
+    one name, before and after an edit, read alike); nothing for a shipped id."""
+    if env_id.rpartition(":")[2] in envs.ENV_IDS:
+        return []
+    given = envs.variant_kwargs(env_id)
+    what = (", ".join(f"{key} {_value(value)}" for key, value in given.items())
+            if given else "none")
+    return [f"Registered arguments: {what} (over {envs.base_id(env_id)}'s defaults).", ""]
 
 
 #: the generated part of the document lies between these lines; the rest is kept on a rerun
@@ -260,7 +348,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--no-transfer", action="store_true")
     p.add_argument("--reuse-only", action="store_true",
                    help="train nothing: report the finished runs under --root (and say which "
-                        "were not run)")
+                        "were not run); one trained on other env arguments or hyperparameters "
+                        "than this report's is refused")
     p.add_argument("--re-evaluate", action="store_true",
                    help="score the finished runs again with the current code (their models "
                         "as they are), e.g. after a change to the physics")
@@ -343,7 +432,7 @@ def main(argv: list[str] | None = None) -> int:
                        doc.parent / "baselines" / f"{env_file_name(env_id)}.png",
                        args.imitate if control[env_id] else None)
         table[env_id] = rows
-        lines += [f"## {env_id}", "",
+        lines += [f"## {env_id}", "", *_registration(env_id),
                   "| policy | IQM [95% CI] | mean +/- std | IQM / reference | seeds | "
                   "timesteps | train wall time |", "|---|---|---|---|---|---|---|", *rows, "",
                   f"![learning curves]({plot.relative_to(doc.parent).as_posix()})", ""]
@@ -357,7 +446,8 @@ def main(argv: list[str] | None = None) -> int:
             tag = "" if solver is None else "-" + solver["mode"]
             kwargs = None if solver is None else {"solver": solver}
             results = [_run("ppo", "SpinStrike/RodSpin-v0", s, root, scale, kwargs, tag,
-                            re_evaluate=args.re_evaluate) for s in seeds]
+                            re_evaluate=args.re_evaluate, reuse_only=args.reuse_only)
+                       for s in seeds]
             means = np.array([r["mean"] for r in results])
             lines.append(_row(label, means, 1.0,
                               f"{np.mean([r['wall_time'] for r in results]):.0f} s |"))

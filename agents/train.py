@@ -767,6 +767,37 @@ def _new_run(algo: str, env_id: str, config, seed: int | None, timesteps: int | 
     return cfg, seed
 
 
+def _settle_new_run(cfg: RunConfig, env_id: str, env_kwargs: dict | None) -> None:
+    """A new run's ``cfg`` as its ``config.yml`` records it: the env built once with its
+    arguments (a bad one refused), the policy its observations need, and the env's arguments
+    as registered (``as_registered``)."""
+    cfg.policy = cfg.raw["policy"] = _policy_for(cfg, _check_entry_env_kwargs(
+        env_id, cfg, env_kwargs))
+    # config.yml records the env: a variant's registered arguments and its scene as read
+    # (not a path to a file that may change), so an edit of the user's module changes no run
+    from spinstrike.envs import as_registered
+
+    cfg.env_kwargs = as_registered(env_id, cfg.env_kwargs)
+
+
+def new_run_record(algo: str, env_id: str, *, config: str | Path | None = None,
+                   timesteps: int | None = None, env_kwargs: dict | None = None,
+                   hyperparameters: dict | None = None) -> dict:
+    """What ``train`` with these arguments would record now in a new run's ``config.yml`` of
+    its env and hyperparameters (``hyperparameters``, and ``registered`` for a variant), as the
+    file holds them: a finished run trained as asked now records the same. Nothing is
+    written; the warnings ``train`` prints for such a run are not repeated."""
+    import contextlib
+    import io
+
+    with contextlib.redirect_stderr(io.StringIO()):
+        cfg, _ = _new_run(algo, env_id, config, None, timesteps, None, env_kwargs,
+                          hyperparameters)
+        _settle_new_run(cfg, env_id, env_kwargs)
+    record = {"hyperparameters": cfg.as_yaml_dict(), **_registered(env_id)}
+    return yaml.safe_load(yaml.safe_dump(record, sort_keys=False))
+
+
 def train(algo: str | None, env_id: str | None, *, config: str | Path | None = None,
           seed: int | None = None,
           timesteps: int | None = None, out: str | Path | None = None,
@@ -847,13 +878,7 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
             imitation = settings(imitate, algo, env_id, bool(cfg.normalize), imitate_rounds,
                                  imitate_episodes)
         # a bad argument first, before "out exists"
-        cfg.policy = cfg.raw["policy"] = _policy_for(cfg, _check_entry_env_kwargs(
-            env_id, cfg, env_kwargs))
-        # config.yml records the env: a variant's registered arguments and its scene as read
-        # (not a path to a file that may change), so an edit of the user's module changes no run
-        from spinstrike.envs import as_registered
-
-        cfg.env_kwargs = as_registered(env_id, cfg.env_kwargs)
+        _settle_new_run(cfg, env_id, env_kwargs)
         work = _work_dir(run_dir, resume, force)
     # what is not given: as the run's first command asked (resumed), else the default
     finish = {key: value if value is not None else recorded.get(key, FINISH[key])
@@ -908,21 +933,37 @@ def _finish_sb3(result: TrainResult, runs: list[dict], run_dir: Path, algo: str,
         from spinstrike.agents.evaluate import load_model_policy
 
         policy, _ = load_model_policy(run_dir)
+    record = yaml.safe_load((run_dir / "config.yml").read_text()) or {}
     return finish_run(result, policy, env_id, run_dir, env_kwargs,
-                      run_title({"algo": algo, "env": env_id, "seed": seed, "runs": runs}),
+                      run_title({**record, "algo": algo, "env": env_id, "seed": seed,
+                                 "runs": runs}),
                       evaluate=finish["evaluate"], eval_episodes=finish["eval_episodes"],
                       video=finish["video"])
 
 
 def run_title(meta: dict) -> str:
-    """A run's summary title from its ``config.yml`` record: algorithm, env, seed, steps and
-    the time of every stretch of training."""
+    """A run's summary title from its ``config.yml`` record: algorithm, env, the env arguments
+    it was given beyond what the id registers (``--env-kwargs``, the hyperparameter file's: the
+    runs of a grid had one title), seed, steps and the time of every stretch of training."""
     runs = meta.get("runs") or []
     total = sum(r["wall_time_s"] for r in runs)
     label = "PPO (RLlib)" if meta.get("backend") == "rllib" else str(meta["algo"]).upper()
-    return (f"## {label} on {meta['env']} (seed {meta['seed']}, "
+    entry = (meta.get("hyperparameters") or {}).get(meta["env"]) or {}
+    registered = meta.get("registered") or {}
+    given = {key: value for key, value in (entry.get("env_kwargs") or {}).items()
+             if key not in registered or registered[key] != value}
+    with_ = " with " + ", ".join(f"{key} {short_value(value)}" for key, value in
+                                 given.items()) if given else ""
+    return (f"## {label} on {meta['env']}{with_} (seed {meta['seed']}, "
             f"{runs[-1]['timesteps'] if runs else 0} steps, {total:.0f} s"
             f"{f' in {len(runs)} sessions' if len(runs) > 1 else ''})")
+
+
+def short_value(value: Any, width: int = 40) -> str:
+    """``value`` as a title shows it: a number or string as is, anything else its repr, cut
+    to ``width`` characters (a scene read in is a long dict)."""
+    text = value if isinstance(value, str) else repr(value)
+    return text if len(text) <= width else text[:width - 3] + "..."
 
 
 def _complete_run(run_dir: Path, algo: str, env_id: str, seed: int, steps: int,
