@@ -214,12 +214,14 @@ def registration_changes(env_id: str, env_kwargs: dict, registered: dict | None)
     """Where ``env_id``'s registration now differs from what a run recorded: its
     ``env_kwargs`` (``as_registered``: what the run is rebuilt with) and ``registered``, the
     registration when it trained (None for a run recorded before 2026-11-28). Each as
-    ``name (now X, the run's Y)`` (the run's is used), or ``name (now X, not recorded)`` for
-    one the run's record lacks, which the registration now gives."""
+    ``name (now X, the run's Y)`` (the run's is used), ``name (now X, not recorded)`` for
+    one the run's record lacks, which the registration now gives, or ``name (no longer
+    registered, the run's Y)`` for one the registration gave then and gives no more."""
     changes = []
     env_kwargs = flat_kwargs(env_kwargs)  # (recorded nested before 2026-11-28)
     registered = None if registered is None else flat_kwargs(registered)
-    for key, value in registered_kwargs(env_id).items():
+    now = registered_kwargs(env_id)
+    for key, value in now.items():
         if key == "scene" and unread_scene_file(value) and key in env_kwargs:
             continue  # not readable from here: nothing to compare (W17 reported it changed)
         if key not in env_kwargs:
@@ -227,6 +229,9 @@ def registration_changes(env_id: str, env_kwargs: dict, registered: dict | None)
         elif registered is not None and _plain(registered.get(key)) != value:
             changes.append(f"{key} (now {_short(value)}, the run's "
                            f"{_short(_plain(env_kwargs[key]))})")
+    for key in (registered or {}).keys() - now.keys():  # (the run's env_kwargs hold it)
+        changes.append(f"{key} (no longer registered, the run's "
+                       f"{_short(_plain(env_kwargs.get(key, registered[key])))})")
     return changes
 
 

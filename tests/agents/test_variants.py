@@ -398,3 +398,13 @@ def test_a_variants_registered_arguments_are_recorded_with_the_run(user_module, 
         assert change in note, note
     filmed = run("record", "run", "--out", "v.mp4", "--episodes", "1")
     assert "at 20 fps" in filmed.stdout + filmed.stderr  # 1 / dt as trained, not 100
+    # an argument the registration no longer gives (the note said nothing of it: W18a)
+    user_module("spinstrike_edit_lab", (
+        "import gymnasium as gym\n"
+        "gym.register('EditLab/Slow-v0', entry_point='spinstrike.envs.control:RodSpinControlEnv',"
+        " vector_entry_point='spinstrike.envs.control:RodSpinControlVectorEnv',"
+        " kwargs={'dt': 0.05}, max_episode_steps=60)\n"))
+    dropped = run(*evaluate)
+    assert dropped.stdout == before.stdout
+    assert "randomize (no longer registered, the run's {'mallet_mass': [0.2, 0.4]})" in \
+        dropped.stderr and "dt (" not in dropped.stderr, dropped.stderr
