@@ -246,10 +246,14 @@ def _read_entry(path: Path, env_id: str, algo: str | None = None) -> tuple[str, 
         raise AgentConfigError(f"config: {str(path)!r} is a directory, not a YAML file")
     if not path.is_file():
         raise AgentConfigError(f"config: file {str(path)!r} does not exist")
+    text = path.read_text()
     try:
-        data = load_yaml(path.read_text())
+        data = load_yaml(text)
     except yaml.YAMLError as exc:
-        raise AgentConfigError(f"config: {path} is not valid YAML ({yaml_problem(exc)})") from None
+        data = _zoo_run_config(path, text, env_id, algo)
+        if data is None:
+            raise AgentConfigError(f"config: {path} is not valid YAML "
+                                   f"({yaml_problem(exc)})") from None
     if not isinstance(data, dict):
         raise AgentConfigError(f"config: {path} must map env ids to hyperparameters")
     if is_run_record(data):
@@ -275,6 +279,58 @@ def _read_entry(path: Path, env_id: str, algo: str | None = None) -> tuple[str, 
     if entry_key is None:
         raise AgentConfigError(f"config: {path} has no entry for {env_id!r} and no 'default'")
     return entry_key, dict(data[entry_key] or {})
+
+
+#: the tag rl-zoo3 writes its runs' ``config.yml`` and ``args.yml`` with (an OrderedDict)
+ZOO_TAG = "tag:yaml.org,2002:python/object/apply:collections.OrderedDict"
+
+
+def _zoo_load(text: str) -> dict | None:
+    """A file rl-zoo3 wrote with :data:`ZOO_TAG` as a dict (its pairs, in order); None if
+    ``text`` is not one. Nothing else of Python's is constructed."""
+    from spinstrike.physics.scene import _StrictLoader
+
+    class ZooLoader(_StrictLoader):
+        pass
+
+    def ordered(loader, node):
+        args = loader.construct_sequence(node, deep=True)
+        return dict(args[0]) if len(args) == 1 else None
+
+    ZooLoader.add_constructor(ZOO_TAG, ordered)
+    try:
+        data = yaml.load(text, Loader=ZooLoader)  # noqa: S506 (a SafeLoader)
+    except (yaml.YAMLError, TypeError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
+
+
+def _zoo_run_config(path: Path, text: str, env_id: str, algo: str | None) -> dict | None:
+    """rl-zoo3's record of a run (``logs/<algo>/<env>_<n>/<env>/config.yml``: the run's
+    hyperparameters, tagged as an OrderedDict) as a hyperparameter file of one entry, for
+    ``env_id``; the ``env_kwargs`` its ``args.yml`` (beside it) holds from rl-zoo3's command
+    line go over the entry's, as rl-zoo3 took them. None if ``text`` is not such a record.
+
+    Raises:
+        AgentConfigError: ``args.yml`` names another algorithm or env than this run's.
+    """
+    entry = _zoo_load(text)
+    if entry is None:
+        return None
+    args = {}
+    if (path.parent / "args.yml").is_file():
+        args = _zoo_load((path.parent / "args.yml").read_text()) or {}
+    trained = args.get("algo")
+    if algo is not None and trained is not None and trained != algo:
+        raise AgentConfigError(f"config: {path} is rl-zoo3's record of a {trained} run; its "
+                               f"hyperparameters are {trained}'s (give --algo {trained})")
+    env = args.get("env")
+    if env is not None and str(env).rpartition(":")[2] != env_id.rpartition(":")[2]:
+        raise AgentConfigError(f"config: {path} is rl-zoo3's record of a run on {env!r}, not "
+                               f"{env_id!r} (give --env {env})")
+    if args.get("env_kwargs"):
+        entry["env_kwargs"] = {**(entry.get("env_kwargs") or {}), **args["env_kwargs"]}
+    return {env_id: entry}
 
 
 def _unseen_variant(key: Any, env_id: str) -> bool:

@@ -4,6 +4,7 @@ evaluates; the CLI runs end to end; videos have frames; runs resume; bad configs
 import contextlib
 import gc
 import json
+import re
 import subprocess
 import sys
 import warnings
@@ -314,17 +315,40 @@ def test_packaged_configs_cover_every_env_and_algorithm():
             assert "policy_kwargs" in cfg.model_kwargs
 
 
-def test_rl_zoo3_trains_from_our_config(tmp_path):
-
+def test_rl_zoo3_trains_from_our_config_and_its_run_record_trains_here(tmp_path, capsys):
+    """rl-zoo3 trains from the packaged file; its run's ``config.yml`` (the hyperparameters it
+    used, ``-params`` among them, written as a Python OrderedDict) and ``args.yml`` (its command
+    line's ``--env-kwargs``) train again with ``spinstrike train --config`` (W18a: refused as
+    "not valid YAML"), and another algorithm or env is refused naming the record's."""
     from spinstrike.agents.config import packaged_config_path
 
     conf = packaged_config_path("ppo")
     cmd = [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env",
            "SpinStrike/RodSpin-v0", "--gym-packages", "spinstrike", "-conf", str(conf),
-           "-n", "1024",
+           "-n", "1024", "-params", "learning_rate:0.001", "--env-kwargs", "restitution:0.5",
            "-f", str(tmp_path), "--eval-freq", "-1", "--seed", "0"]
     subprocess.run(cmd, check=True, capture_output=True, text=True, cwd=tmp_path, timeout=600)
     assert list(tmp_path.rglob("SpinStrike-RodSpin-v0.zip"))
+    (record,) = tmp_path.rglob("SpinStrike-RodSpin-v0/config.yml")
+    assert record.read_text().startswith("!!python/object/apply:collections.OrderedDict")
+    run = tmp_path / "again"
+    assert main(["train", "--config", str(record), "--env", "SpinStrike/RodSpin-v0",
+                 "--timesteps", "256", "--no-video", "--no-eval", "--no-progress",
+                 "--out", str(run)]) == 0
+    entry = yaml.safe_load((run / "config.yml").read_text())["hyperparameters"][
+        "SpinStrike/RodSpin-v0"]
+    zoo = yaml.safe_load(conf.read_text())["SpinStrike/RodSpin-v0"]
+    assert entry["learning_rate"] == 0.001 and entry["env_kwargs"] == {"restitution": 0.5}
+    assert entry["n_steps"] == zoo["n_steps"] and entry["n_envs"] == zoo["n_envs"]
+    capsys.readouterr()
+    for wrong, words in ((["--algo", "sac", "--env", "SpinStrike/RodSpin-v0"],
+                          "record of a ppo run.*give --algo ppo"),
+                         (["--env", "SpinStrike/PuckSpeed-v1"],
+                          "record of a run on 'SpinStrike/RodSpin-v0', not "
+                          "'SpinStrike/PuckSpeed-v1'")):
+        assert main(["train", "--config", str(record), *wrong, "--timesteps", "256",
+                     "--no-video", "--no-eval", "--out", str(tmp_path / "x")]) == 2
+        assert re.search(words, capsys.readouterr().err)
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
