@@ -73,6 +73,43 @@ def _check_episodes(option: str, value: int) -> None:
         raise AgentConfigError(f"{option}: must be >= 1 (got {value})")
 
 
+def _run_policy(run: Path):
+    """A run folder's agent: (policy, env id, env arguments, "agent"), from ``spinstrike
+    train``'s run (SB3's or RLlib's) or rl-zoo3's."""
+    from spinstrike.agents.config import AgentConfigError, check_env_id
+    from spinstrike.agents.evaluate import load_model_policy, load_zoo_policy, zoo_run_files
+
+    if (run / "checkpoint").is_dir() and (run / "config.yml").is_file() and \
+            not (run / "model.zip").exists():  # spinstrike train --backend rllib
+        from spinstrike.agents.rllib_train import load_rllib_policy
+
+        policy, meta = load_rllib_policy(run)
+        env_kwargs = meta["hyperparameters"][meta["env"]].get("env_kwargs", {})
+        _note_registration_changes(run, meta, env_kwargs)
+        return policy, meta["env"], env_kwargs, "agent"
+    if zoo_run_files(run) is not None and not (run / "config.yml").is_file():  # rl-zoo3's
+        policy, env_id, env_kwargs = load_zoo_policy(run)
+        check_env_id(env_id, "run_dir: the rl-zoo3 run's env")
+        return policy, env_id, env_kwargs, "agent"
+    missing = [f for f in ("model.zip", "config.yml") if not (run / f).is_file()]
+    if missing == ["model.zip"] and list((run / "checkpoints").glob("model_*_steps.zip")):
+        out = run.with_name(run.name.removesuffix(".partial"))
+        raise AgentConfigError(f"run_dir: {run} is an interrupted run (checkpoints, no "
+                               f"model.zip yet): `spinstrike train --resume --out {out}` "
+                               f"finishes it")
+    partial = run.with_name(run.name + ".partial")
+    if missing and not run.exists() and partial.is_dir():
+        raise AgentConfigError(f"run_dir: {run} does not exist, but {partial} does: an "
+                               f"interrupted run; `spinstrike train --resume --out {run}` "
+                               f"finishes it")
+    if missing:
+        raise AgentConfigError(f"run_dir: {run} has no {' or '.join(missing)} (not a run)")
+    policy, meta = load_model_policy(run)
+    env_kwargs = meta["hyperparameters"][meta["env"]].get("env_kwargs", {})
+    _note_registration_changes(run, meta, env_kwargs)
+    return policy, meta["env"], env_kwargs, "agent"
+
+
 def _policy(args):
     from spinstrike import envs
     from spinstrike.agents.config import AgentConfigError
@@ -92,34 +129,7 @@ def _policy(args):
                                f"{' and '.join(given)} {'go' if len(given) > 1 else 'goes'} "
                                f"without a run directory")
     if args.run_dir:
-        from spinstrike.agents.evaluate import load_model_policy
-
-        run = Path(args.run_dir)
-        if (run / "checkpoint").is_dir() and (run / "config.yml").is_file() and \
-                not (run / "model.zip").exists():  # spinstrike train --backend rllib
-            from spinstrike.agents.rllib_train import load_rllib_policy
-
-            policy, meta = load_rllib_policy(run)
-            env_kwargs = meta["hyperparameters"][meta["env"]].get("env_kwargs", {})
-            _note_registration_changes(run, meta, env_kwargs)
-            return policy, meta["env"], env_kwargs, "agent"
-        missing = [f for f in ("model.zip", "config.yml") if not (run / f).is_file()]
-        if missing == ["model.zip"] and list((run / "checkpoints").glob("model_*_steps.zip")):
-            out = run.with_name(run.name.removesuffix(".partial"))
-            raise AgentConfigError(f"run_dir: {run} is an interrupted run (checkpoints, no "
-                                   f"model.zip yet): `spinstrike train --resume --out {out}` "
-                                   f"finishes it")
-        partial = run.with_name(run.name + ".partial")
-        if missing and not run.exists() and partial.is_dir():
-            raise AgentConfigError(f"run_dir: {run} does not exist, but {partial} does: an "
-                                   f"interrupted run; `spinstrike train --resume --out {run}` "
-                                   f"finishes it")
-        if missing:
-            raise AgentConfigError(f"run_dir: {run} has no {' or '.join(missing)} (not a run)")
-        policy, meta = load_model_policy(run)
-        env_kwargs = meta["hyperparameters"][meta["env"]].get("env_kwargs", {})
-        _note_registration_changes(run, meta, env_kwargs)
-        return policy, meta["env"], env_kwargs, "agent"
+        return _run_policy(Path(args.run_dir))
     if not args.env:
         for flag in ("oracle", "random", "planner"):
             if getattr(args, flag):

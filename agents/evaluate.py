@@ -135,20 +135,68 @@ def read_run_config(run_dir: str | Path) -> dict:
 
 def load_model_policy(run_dir: str | Path) -> tuple[Policy, dict]:
     """The deterministic policy of a saved run (``model.zip``, optional ``vecnormalize.pkl``)."""
-    from spinstrike.agents.config import AgentConfigError, algo_class
-
     run_dir = Path(run_dir)
     meta = read_run_config(run_dir)
+    return _sb3_policy(meta["algo"], run_dir / "model.zip", run_dir / "vecnormalize.pkl",
+                       run_dir, meta["env"]), meta
+
+
+def zoo_run_files(run_dir: str | Path) -> tuple[Path, Path] | None:
+    """An rl-zoo3 run folder's (``logs/<algo>/<env>_<n>``) final model and the folder of its
+    records (``<env>/``: ``args.yml``, ``config.yml``, ``vecnormalize.pkl``); None if
+    ``run_dir`` is not one."""
+    import re
+
+    run_dir = Path(run_dir)
+    name = re.sub(r"_\d+$", "", run_dir.name)
+    model, records = run_dir / f"{name}.zip", run_dir / name
+    return (model, records) if model.is_file() and (records / "args.yml").is_file() else None
+
+
+def load_zoo_policy(run_dir: str | Path) -> tuple[Policy, str, dict]:
+    """The deterministic policy of an rl-zoo3 run (its final model, as ``rl_zoo3.enjoy`` loads
+    by default; ``vecnormalize.pkl`` if it normalised), its env id and env arguments: its
+    hyperparameters' ``env_kwargs`` under its command line's (``args.yml``), as rl-zoo3 made
+    the training env. Its ``--gym-packages`` are imported (they register a variant's id)."""
+    import importlib
+
+    from spinstrike.agents.config import AgentConfigError, _zoo_load
+
+    model, records = zoo_run_files(run_dir)
+    args = _zoo_load((records / "args.yml").read_text()) or {}
+    hyper = (_zoo_load((records / "config.yml").read_text())
+             if (records / "config.yml").is_file() else None) or {}
+    if "algo" not in args or "env" not in args:
+        raise AgentConfigError(f"run_dir: {records / 'args.yml'} names no algo and env (not "
+                               f"rl-zoo3's record of a run)")
+    for package in args.get("gym_packages") or ():
+        try:
+            importlib.import_module(package)
+        except ImportError as exc:
+            raise AgentConfigError(f"run_dir: the run's --gym-packages {package!r} does not "
+                                   f"import here ({exc})") from None
+    env_id = str(args["env"])
+    env_kwargs = {**(hyper.get("env_kwargs") or {}), **(args.get("env_kwargs") or {})}
+    return (_sb3_policy(str(args["algo"]), model, records / "vecnormalize.pkl", Path(run_dir),
+                        env_id), env_id, env_kwargs)
+
+
+def _sb3_policy(algo: str, model_file: Path, norm_file: Path, run_dir: Path,
+                env_id: str) -> Policy:
+    """The deterministic policy of an SB3 model file (observations normalised by ``norm_file``
+    where it exists)."""
+    from spinstrike.agents.config import AgentConfigError, algo_class
+
     try:
-        model = algo_class(meta["algo"]).load(run_dir / "model.zip", device="cpu")
+        model = algo_class(algo).load(model_file, device="cpu")
     # not a zip, not an SB3 model; another algorithm's (AttributeError: a PPO policy has no
     # actor for TD3, TypeError: its arguments)
     except (ValueError, KeyError, EOFError, OSError, AttributeError, TypeError) as exc:
-        raise AgentConfigError(f"model.zip: {run_dir / 'model.zip'} could not be loaded as a "
-                               f"{meta['algo']} model ({exc})") from None
+        raise AgentConfigError(f"{model_file.name}: {model_file} could not be loaded as a "
+                               f"{algo} model ({exc})") from None
     norm = None
-    if (run_dir / "vecnormalize.pkl").exists():
-        with open(run_dir / "vecnormalize.pkl", "rb") as f:
+    if norm_file.exists():
+        with open(norm_file, "rb") as f:
             norm = pickle.load(f)
 
     def policy(env, obs):
@@ -160,12 +208,12 @@ def load_model_policy(run_dir: str | Path) -> tuple[Policy, dict]:
             # the env changed since training (a variant's registered arguments, an edited
             # config.yml): SB3's own error was an IndexError or a shape deep in predict
             raise AgentConfigError(
-                f"run_dir: {run_dir}'s model does not take {meta['env']}'s observations now "
+                f"run_dir: {run_dir}'s model does not take {env_id}'s observations now "
                 f"(the model's space: {model.observation_space}; {type(exc).__name__}: {exc}); "
                 f"was the env changed since training (a variant's registered arguments, "
                 f"config.yml)?") from None
 
-    return policy, meta
+    return policy
 
 
 def evaluate(env_id: str, policy: Policy | None = None, episodes: int = 50, seed: int = 1000,

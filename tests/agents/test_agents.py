@@ -349,6 +349,19 @@ def test_rl_zoo3_trains_from_our_config_and_its_run_record_trains_here(tmp_path,
         assert main(["train", "--config", str(record), *wrong, "--timesteps", "256",
                      "--no-video", "--no-eval", "--out", str(tmp_path / "x")]) == 2
         assert re.search(words, capsys.readouterr().err)
+    # and `spinstrike evaluate` of rl-zoo3's run folder scores its model on its env (with
+    # its --env-kwargs) beside random and the oracle (it was "not a run")
+    (folder,) = tmp_path.glob("ppo/SpinStrike-RodSpin-v0_*")
+    assert main(["evaluate", str(folder), "--episodes", "4", "--json", "--no-save"]) == 0
+    scores = json.loads(capsys.readouterr().out)
+    assert set(scores) == {"agent", "random", "oracle"}
+    from stable_baselines3 import PPO
+
+    model = PPO.load(folder / "SpinStrike-RodSpin-v0.zip", device="cpu")
+    agent = lambda env, obs: model.predict(obs, deterministic=True)[0]  # noqa: E731
+    on = {kw: evaluate("SpinStrike/RodSpin-v0", agent, 4, 1000, {"restitution": kw},
+                       baselines=False)[0].mean for kw in (0.5, 1.0)}
+    assert scores["agent"]["mean"] == on[0.5] != on[1.0]
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
