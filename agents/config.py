@@ -285,7 +285,7 @@ def _read_entry(path: Path, env_id: str, algo: str | None = None) -> tuple[str, 
 ZOO_TAG = "tag:yaml.org,2002:python/object/apply:collections.OrderedDict"
 
 
-def _zoo_load(text: str) -> dict | None:
+def zoo_load(text: str) -> dict | None:
     """A file rl-zoo3 wrote with :data:`ZOO_TAG` as a dict (its pairs, in order); None if
     ``text`` is not one. Nothing else of Python's is constructed."""
     from spinstrike.physics.scene import _StrictLoader
@@ -314,12 +314,12 @@ def _zoo_run_config(path: Path, text: str, env_id: str, algo: str | None) -> dic
     Raises:
         AgentConfigError: ``args.yml`` names another algorithm or env than this run's.
     """
-    entry = _zoo_load(text)
+    entry = zoo_load(text)
     if entry is None:
         return None
     args = {}
     if (path.parent / "args.yml").is_file():
-        args = _zoo_load((path.parent / "args.yml").read_text()) or {}
+        args = zoo_load((path.parent / "args.yml").read_text()) or {}
     trained = args.get("algo")
     if algo is not None and trained is not None and trained != algo:
         raise AgentConfigError(f"config: {path} is rl-zoo3's record of a {trained} run; its "

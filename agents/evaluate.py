@@ -160,11 +160,11 @@ def load_zoo_policy(run_dir: str | Path) -> tuple[Policy, str, dict]:
     the training env. Its ``--gym-packages`` are imported (they register a variant's id)."""
     import importlib
 
-    from spinstrike.agents.config import AgentConfigError, _zoo_load
+    from spinstrike.agents.config import AgentConfigError, zoo_load
 
     model, records = zoo_run_files(run_dir)
-    args = _zoo_load((records / "args.yml").read_text()) or {}
-    hyper = (_zoo_load((records / "config.yml").read_text())
+    args = zoo_load((records / "args.yml").read_text()) or {}
+    hyper = (zoo_load((records / "config.yml").read_text())
              if (records / "config.yml").is_file() else None) or {}
     if "algo" not in args or "env" not in args:
         raise AgentConfigError(f"run_dir: {records / 'args.yml'} names no algo and env (not "
