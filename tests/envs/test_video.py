@@ -837,6 +837,20 @@ def test_a_copied_env_renders_what_the_original_would(env_id, how):
         twin.close()
 
 
+def _native_and_sync(env_id, n, mode, max_episode_steps, seed):
+    """A native vector env and a SyncVectorEnv of single envs, alike (small rgb_array frames),
+    both reset with ``seed``."""
+    kw = dict(render_mode="rgb_array", max_episode_steps=max_episode_steps,
+              render_size=(240, 160))
+    native = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point",
+                          autoreset_mode=mode, **kw)
+    sync = gym.make_vec(env_id, n, vectorization_mode="sync",
+                        vector_kwargs={"autoreset_mode": mode}, **kw)
+    for vec in (native, sync):
+        vec.reset(seed=seed)
+    return native, sync
+
+
 @pytest.mark.parametrize("env_id", CONTROL_IDS)
 @pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
 def test_a_native_control_vector_envs_frames_are_the_single_envs(env_id, mode):
@@ -845,13 +859,7 @@ def test_a_native_control_vector_envs_frames_are_the_single_envs(env_id, mode):
     frame has its trail and its return (they were element 0's only, and the native frames had
     neither)."""
     n = 3
-    kw = dict(render_mode="rgb_array", max_episode_steps=25, render_size=(240, 160))
-    native = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point",
-                          autoreset_mode=mode, **kw)
-    sync = gym.make_vec(env_id, n, vectorization_mode="sync",
-                        vector_kwargs={"autoreset_mode": mode}, **kw)
-    native.reset(seed=5)
-    sync.reset(seed=5)
+    native, sync = _native_and_sync(env_id, n, mode, 25, seed=5)
     chase = oracle_for(env_id)  # chase-and-hit, which hits: the returns are not all zero
     returns = np.zeros(n)
     for _ in range(60):
@@ -908,14 +916,7 @@ def test_a_native_control_vector_env_frames_an_element_reset_alone_as_sync_does(
     two differed: both frames were of the old episode's hit before the reset cleared it, and
     SyncVectorEnv's single env kept it after)."""
     n = 2
-    kw = dict(render_mode="rgb_array", max_episode_steps=-1, render_size=(240, 160))
-    mode = AutoresetMode.DISABLED
-    native = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point",
-                          autoreset_mode=mode, **kw)
-    sync = gym.make_vec(env_id, n, vectorization_mode="sync",
-                        vector_kwargs={"autoreset_mode": mode}, **kw)
-    native.reset(seed=3)
-    sync.reset(seed=3)
+    native, sync = _native_and_sync(env_id, n, AutoresetMode.DISABLED, -1, seed=3)
     chase = oracle_for(env_id)
     for _ in range(400):
         a = np.stack([chase(e, None) for e in sync.envs])
