@@ -87,7 +87,14 @@ def _run_policy(run: Path):
         env_kwargs = meta["hyperparameters"][meta["env"]].get("env_kwargs", {})
         _note_registration_changes(run, meta, env_kwargs)
         return policy, meta["env"], env_kwargs, "agent"
-    if zoo_run_files(run) is not None and not (run / "config.yml").is_file():  # rl-zoo3's
+    if not (run / "config.yml").is_file():  # a Tune trial (or its checkpoint), rl-zoo3's
+        from spinstrike.agents.rllib_train import load_tune_policy, tune_checkpoint
+
+        if tune_checkpoint(run) is not None:
+            policy, env_id, env_kwargs = load_tune_policy(run)
+            check_env_id(env_id, "run_dir: the Tune trial's env")
+            return policy, env_id, env_kwargs, "agent"
+    if zoo_run_files(run) is not None and not (run / "config.yml").is_file():
         policy, env_id, env_kwargs = load_zoo_policy(run)
         check_env_id(env_id, "run_dir: the rl-zoo3 run's env")
         return policy, env_id, env_kwargs, "agent"

@@ -142,6 +142,52 @@ def load_rllib_policy(run_dir: str | Path):
     return module_policy(RLModule.from_checkpoint(str(path.resolve()))), meta
 
 
+def tune_checkpoint(path: str | Path) -> tuple[Path, Path] | None:
+    """A Tune trial's checkpoint and its ``params.json`` (the trial's config: ``env``,
+    ``env_config`` with the trial's values), for a trial folder (its newest
+    ``checkpoint_*``) or one of its checkpoints; None if ``path`` is neither."""
+    path = Path(path)
+    if path.name.startswith("checkpoint_") and (path.parent / "params.json").is_file():
+        return path, path.parent / "params.json"
+    checkpoints = sorted(path.glob("checkpoint_*"))
+    if (path / "params.json").is_file() and checkpoints:
+        return checkpoints[-1], path / "params.json"
+    return None
+
+
+def load_tune_policy(path: str | Path):
+    """(policy, env id, env arguments) of a Tune trial's RLlib checkpoint (:func:`tune_checkpoint`):
+    its RLModule, deterministic, and the env its trial trained on (``params.json``), for
+    ``spinstrike evaluate``/``record``. Only a SpinStrike env's trial."""
+    import json
+
+    from spinstrike.envs.rllib import PREFIX
+
+    checkpoint, params = tune_checkpoint(path)
+    try:
+        config = json.loads(params.read_text())
+    except (OSError, ValueError) as exc:
+        raise AgentConfigError(f"run_dir: {params} could not be read ({exc})") from None
+    env_id = config.get("env")
+    if not isinstance(env_id, str):
+        raise AgentConfigError(f"run_dir: {params} names no env id (env {env_id!r}): a trial of "
+                               f"another env than a SpinStrike id")
+    env_config = config.get("env_config") or {}
+    if not isinstance(env_config, dict):
+        raise AgentConfigError(f"run_dir: {params}'s env_config is not a mapping")
+    module = checkpoint / "learner_group" / "learner" / "rl_module" / "default_policy"
+    try:
+        from ray.rllib.core.rl_module.rl_module import RLModule
+    except ImportError:
+        raise AgentConfigError("run_dir: an RLlib checkpoint needs Ray RLlib: pip install "
+                               "'spinstrike[rllib]'") from None
+    if not module.is_dir():
+        raise AgentConfigError(f"checkpoint: {module} is missing (not an RLlib checkpoint of "
+                               f"the new API stack's default policy)")
+    return (module_policy(RLModule.from_checkpoint(str(module.resolve()))),
+            env_id.removeprefix(PREFIX), env_config)
+
+
 def _versions() -> dict[str, str]:
     import gymnasium
     import ray

@@ -7,6 +7,7 @@ integrity, fault tolerance, a cluster of two nodes, Tune), not learning.
 from __future__ import annotations
 
 import functools
+import json
 import os
 import pickle
 import subprocess
@@ -483,7 +484,7 @@ class _TrialEnv(RLlibCallback):
 # importing RLlib's algorithm registry builds DreamerV3's debug CartPole, which warns
 @pytest.mark.filterwarnings("ignore::UserWarning")
 def test_a_tune_sweep_of_env_arguments_runs_each_trial_on_its_own_env(local_ray, tmp_path,
-                                                                         rllib_lab):
+                                                                         rllib_lab, capsys):
     """W18a: ``configure`` merged its env_config into the one the config held (RLlib's
     ``environment()`` deep-merges), so a config configured for one variant and then for another
     env kept the first one's arguments: a sweep loop ran DeadRod with HeavyRod's rod, silently.
@@ -504,10 +505,30 @@ def test_a_tune_sweep_of_env_arguments_runs_each_trial_on_its_own_env(local_ray,
     assert config.env_config == {"striker_mass": {"grid_search": [0.25, 0.5]}}
     config = tiny(config, runners=1, envs=2, fragment=16).callbacks(_TrialEnv)
     tuner = tune.Tuner("PPO", param_space=config,
-                       run_config=tune.RunConfig(stop={"training_iteration": 1},
-                                                 storage_path=str(tmp_path), verbose=0))
+                       run_config=tune.RunConfig(
+                           stop={"training_iteration": 1}, storage_path=str(tmp_path),
+                           verbose=0, checkpoint_config=tune.CheckpointConfig(
+                               checkpoint_at_end=True)))
     results = tuner.fit()
     assert len(results) == 2 and not results.errors
+    # each trial's folder is scored by `spinstrike evaluate` on its own env (it was "not a
+    # run": W18a), as its RLModule scores there
+    from ray.rllib.core.rl_module.rl_module import RLModule
+
+    from spinstrike.agents.cli import main
+    from spinstrike.agents.evaluate import evaluate
+    from spinstrike.agents.rllib_train import module_policy
+
+    for r in results:
+        mass = r.config["env_config"]["striker_mass"]
+        capsys.readouterr()  # (Tune's tables)
+        assert main(["evaluate", r.path, "--episodes", "3", "--json", "--no-save"]) == 0
+        scores = json.loads(capsys.readouterr().out)
+        module = RLModule.from_checkpoint(str(Path(r.checkpoint.path) / "learner_group" /
+                                              "learner" / "rl_module" / "default_policy"))
+        mine = evaluate(STRIKE, module_policy(module), 3, 1000, {"striker_mass": mass},
+                        baselines=False)[0].mean
+        assert scores["agent"]["mean"] == pytest.approx(mine, abs=1e-12)
     plain = gym.make(STRIKE).unwrapped
     default_e = float(plain.world.restitution("rod", "striker")[0])
     assert default_e != 0.95
