@@ -222,7 +222,9 @@ class StepStats:
     Attributes:
         events: impacts and checkpoints processed by the exact solver.
         iterations: time-of-impact iterations (conservative advancement and bracketing).
-        substeps: fixed substeps (the fixed solver, or the exact solver's settling).
+        substeps: fixed substeps (the fixed solver, or the exact solver's settling; also, not
+            flagged as ``fallback``, an exact step holding one pair's sustained e = 0 contact
+            as a constraint: README, "Known failures").
         contacts: impulses applied.
         fallback: the exact solver settled the rest of the step with fixed substeps (a run of
             resting bounces, or ``max_events`` reached), or solved a jam (sweeps that did not

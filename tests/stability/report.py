@@ -225,7 +225,12 @@ def render(results: dict, long_results: list[tuple[str, dict]]) -> str:
         "velocity along the surface, gets no impulse (two zero-thickness rods, whose gap "
         "cannot go below zero, are in contact within the tolerance). A normal speed below "
         "1e-12 of the point speeds (`physics.events.ROUNDOFF`) counts as zero: a body "
-        "approaching a cushion at 1e-12 rad slides along it.",
+        "approaching a cushion at 1e-12 rad slides along it. Where a span is cut into steps "
+        "moves a contact by up to ~`tolerance` / its normal approach speed in time, so cut "
+        "otherwise the end state can differ by that much (walk W19: a rod at tolerance 1e-9 "
+        "bouncing slowly off cushions ended 9e-6 apart in spin between 1 and 300 steps over "
+        "0.3 s; `time_steps` above is its own scene's), and long rattles of many contacts "
+        "diverge as chaotic motion does; energy and momentum stay right either way.",
         "* **Simultaneous contacts** follow the rule in `physics/solvers.py`: every pair "
         "within the tolerance and approaching at the event gets a sequential impulse, swept in "
         "pair order until none approaches (at most 64 sweeps). This reproduces Newton's "
