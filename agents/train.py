@@ -487,8 +487,11 @@ def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, epis
 
         def _init_callback(self) -> None:
             super()._init_callback()
-            self._next = _next_mark(self.model.num_timesteps, every)
-            self._done = self.model.num_timesteps  # evaluated up to here (or the run's start)
+            # evaluated up to here: the run's start, or a resumed run's last point (one a stop
+            # cut short, right after its checkpoint, is made again at the checkpoint's step)
+            done = self.evaluations_timesteps
+            self._done = int(done[-1]) if len(done) else self.model.num_timesteps
+            self._next = _next_mark(self._done, every)
 
         def _on_step(self) -> bool:
             return True
@@ -497,7 +500,18 @@ def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, epis
             self.num_timesteps = self._done = self.model.num_timesteps
             self._next = _next_mark(self._done, every)
             self.eval_env.seed(EVAL_SEED)
-            super()._on_step()  # eval_freq 1: SB3's evaluation, every time it is called
+            # SB3 writes evaluations.npz in place: a Ctrl-C or a scheduler's SIGTERM during
+            # the write (it comes right after a checkpoint) left a broken file, and --resume
+            # failed reading it. Written beside it, then moved over it
+            final = self.log_path  # (work/evaluations: SB3 adds .npz)
+            self.log_path = final + ".writing"
+            try:
+                super()._on_step()  # eval_freq 1: SB3's evaluation, every time it is called
+            finally:
+                self.log_path = final
+            written = Path(final + ".writing.npz")
+            if written.exists():
+                os.replace(written, final + ".npz")
 
         def _on_rollout_start(self) -> None:  # after the previous rollout's update
             if self.model.num_timesteps >= self._next:

@@ -330,3 +330,36 @@ def test_the_same_command_with_resume_continues_the_recorded_budget(tmp_path, mo
     err = capsys.readouterr().err
     assert "has trained 256 steps; a new budget must exceed them (got 200; the recorded " \
            "budget, 100, continues the run as recorded)" in err
+
+
+def test_a_run_stopped_while_it_writes_its_evaluations_resumes(tmp_path, monkeypatch):
+    """Ctrl-C or SIGTERM right after a checkpoint lands in the evaluation that follows it, and
+    SB3 wrote evaluations.npz in place: a stop during the write left a broken file, and
+    ``--resume`` failed reading it (the default suite's SIGTERM test failed so once, a
+    TypeError in ``_earlier_evaluations``). The file is written beside it and moved over it:
+    a stop inside the write leaves the previous one whole, and the run resumes."""
+    import stable_baselines3.common.callbacks as callbacks
+
+    run = tmp_path / "run"
+    args = ["train", "--algo", "ppo", "--env", ENV, "--config", str(_tiny_config(
+        tmp_path / "ppo.yml")), "--out", str(run), "--no-eval", "--no-video", "--no-progress"]
+    real = np.savez
+    calls = []
+
+    def savez_stopped_in_the_third(file, *arrays, **named):
+        calls.append(file)
+        if len(calls) < 3:
+            return real(file, *arrays, **named)
+        path = str(file) if str(file).endswith(".npz") else f"{file}.npz"
+        with open(path, "wb") as f:  # a zip cut short: its first bytes, then the stop
+            f.write(b"PK\x03\x04" + b"\x00" * 40)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(callbacks.np, "savez", savez_stopped_in_the_third)
+    with contextlib.suppress(KeyboardInterrupt):
+        assert main(args) == 130
+    monkeypatch.setattr(callbacks.np, "savez", real)
+    partial = tmp_path / "run.partial"
+    assert np.load(partial / "evaluations.npz")["timesteps"].tolist() == [256, 512]
+    assert main([*args, "--resume"]) == 0
+    assert np.load(run / "evaluations.npz")["timesteps"].tolist() == list(range(256, 2049, 256))
