@@ -40,7 +40,13 @@ from pathlib import Path
 import numpy as np
 
 from spinstrike import envs
-from spinstrike.agents.config import ALGOS, env_file_name, load_agent_config
+from spinstrike.agents.config import (
+    ALGOS,
+    env_file_name,
+    load_agent_config,
+    run_record,
+    short_value,
+)
 from spinstrike.agents.config import commit as _commit
 from spinstrike.benchmarks import cpu_model
 
@@ -75,12 +81,6 @@ def _scores(run: Path, env_id: str) -> dict:
     return {"mean": ev.mean, "std": ev.std, "returns": ev.returns}
 
 
-def _value(value) -> str:
-    from spinstrike.agents.train import short_value
-
-    return short_value(value)
-
-
 def _trained_otherwise(run: Path, env_id: str, planned: dict, where: str,
                        scale: float) -> list[str]:
     """How the finished ``run`` was trained otherwise than this report would train it now:
@@ -90,15 +90,10 @@ def _trained_otherwise(run: Path, env_id: str, planned: dict, where: str,
     the record (before config.yml, or one that cannot be read) has nothing to compare, and a
     variant's argument its record lacks (recorded before its registration was, 2026-11-28) is
     not known: both are kept as they were."""
-    import yaml
-
     from spinstrike.envs import flat_kwargs
 
-    try:
-        meta = yaml.safe_load((run / "config.yml").read_text()) or {}
-        recorded = (meta.get("hyperparameters") or {}).get(env_id)
-    except (OSError, yaml.YAMLError, AttributeError):
-        return []
+    meta = run_record(run / "config.yml")
+    recorded = meta.get("hyperparameters", {}).get(env_id)
     if not isinstance(recorded, dict):
         return []
     recorded = dict(recorded)
@@ -128,8 +123,8 @@ _NONE = object()
 
 
 def _change(key: str, then: dict, now: dict, by: str) -> str:
-    was = f"with {key} {_value(then[key])}" if key in then else f"without {key}"
-    return f"trained {was}, {by} {_value(now[key]) if key in now else 'none'}"
+    was = f"with {key} {short_value(then[key])}" if key in then else f"without {key}"
+    return f"trained {was}, {by} {short_value(now[key]) if key in now else 'none'}"
 
 
 def _run(algo, env_id, seed, root: Path, scale: float, env_kwargs=None, tag="",
@@ -285,7 +280,7 @@ def _registration(env_id: str) -> list[str]:
     if env_id.rpartition(":")[2] in envs.ENV_IDS:
         return []
     given = envs.variant_kwargs(env_id)
-    what = (", ".join(f"{key} {_value(value)}" for key, value in given.items())
+    what = (", ".join(f"{key} {short_value(value)}" for key, value in given.items())
             if given else "none")
     return [f"Registered arguments: {what} (over {envs.base_id(env_id)}'s defaults).", ""]
 

@@ -87,17 +87,15 @@ def _run_policy(run: Path):
         env_kwargs = meta["hyperparameters"][meta["env"]].get("env_kwargs", {})
         _note_registration_changes(run, meta, env_kwargs)
         return policy, meta["env"], env_kwargs, "agent"
-    if not (run / "config.yml").is_file():  # a Tune trial (or its checkpoint), rl-zoo3's
+    if not (run / "config.yml").is_file():  # a Tune trial (or its checkpoint), rl-zoo3's run
         from spinstrike.agents.rllib_train import load_tune_policy, tune_checkpoint
 
-        if tune_checkpoint(run) is not None:
-            policy, env_id, env_kwargs = load_tune_policy(run)
-            check_env_id(env_id, "run_dir: the Tune trial's env")
-            return policy, env_id, env_kwargs, "agent"
-    if zoo_run_files(run) is not None and not (run / "config.yml").is_file():
-        policy, env_id, env_kwargs = load_zoo_policy(run)
-        check_env_id(env_id, "run_dir: the rl-zoo3 run's env")
-        return policy, env_id, env_kwargs, "agent"
+        for found, load, what in ((tune_checkpoint, load_tune_policy, "Tune trial"),
+                                  (zoo_run_files, load_zoo_policy, "rl-zoo3 run")):
+            if found(run) is not None:
+                policy, env_id, env_kwargs = load(run)
+                check_env_id(env_id, f"run_dir: the {what}'s env")
+                return policy, env_id, env_kwargs, "agent"
     missing = [f for f in ("model.zip", "config.yml") if not (run / f).is_file()]
     if missing == ["model.zip"] and list((run / "checkpoints").glob("model_*_steps.zip")):
         out = run.with_name(run.name.removesuffix(".partial"))
@@ -188,17 +186,10 @@ def _run_record(path: str | None, full: bool = False) -> dict:
     was refused for having no entry for RodSpin-v0. ``full``: the whole record."""
     if path is None:
         return {}
-    import yaml
+    from spinstrike.agents.config import run_record
 
-    from spinstrike.agents.config import is_run_record
-
-    try:
-        data = yaml.safe_load(Path(path).read_text())
-    except (OSError, yaml.YAMLError, ValueError):
-        return {}
-    if not is_run_record(data):
-        return {}
-    if full:
+    data = run_record(path)
+    if full or not data:
         return data
     return {k: data[k] for k in ("algo", "env") if isinstance(data.get(k), str)}
 

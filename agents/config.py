@@ -387,6 +387,24 @@ def is_run_record(data: Any) -> bool:
         and "algo" in data
 
 
+def run_record(path: str | Path) -> dict:
+    """The record a run's ``config.yml`` holds, as written; empty for a file that is missing,
+    unreadable or not a run's record (what to do then is the caller's: reading it as a
+    hyperparameter file, or having nothing to compare)."""
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except (OSError, yaml.YAMLError, ValueError):
+        return {}
+    return data if is_run_record(data) else {}
+
+
+def short_value(value: Any, width: int = 40) -> str:
+    """``value`` as a title or a line shows it: a number or string as is, anything else its
+    repr, cut to ``width`` characters (a scene read in is a long dict)."""
+    text = value if isinstance(value, str) else repr(value)
+    return text if len(text) <= width else text[:width - 3] + "..."
+
+
 def _convert_values(entry: dict, where: str) -> None:
     """Schedules, policy kwargs, and numbers PyYAML read as strings (``1e6``), in place."""
     for key in SCHEDULE_KEYS:

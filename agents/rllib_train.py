@@ -131,15 +131,21 @@ def load_rllib_policy(run_dir: str | Path):
 
     run_dir = Path(run_dir)
     meta = read_run_config(run_dir)
-    path = run_dir / "checkpoint" / "learner_group" / "learner" / "rl_module" / "default_policy"
+    return _checkpoint_policy(run_dir / "checkpoint", "run", "not an RLlib run folder"), meta
+
+
+def _checkpoint_policy(checkpoint: Path, what: str, otherwise: str):
+    """The deterministic policy of an RLlib checkpoint's default RLModule; ``what`` (a run, a
+    checkpoint) and ``otherwise`` name the folder in the errors: no Ray, no module."""
+    path = checkpoint / "learner_group" / "learner" / "rl_module" / "default_policy"
     try:
         from ray.rllib.core.rl_module.rl_module import RLModule
     except ImportError:
-        raise AgentConfigError("run_dir: an RLlib run needs Ray RLlib: pip install "
+        raise AgentConfigError(f"run_dir: an RLlib {what} needs Ray RLlib: pip install "
                                "'spinstrike[rllib]'") from None
     if not path.is_dir():
-        raise AgentConfigError(f"checkpoint: {path} is missing (not an RLlib run folder)")
-    return module_policy(RLModule.from_checkpoint(str(path.resolve()))), meta
+        raise AgentConfigError(f"checkpoint: {path} is missing ({otherwise})")
+    return module_policy(RLModule.from_checkpoint(str(path.resolve())))
 
 
 def tune_checkpoint(path: str | Path) -> tuple[Path, Path] | None:
@@ -175,17 +181,9 @@ def load_tune_policy(path: str | Path):
     env_config = config.get("env_config") or {}
     if not isinstance(env_config, dict):
         raise AgentConfigError(f"run_dir: {params}'s env_config is not a mapping")
-    module = checkpoint / "learner_group" / "learner" / "rl_module" / "default_policy"
-    try:
-        from ray.rllib.core.rl_module.rl_module import RLModule
-    except ImportError:
-        raise AgentConfigError("run_dir: an RLlib checkpoint needs Ray RLlib: pip install "
-                               "'spinstrike[rllib]'") from None
-    if not module.is_dir():
-        raise AgentConfigError(f"checkpoint: {module} is missing (not an RLlib checkpoint of "
-                               f"the new API stack's default policy)")
-    return (module_policy(RLModule.from_checkpoint(str(module.resolve()))),
-            env_id.removeprefix(PREFIX), env_config)
+    policy = _checkpoint_policy(checkpoint, "checkpoint", "not an RLlib checkpoint of the new "
+                                "API stack's default policy")
+    return policy, env_id.removeprefix(PREFIX), env_config
 
 
 def _versions() -> dict[str, str]:

@@ -47,6 +47,8 @@ from spinstrike.agents.config import (
     is_run_record,
     load_agent_config,
     recorded_agent_config,
+    run_record,
+    short_value,
 )
 
 __all__ = ["TrainResult", "finish_run", "plot_learning_curve", "train"]
@@ -947,7 +949,7 @@ def _finish_sb3(result: TrainResult, runs: list[dict], run_dir: Path, algo: str,
         from spinstrike.agents.evaluate import load_model_policy
 
         policy, _ = load_model_policy(run_dir)
-    record = yaml.safe_load((run_dir / "config.yml").read_text()) or {}
+    record = run_record(run_dir / "config.yml")
     return finish_run(result, policy, env_id, run_dir, env_kwargs,
                       run_title({**record, "algo": algo, "env": env_id, "seed": seed,
                                  "runs": runs}),
@@ -971,13 +973,6 @@ def run_title(meta: dict) -> str:
     return (f"## {label} on {meta['env']}{with_} (seed {meta['seed']}, "
             f"{runs[-1]['timesteps'] if runs else 0} steps, {total:.0f} s"
             f"{f' in {len(runs)} sessions' if len(runs) > 1 else ''})")
-
-
-def short_value(value: Any, width: int = 40) -> str:
-    """``value`` as a title shows it: a number or string as is, anything else its repr, cut
-    to ``width`` characters (a scene read in is a long dict)."""
-    text = value if isinstance(value, str) else repr(value)
-    return text if len(text) <= width else text[:width - 3] + "..."
 
 
 def _complete_run(run_dir: Path, algo: str, env_id: str, seed: int, steps: int,

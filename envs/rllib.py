@@ -177,12 +177,17 @@ def check_env_config(env_id: str, env_config: Any = None, *, vector: bool = Fals
     return _checked_env(env_id, env_config, vector)[0][0]
 
 
+def _is_grid(value: Any) -> bool:
+    """Whether ``value`` is a ``tune.grid_search(...)`` (a dict of that one key)."""
+    return isinstance(value, Mapping) and set(value) == {"grid_search"}
+
+
 def _search_values(value: Any) -> tuple[str, list] | None:
     """The values a Tune search space can give that the driver checks: a ``grid_search``'s and a
     ``choice``'s every value, a ``uniform``/``randint``/... range's two ends (a sample can be
     either end; ``randint``'s upper end is excluded), as (what it is, values); an empty list for
     one with nothing to check (``sample_from``, ``randn``: unbounded); None for a plain value."""
-    if isinstance(value, Mapping) and set(value) == {"grid_search"}:
+    if _is_grid(value):
         return "a value of its tune.grid_search", list(value["grid_search"])
     if not type(value).__module__.startswith("ray.tune"):
         return None
@@ -371,7 +376,7 @@ def _read_scene(env_config: Any) -> None:
     the driver)."""
     if isinstance(env_config, dict) and "scene" in env_config:
         scene = env_config["scene"]
-        if isinstance(scene, Mapping) and set(scene) == {"grid_search"}:  # a sweep over scenes
+        if _is_grid(scene):  # a sweep over scenes
             env_config["scene"] = {"grid_search": [resolve_scene(s)
                                                    for s in scene["grid_search"]]}
         else:
