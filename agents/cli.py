@@ -281,14 +281,13 @@ def _rounded_up(result: dict) -> str:
     """What the run line adds where the run trained more steps than its budget: SB3 trains
     whole rollouts (``n_envs x n_steps`` for PPO, ``n_envs`` steps a call for SAC and TD3; so
     ``--timesteps 100`` trains 1024 steps at the shipped PPO entries), RLlib whole iterations."""
-    import yaml
-
+    from spinstrike.agents.config import run_record
     from spinstrike.agents.train import recorded_budget
 
     work = Path(result["run_dir"])
-    if not (work / "config.yml").is_file():
+    meta = run_record(work / "config.yml")
+    if not meta:
         return ""
-    meta = yaml.safe_load((work / "config.yml").read_text())
     budget = recorded_budget(work, meta)
     if budget is None or result["timesteps"] <= budget:
         return ""

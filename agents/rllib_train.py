@@ -36,6 +36,7 @@ from spinstrike.agents.config import (
     RunConfig,
     env_file_name,
     load_agent_config,
+    run_record,
 )
 from spinstrike.agents.train import (
     EVAL_SEED,
@@ -286,7 +287,7 @@ def train_rllib(env_id: str, *, config: str | Path | None = None, seed: int = 0,
             ray.shutdown()
     result = TrainResult(run_dir=str(run_dir), timesteps=steps, wall_time=wall)
     return finish_run(result, policy, env_id, run_dir, cfg.env_kwargs,
-                      run_title(yaml.safe_load((run_dir / "config.yml").read_text())),
+                      run_title(run_record(run_dir / "config.yml")),
                       evaluate=evaluate, eval_episodes=eval_episodes, video=video)
 
 

@@ -201,7 +201,7 @@ def recorded_budget(work: Path, meta: dict | None = None) -> int | None:
     """The budget (``n_timesteps``) ``work/config.yml`` records (``meta``: that file, read
     already), or None."""
     if meta is None:
-        meta = yaml.safe_load((work / "config.yml").read_text())
+        meta = run_record(work / "config.yml")
     try:
         return int(meta["hyperparameters"][meta["env"]]["n_timesteps"])
     except (KeyError, TypeError, ValueError):
