@@ -475,10 +475,11 @@ def main() -> None:
         long_results.append((label, r))
     doc = render(results, long_results)
     section = render_readme(results, long_results) if readme is not None else ""
-    if not args.full:  # keep the last --full run's row rather than drop it
-        doc = keep_full_run(doc, args.out, _doc_row, "|---" * 11 + "|")
+    if not args.full:  # keep the last --full run's row rather than drop it: the --out
+        # file's, else the shipped document's (a new --out file had none: walk W20a)
+        doc = keep_full_run(doc, [args.out, DOC], _doc_row, "|---" * 11 + "|")
         if readme is not None:
-            section = keep_full_run(section, readme, _readme_run, "Long runs (")
+            section = keep_full_run(section, [readme], _readme_run, "Long runs (")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(doc)
     print(f"wrote {args.out}")
@@ -501,12 +502,13 @@ def _readme_run(text: str) -> str | None:
     return m.group(0) if m else None
 
 
-def keep_full_run(new: str, old_file: Path, find, anchor: str) -> str:
-    """``new`` with the full run's entry of ``old_file`` (as ``find`` finds it) put back: as
-    the last row of the long-runs table (``anchor`` its separator line) or, for the README, the
-    last entry of its long-runs line (``anchor`` that line's start). Unchanged when the old file
-    has no such entry."""
-    kept = find(old_file.read_text()) if old_file.exists() else None
+def keep_full_run(new: str, old_files: list[Path], find, anchor: str) -> str:
+    """``new`` with the full run's entry of the first of ``old_files`` that has one (as
+    ``find`` finds it) put back: as the last row of the long-runs table (``anchor`` its
+    separator line) or, for the README, the last entry of its long-runs line (``anchor`` that
+    line's start). Unchanged when none has such an entry."""
+    kept = next((entry for entry in (find(path.read_text()) for path in old_files
+                                     if path.exists()) if entry is not None), None)
     if kept is None:
         return new
     lines = new.split("\n")

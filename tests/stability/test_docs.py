@@ -110,7 +110,9 @@ def test_readme_render_round_trip_keeps_the_rest_of_the_readme():
 
 def test_regenerating_without_full_keeps_the_full_runs_row(tmp_path):
     """The documented command (no --full) dropped the 10^6-step single-world row from both
-    documents; it now keeps the last --full run's row (run on copies, as a user would)."""
+    documents; it now keeps the last --full run's row (run on copies, as a user would). An
+    ``--out`` file that is new takes it from the shipped document (walk W20a: it was dropped,
+    silently)."""
     import shutil
     import subprocess
     import sys
@@ -119,8 +121,7 @@ def test_regenerating_without_full_keeps_the_full_runs_row(tmp_path):
     from tests.stability.report import FULL_RUN
 
     root = Path(__file__).resolve().parents[2]
-    shutil.copy(DOC, tmp_path / "stability.md")
-    shutil.copy(README, tmp_path / "README.md")
+    shutil.copy(README, tmp_path / "README.md")  # stability.md: a new file
     subprocess.run([sys.executable, "-m", "tests.stability.report", "--out",
                     str(tmp_path / "stability.md"), "--readme", str(tmp_path / "README.md")],
                    cwd=root, check=True, capture_output=True, timeout=600)
