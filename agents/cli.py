@@ -27,6 +27,7 @@ import math
 import os
 import re
 import shlex
+import signal
 import sys
 from pathlib import Path
 
@@ -846,6 +847,11 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:  # evaluate, record: no traceback (train returns 130 itself)
         print(f"spinstrike {args.command}: interrupted", file=sys.stderr)
         return 128 + 2
+    except SystemExit as exc:  # evaluate, record: SIGTERM (_dispatch) ended them in silence
+        if args.command not in ("evaluate", "record") or exc.code != 128 + signal.SIGTERM:
+            raise
+        print(f"spinstrike {args.command}: interrupted (SIGTERM)", file=sys.stderr)
+        return exc.code
     except (AgentConfigError, ConfigError, SceneError) as exc:
         print("error: " + " ".join(str(exc).split()), file=sys.stderr)  # on one line
         return 2

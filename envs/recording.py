@@ -21,9 +21,12 @@ from __future__ import annotations
 import contextlib
 import errno
 import gc
+import glob
 import math
 import os
+import re
 import secrets
+import socket
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -39,6 +42,28 @@ FORMATS = (".mp4", ".gif")
 GIF_MAX_FPS = 50.0
 
 
+#: this host's name, in a partial video's name (whose process is gone is known here only)
+_HOST = re.sub(r"[^A-Za-z0-9_.]", "_", socket.gethostname()) or "host"
+
+
+def _remove_stale_partials(path: Path) -> None:
+    """Remove the partial files of ``path`` (``VideoWriter``'s) that a process of this host
+    left when it was killed outright (SIGKILL): each one stayed, and every later kill added one
+    (walk W20b). A live process's, another host's, or an unknown one's is left alone."""
+    name = re.compile(rf"{re.escape(path.stem)}\.{re.escape(_HOST)}-(\d+)-[0-9a-f]{{8}}"
+                      rf"\.partial{re.escape(path.suffix)}")
+    for old in path.parent.glob(f"{glob.escape(path.stem)}.*.partial{glob.escape(path.suffix)}"):
+        match = name.fullmatch(old.name)
+        if match is None or int(match.group(1)) == os.getpid():
+            continue
+        try:
+            os.kill(int(match.group(1)), 0)
+        except ProcessLookupError:  # gone (PermissionError: alive, another user's)
+            old.unlink(missing_ok=True)
+        except (PermissionError, OverflowError, OSError):
+            continue
+
+
 class VideoWriter:
     """Write frames (``(H, W, 3)`` uint8, all of one size) to ``path``: ``.mp4`` (H.264, yuv420p,
     streamed to ffmpeg; an odd width or height is padded by one pixel, which yuv420p needs) or
@@ -47,9 +72,11 @@ class VideoWriter:
     that each lasts 20 ms or more and viewers play it in real time, and the last frame always:
     it shows the final state; :attr:`kept` counts the frames the file holds).
 
-    The frames go to ``<stem>.<random>.partial<suffix>`` beside ``path``, renamed to ``path`` by
-    :meth:`close`: a recording stopped half way (Ctrl-C, an error) leaves no truncated video
-    under ``path`` (nor replaces one that was there); :meth:`abort` removes the partial file.
+    The frames go to ``<stem>.<host>-<pid>-<random>.partial<suffix>`` beside ``path``, renamed
+    to ``path`` by :meth:`close`: a recording stopped half way (Ctrl-C, an error) leaves no
+    truncated video under ``path`` (nor replaces one that was there); :meth:`abort` removes the
+    partial file. A process killed outright (SIGKILL, a crash) cannot: the next writer of
+    ``path`` removes the partial files of processes of this host that are gone.
 
     Args:
         path: the file (its folder is created).
@@ -72,9 +99,10 @@ class VideoWriter:
         # (ffmpeg failed at the first frame with a broken pipe; a GIF only at the end)
         # (os.open with 0o666 as open() does: the umask gives the video the user's usual
         # permissions, where mkstemp's 0600 kept it from everyone else)
+        _remove_stale_partials(self.path)
         while True:
-            partial = self.path.with_name(
-                f"{self.path.stem}.{secrets.token_hex(4)}.partial{self.path.suffix}")
+            partial = self.path.with_name(f"{self.path.stem}.{_HOST}-{os.getpid()}-"
+                                          f"{secrets.token_hex(4)}.partial{self.path.suffix}")
             try:
                 os.close(os.open(partial, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
                 break

@@ -4,6 +4,7 @@ evaluates; the CLI runs end to end; videos have frames; runs resume; bad configs
 import contextlib
 import gc
 import json
+import os
 import re
 import subprocess
 import sys
@@ -389,7 +390,7 @@ def test_sigterm_during_training_says_resume_and_the_run_resumes(tmp_path):
 def test_a_stopped_recording_leaves_no_video_and_no_traceback(tmp_path, signame):
     """Ctrl-C on ``spinstrike record`` printed a KeyboardInterrupt traceback, and SIGTERM left
     ``NAME.partial.mp4`` behind (found by a new user). Now: exit 128 + the signal, one line,
-    no file."""
+    no file (SIGTERM's line was missing: walk W20b)."""
     import signal
     import time
 
@@ -414,8 +415,49 @@ def test_a_stopped_recording_leaves_no_video_and_no_traceback(tmp_path, signame)
     err = proc.stderr.read().decode()
     assert code == 128 + signum, err
     assert "Traceback" not in err, err
+    said = "interrupted" + (" (SIGTERM)" if signame == "SIGTERM" else "")
+    assert err.strip().splitlines()[-1] == f"spinstrike record: {said}", err
     assert sorted(p.name for p in tmp_path.iterdir()) == [], err
 
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+def test_a_killed_recording_s_partial_video_goes_with_the_next_recording(tmp_path):
+    """``spinstrike record`` killed outright (SIGKILL: no handler runs) leaves its partial
+    video; it stayed for good, and every kill added one, beside the next recording's video
+    (walk W20b). The next recording to the same path removes it; a live process's partial and
+    one of another host stay."""
+    import signal
+    import time
+
+    from spinstrike.envs.recording import _HOST
+
+    def record():
+        return subprocess.Popen(
+            [sys.executable, "-m", "spinstrike.agents.cli", "record", "--random", "--env",
+             "SpinStrike/RodSpinControl-v0", "--episodes", "1", "--out", "v.mp4"],
+            cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+
+    proc = record()
+    try:
+        deadline = time.time() + 240
+        while not list(tmp_path.glob("v.*.partial.mp4")):
+            assert proc.poll() is None, proc.stderr.read().decode()
+            assert time.time() < deadline, "no video started in 240 s"
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGKILL)
+        assert proc.wait(timeout=60) == -signal.SIGKILL
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    [killed] = tmp_path.glob("v.*.partial.mp4")
+    live = tmp_path / f"v.{_HOST}-{os.getpid()}-0123abcd.partial.mp4"  # this test's own
+    other = tmp_path / "v.elsewhere-1-0123abcd.partial.mp4"  # another host's: unknown
+    live.write_bytes(b"")
+    other.write_bytes(b"")
+    again = record()
+    assert again.wait(timeout=300) == 0, again.stderr.read().decode()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["v.mp4", live.name,
+                                                                 other.name]), killed
 
 def test_every_command_helps(capsys):
     """``--help`` of the CLI and of each command exits 0 and says what each command and
