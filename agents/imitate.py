@@ -68,7 +68,7 @@ def make_teacher(name: str, seed: int = 0):
     if name == "planner":
         return CEMPlanner(seed=seed)
     # reactive-planner: a deterministic function of the state (no warm start, common noise),
-    # more search instead: 0.98 (RodSpinControl) and 0.89 (PuckSpeedControl) of the planner
+    # more search instead: 0.95 (RodSpinControl) and 0.89 (PuckSpeedControl) of the planner
     # (docs/planner.md, warm-start table: 128 x 4, common noise)
     return CEMPlanner(samples=128, iterations=4, elites=12, warm_start=False, common_noise=True,
                       seed=seed)

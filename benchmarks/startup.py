@@ -134,14 +134,17 @@ TRIED_BY_HAND = [
     "from the static ifs: no gain; inlining the element step into the batch kernels: no "
     "gain.",
     "* numba's optimisation level (the NUMBA_OPT rows): compile time barely moves, while "
-    "level 0 runs the control step 2.6x slower; the default (3) stays.",
-    "* with the exact solver's element kernel cached, the rest of a RodSpin start costs "
-    "6.8 s: compiling the two halves in two processes would bring the wall time to about "
-    "12 s on 2 cores (estimated, not built). `spinstrike train` already overlaps the compile "
-    "with PyTorch's import in a second process (envs/warm.py).",
+    "level 0 runs the control step about 3x slower; the default (3) stays.",
+    "* with the exact solver's element kernel cached, the rest of a RodSpin start cost "
+    "6.8 s then: compiling the two halves in two processes would have brought the wall time "
+    "to about 12 s on 2 cores (estimated, not built). `spinstrike train` already overlaps the "
+    "compile with PyTorch's import in a second process (envs/warm.py).",
     "",
-    "The 10 s goal for the 1000th step on an empty cache is not met; with a filled cache the "
-    "start takes about a second (the Start-up table above).",
+    "The hand-tried figures are of the code of 2026-11-22; the table's rows are measured "
+    "again by each run. This code compiles longer than the first cut (ad507ad, 2026-11-23) "
+    "and steps at about its speed: what the exact solver gained since is compiled on a "
+    "first run. The 10 s goal for the 1000th step on an empty cache is not met; a filled "
+    "cache starts in the warm time of the Start-up table above.",
 ]
 
 
