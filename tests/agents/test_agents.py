@@ -385,6 +385,35 @@ def test_sigterm_during_training_says_resume_and_the_run_resumes(tmp_path):
         "timesteps"] >= 100000
 
 
+def _record_cli(episodes: int) -> list[str]:
+    return [sys.executable, "-m", "spinstrike.agents.cli", "record", "--random", "--env",
+            "SpinStrike/RodSpinControl-v0", "--episodes", str(episodes), "--out", "v.mp4"]
+
+
+def _signal_a_recording(folder, signum: int, episodes: int, settle: float = 0.0):
+    """(exit code, stderr) of ``spinstrike record`` into ``folder/v.mp4``, sent ``signum``
+    ``settle`` seconds after its partial video appeared."""
+    import signal
+    import time
+
+    proc = subprocess.Popen(_record_cli(episodes), cwd=folder, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline = time.time() + 240
+        while not list(folder.glob("v.*.partial.mp4")):
+            assert proc.poll() is None, proc.stderr.read().decode()
+            assert time.time() < deadline, "no video started in 240 s"
+            time.sleep(0.05)
+        time.sleep(settle)
+        proc.send_signal(signum)
+        code = proc.wait(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    return code, proc.stderr.read().decode()
+
+
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 @pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
 def test_a_stopped_recording_leaves_no_video_and_no_traceback(tmp_path, signame):
@@ -392,27 +421,9 @@ def test_a_stopped_recording_leaves_no_video_and_no_traceback(tmp_path, signame)
     ``NAME.partial.mp4`` behind (found by a new user). Now: exit 128 + the signal, one line,
     no file (SIGTERM's line was missing: walk W20b)."""
     import signal
-    import time
 
     signum = getattr(signal, signame)
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "spinstrike.agents.cli", "record", "--random", "--env",
-         "SpinStrike/RodSpinControl-v0", "--episodes", "30", "--out", "v.mp4"],
-        cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-    try:
-        deadline = time.time() + 240
-        while not list(tmp_path.glob("v.*.partial.mp4")):
-            assert proc.poll() is None, proc.stderr.read().decode()
-            assert time.time() < deadline, "no video started in 240 s"
-            time.sleep(0.1)
-        time.sleep(0.5)
-        proc.send_signal(signum)
-        code = proc.wait(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    err = proc.stderr.read().decode()
+    code, err = _signal_a_recording(tmp_path, signum, episodes=30, settle=0.5)
     assert code == 128 + signum, err
     assert "Traceback" not in err, err
     said = "interrupted" + (" (SIGTERM)" if signame == "SIGTERM" else "")
@@ -427,37 +438,21 @@ def test_a_killed_recording_s_partial_video_goes_with_the_next_recording(tmp_pat
     (walk W20b). The next recording to the same path removes it; a live process's partial and
     one of another host stay."""
     import signal
-    import time
 
     from spinstrike.envs.recording import _HOST
 
-    def record():
-        return subprocess.Popen(
-            [sys.executable, "-m", "spinstrike.agents.cli", "record", "--random", "--env",
-             "SpinStrike/RodSpinControl-v0", "--episodes", "1", "--out", "v.mp4"],
-            cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-
-    proc = record()
-    try:
-        deadline = time.time() + 240
-        while not list(tmp_path.glob("v.*.partial.mp4")):
-            assert proc.poll() is None, proc.stderr.read().decode()
-            assert time.time() < deadline, "no video started in 240 s"
-            time.sleep(0.05)
-        proc.send_signal(signal.SIGKILL)
-        assert proc.wait(timeout=60) == -signal.SIGKILL
-    finally:
-        if proc.poll() is None:
-            proc.kill()
+    code, err = _signal_a_recording(tmp_path, signal.SIGKILL, episodes=1)
+    assert code == -signal.SIGKILL, err
     [killed] = tmp_path.glob("v.*.partial.mp4")
     live = tmp_path / f"v.{_HOST}-{os.getpid()}-0123abcd.partial.mp4"  # this test's own
     other = tmp_path / "v.elsewhere-1-0123abcd.partial.mp4"  # another host's: unknown
     live.write_bytes(b"")
     other.write_bytes(b"")
-    again = record()
-    assert again.wait(timeout=300) == 0, again.stderr.read().decode()
+    again = subprocess.run(_record_cli(1), cwd=tmp_path, capture_output=True, timeout=300)
+    assert again.returncode == 0, again.stderr.decode()
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["v.mp4", live.name,
                                                                  other.name]), killed
+
 
 def test_every_command_helps(capsys):
     """``--help`` of the CLI and of each command exits 0 and says what each command and
