@@ -258,14 +258,38 @@ def native_vector(env_id: str) -> tuple[str, dict]:
     (:func:`variant_kwargs`), so the variant trains as it steps under ``gym.make``.
 
     Raises:
-        ConfigError: a subclass of a shipped env registered without a vector entry point (the
-            shipped vector env would silently drop what the subclass changes).
+        ConfigError: what the batched vector env would silently not be: a subclass of a
+            shipped env registered without a vector entry point, or with the shipped vector
+            env itself, or with one of another ``TASK``; a registration with Gymnasium's
+            ``additional_wrappers`` (``gym.make`` wraps the env, the vector env is not).
     """
     base = base_id(env_id)
     spec = gym.registry[env_id.rpartition(":")[2]]
+    entry, shipped = (_entry_class(spec.entry_point),
+                      _entry_class(f"spinstrike.envs.{_ENTRY[base][0]}"))
+    wrappers = [w.name for w in spec.additional_wrappers or ()]
+    if wrappers:  # (walk W21b: training ran the env unwrapped; evaluate and record wrapped it)
+        raise ConfigError(f"{env_id!r}: registered with additional_wrappers {wrappers}, which "
+                          f"gym.make applies and the batched vector env training uses does "
+                          f"not: register the change as a subclass of the env and of its "
+                          f"vector env instead (README, 'mylab.py')")
     if spec.vector_entry_point is not None:
+        vector = _entry_class(spec.vector_entry_point)
+        shipped_vector = _entry_class(f"spinstrike.envs.{_ENTRY[base][1]}")
+        if entry is not shipped and vector is shipped_vector:  # the README's line, kept
+            raise ConfigError(
+                f"{env_id!r}: its entry point {spec.entry_point!r} subclasses {base}'s env, "
+                f"but its vector_entry_point is the shipped "
+                f"{_ENTRY[base][1].split(':')[1]} itself, which would train on the shipped "
+                f"reward and observations: register a subclass of it that makes the same "
+                f"change")
+        tasks = getattr(entry, "TASK", None), getattr(vector, "TASK", None)
+        if isinstance(vector, type) and tasks[0] is not tasks[1]:
+            raise ConfigError(f"{env_id!r}: its env's TASK ({tasks[0].__name__}) and its vector "
+                              f"env's ({getattr(tasks[1], '__name__', None)}) differ: both must "
+                              f"set the same one")
         return env_id, {}
-    if _entry_class(spec.entry_point) is _entry_class(f"spinstrike.envs.{_ENTRY[base][0]}"):
+    if entry is shipped:
         return base, variant_kwargs(env_id)
     raise ConfigError(f"{env_id!r}: registered without a vector_entry_point, and its entry point "
                       f"{spec.entry_point!r} subclasses {base}'s env: the batched vector env "

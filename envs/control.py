@@ -82,6 +82,8 @@ class _ControlTask(Task):
         w.watch(self.TARGET, "mallet")  # info['hits'] counts every hit, recorded or not
         # the fused step's buffers (envs.fast): actions in; observation, reward, info out
         self.tbuf = np.zeros((batch_size, fast.T_COLUMNS))
+        #: the world's revision the observations in tbuf were written at (see observe)
+        self._observed = -1
         k = np.zeros(fast.K_SIZE)
         k[[fast.K_MAX_FORCE, fast.K_MAX_SPEED, fast.K_SCALE, fast.K_MEASURE]] = (
             cfg.max_force, cfg.max_speed, self.SCALE, self.MEASURE)
@@ -141,6 +143,7 @@ class _ControlTask(Task):
         u = uniforms[:, n_rand:]
         w = self.world
         n = len(env)
+        current = self._observed == w.revision  # the others' observations hold after this
         with w.edit(env) as e:
             self._apply_random(e, uniforms[:, :n_rand])
             hw = e.table_half_size
@@ -163,6 +166,8 @@ class _ControlTask(Task):
         buf = w.buffers
         fast.control_observe(buf.fbuf, buf.ibuf, self.tbuf, self.kcfg,
                              np.asarray(env, dtype=np.int64))
+        if current:
+            self._observed = w.revision
         self._stepped[env] = False
         if 0 in np.arange(self.batch_size)[env]:
             self._put_back = None
@@ -222,6 +227,7 @@ class _ControlTask(Task):
         self._actions[...] = a  # checked for NaN and clipped by the compiled step
         if not self.world.run(CONTROL_STEP, self.tbuf, self.kcfg, dt=self.cfg.dt):
             raise ValueError(action_error(actions))
+        self._observed = self.world.revision  # the step observed every element
         t = self.tbuf
         reward = t[:, fast.T_REWARD].copy()
         self._stepped[:] = True
@@ -250,7 +256,15 @@ class _ControlTask(Task):
                 "fallback": r[fast.T_FALLBACK] != 0}
 
     def observe(self) -> np.ndarray:
-        """Observations as the fused step (or the last reset) left them, clipped already."""
+        """Observations as the fused step (or the last reset) left them, clipped already; of
+        the world as it is now where it was edited or put back since (``world.edit()`` in a
+        subclass's reset, ``set_physics_state``: they kept the old pose, walk W21b)."""
+        w = self.world
+        if self._observed != w.revision:
+            buf = w.buffers
+            fast.control_observe(buf.fbuf, buf.ibuf, self.tbuf, self.kcfg,
+                                 np.arange(self.batch_size, dtype=np.int64))
+            self._observed = w.revision
         return self.tbuf[:, fast.T_OBS:fast.T_OBS + fast.OBS_SIZE]
 
     def snapshot(self) -> dict:

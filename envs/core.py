@@ -377,7 +377,9 @@ class SpinStrikeEnv(_SpecOfScene, gym.Env):
         #: the parameters this env was made with (masses, sizes, materials, table), which the
         #: next reset puts back after :meth:`set_physics_state` brought in a snapshot's
         self._own = None
-        if self.cfg.obs_mode == "dict":
+        if self.cfg.obs_mode == "dict" and getattr(type(self), "compute_reward", None) is None:
+            # (an instance attribute; a subclass's own compute_reward method is left to act:
+            # it was hidden, and HER relabelled with the base reward, walk W21b)
             self.compute_reward = self._goal_reward
 
     # pickling (SubprocVecEnv, Ray): rebuild from the arguments, then put back the live state
@@ -458,8 +460,9 @@ class SpinStrikeEnv(_SpecOfScene, gym.Env):
         return {"world": self.task.world.get_state(parameters=True),
                 "task": self.task.snapshot()}
 
-    def set_physics_state(self, state: dict) -> None:
-        """Put back a state from :meth:`get_physics_state` (then ``step`` continues from it).
+    def set_physics_state(self, state: dict):
+        """Put back a state from :meth:`get_physics_state` (then ``step`` continues from it);
+        returns its observation, as ``reset`` returns the first one's.
 
         Its parameters (masses, sizes, materials, the table: another env's, or edited for a
         what-if) hold until the next :meth:`reset`, which starts an episode of this env's own
@@ -471,6 +474,7 @@ class SpinStrikeEnv(_SpecOfScene, gym.Env):
         self.task.restore(state["task"])
         self._started = True
         self._ended = False
+        return _take(self.task.observations(), 0)
 
     def render(self):
         """``rgb_array``: the current frame; ``rgb_array_list``: the frames since the last call

@@ -346,6 +346,7 @@ class World:
         self._state[:] = np.nan  # nothing placed yet: reset() below places every body, checked
         self._make_views()
         self._backend = None
+        self._revision = 0
         self._parallel = B >= PARALLEL_BATCH
         #: compile-time flags of the kernels (kernels.FLAGS)
         self.flags = Flags(isinstance(self.solver, FixedSolver), self.rotation,
@@ -799,7 +800,16 @@ class World:
         """Read-only [B, N, 2] applied forces, N."""
         return _read_only(self._forces)
 
+    @property
+    def revision(self) -> int:
+        """How many times the world was changed other than by stepping (edits, ``restore``,
+        ``load_element``): what was computed from its state at one revision (an env's
+        observation) is stale at another."""
+        return self.__dict__.get("_revision", 0)
+
     def _sync_backend(self, params: bool = False, state: bool = False) -> None:
+        # every change other than a step comes through here (edits, restore, load_element)
+        self._revision = self.revision + 1
         if self._backend is not None:
             if params:
                 self._backend.sync_params()

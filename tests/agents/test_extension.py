@@ -1,0 +1,126 @@
+"""A researcher extends a shipped env (walk W21b): what their subclass, registration or edit
+changes must be what every path runs, or be refused naming why. Each test goes through
+``gym.make`` / ``gym.make_vec`` or the CLI, as the user's own code does."""
+
+import textwrap
+
+import gymnasium as gym
+import numpy as np
+
+from spinstrike.agents.cli import main
+
+MODULE = "spinstrike_test_extension_lab"
+LAB = textwrap.dedent("""
+    import gymnasium as gym
+    import numpy as np
+    from gymnasium.envs.registration import WrapperSpec
+    from spinstrike.envs.strike import RodSpinEnv, RodSpinVectorEnv
+
+
+    class SpeedRod(RodSpinEnv):  # pays for the rod's speed too
+        def step(self, action):
+            obs, reward, terminated, truncated, info = super().step(action)
+            return obs, reward + 0.5 * info["speed"], terminated, truncated, info
+
+
+    class OtherTaskVec(RodSpinVectorEnv):
+        TASK = type("OtherTask", (RodSpinVectorEnv.TASK,), {})
+
+
+    class SpeedBonus(gym.RewardWrapper):
+        def reward(self, reward):
+            return reward + 1.0
+
+
+    class SignOnly(RodSpinEnv):  # dict mode: pays 1 for a spin of the target's sign
+        def compute_reward(self, achieved_goal, desired_goal, info):
+            return (np.sign(achieved_goal[..., 0]) == np.sign(desired_goal[..., 0])).astype(
+                np.float64)
+
+        def step(self, action):
+            obs, _, terminated, truncated, info = super().step(action)
+            reward = float(self.compute_reward(obs["achieved_goal"], obs["desired_goal"], info))
+            return obs, reward, terminated, truncated, info
+
+
+    # the README's template with the entry point swapped for a subclass, its vector line kept
+    gym.register("ExtLab/SpeedRod-v0", entry_point=SpeedRod,
+                 vector_entry_point="spinstrike.envs.strike:RodSpinVectorEnv")
+    gym.register("ExtLab/OtherTask-v0", entry_point=RodSpinEnv, vector_entry_point=OtherTaskVec)
+    gym.register("ExtLab/Wrapped-v0", entry_point="spinstrike.envs.strike:RodSpinEnv",
+                 vector_entry_point="spinstrike.envs.strike:RodSpinVectorEnv",
+                 additional_wrappers=(WrapperSpec("SpeedBonus", f"{__name__}:SpeedBonus", {}),))
+    gym.register("ExtLab/SignOnly-v0", entry_point=SignOnly,
+                 kwargs={"obs_mode": "dict", "goal": "target"})
+""")
+
+
+def test_train_refuses_a_variant_its_vector_env_would_not_be(user_module, capsys):
+    """Training steps the batched vector env. A subclass registered with the shipped vector
+    env itself (the README's line kept) trained its whole budget on the shipped reward, and
+    only the final evaluation ran the subclass; Gymnasium's ``additional_wrappers`` were
+    dropped the same way. Both are refused before anything is written, as a subclass with
+    no vector env was."""
+    where = user_module(MODULE, LAB)
+    for env_id, words in (("ExtLab/SpeedRod-v0", "its vector_entry_point is the shipped "
+                                                 "RodSpinVectorEnv itself"),
+                          ("ExtLab/Wrapped-v0", "additional_wrappers ['SpeedBonus']"),
+                          ("ExtLab/OtherTask-v0", "TASK (RodSpinTask) and its vector env's "
+                                                  "(OtherTask) differ")):
+        out = where / env_id.replace("/", "-")
+        assert main(["train", "--env", f"{MODULE}:{env_id}", "--timesteps", "256",
+                     "--out", str(out), "--no-progress"]) == 2, env_id
+        err = capsys.readouterr().err
+        assert words in " ".join(err.split()), (env_id, err)
+        assert not out.exists() and not out.with_name(out.name + ".partial").exists()
+
+
+def test_a_subclass_s_own_compute_reward_is_the_one_her_calls(user_module):
+    """In dict mode the env bound the base reward to the instance as ``compute_reward``,
+    which hid a subclass's own method: HER relabelled with the base reward and the checkers
+    passed, the two sides agreeing on the wrong reward."""
+    user_module(MODULE, LAB)
+    __import__(MODULE)
+    env = gym.make("ExtLab/SignOnly-v0")
+    obs, _ = env.reset(seed=3)
+    _, reward, *_ = env.step(env.action_space.sample())
+    assert env.unwrapped.compute_reward.__func__ is type(env.unwrapped).compute_reward
+    # SB3's HER calls it on batches: its own formula, 0 or 1
+    goals = np.array([[1.0], [-1.0]], dtype=np.float32)
+    assert list(env.unwrapped.compute_reward(goals, np.ones_like(goals), [{}, {}])) == [1, 0]
+    assert reward in (0.0, 1.0)
+
+
+def test_a_control_env_observes_its_world_after_an_edit_or_a_state_put_back():
+    """A control env's observation was a buffer the reset wrote: after ``world.edit()`` (a
+    subclass's reset placing the rod) or ``set_physics_state`` it still showed the old pose
+    until the next step, and nothing public refreshed it."""
+    env = gym.make("SpinStrike/RodSpinControl-v0")
+    first, _ = env.reset(seed=0)
+    snap = env.unwrapped.get_physics_state()
+    for _ in range(5):
+        moved, *_ = env.step(np.array([1.0, 0.3], dtype=np.float32))
+    assert not np.array_equal(moved, first)
+    # a state put back: its observation, returned, and the one the next step starts from
+    put_back = env.unwrapped.set_physics_state(snap)
+    np.testing.assert_array_equal(put_back, first)
+    # an edit: the rod moved and spun, as a subclass's reset would place it
+    env.reset(seed=1)
+    with env.unwrapped.world.edit() as edit:
+        edit.set_state(body="rod", positions=[0.3, 0.1], omegas=10.0)
+    fields = env.unwrapped.task.LAYOUT
+    obs = dict(zip([f.name for f in fields], env.unwrapped.task.observations()[0], strict=True))
+    fresh = gym.make("SpinStrike/RodSpinControl-v0")
+    fresh.reset(seed=1)
+    fresh.unwrapped.world.restore(env.unwrapped.world.get_state(parameters=True))
+    assert obs == dict(zip([f.name for f in fields], fresh.unwrapped.task.observations()[0],
+                           strict=True))
+    assert obs[[f.name for f in fields if "spin" in f.name][0]] > 0
+    # the vector env alike: one element edited, the others' observations as they were
+    vec = gym.make_vec("SpinStrike/RodSpinControl-v0", 3, vectorization_mode="vector_entry_point")
+    before, _ = vec.reset(seed=2)
+    with vec.unwrapped.world.edit(1) as edit:
+        edit.set_state(body="rod", omegas=10.0)
+    after = vec.unwrapped.task.observations()
+    np.testing.assert_array_equal(after[[0, 2]], before[[0, 2]])
+    assert not np.array_equal(after[1], before[1])
