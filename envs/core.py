@@ -350,6 +350,22 @@ class SpinStrikeEnv(_SpecOfScene, gym.Env):
     TASK: ClassVar[type[Task]]
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array", "rgb_array_list",
                                                            "human"], "render_fps": 50}
+    #: the attributes this class keeps (a copy rebuilds them); a subclass's others are copied
+    _OWN_ATTRIBUTES: ClassVar[frozenset[str]] = frozenset({
+        "_config", "_ended", "_frames", "_np_random", "_np_random_seed", "_own", "_spec",
+        "_started", "action_space", "cfg", "compute_reward", "observation_space", "render_mode",
+        "task", "metadata", "_made_with"})
+
+    def __new__(cls, *args: Any, **kwargs: Any):
+        env = super().__new__(cls)
+        # what a subclass of the user's was made with, so that a copy is rebuilt by its own
+        # __init__: copies were made by this class's from its config, which dropped the
+        # subclass's own arguments or failed on an __init__ of other parameters (walk W21b)
+        try:
+            env._made_with = copy.deepcopy((args, kwargs))
+        except Exception:  # noqa: BLE001  (an argument that does not copy: rebuilt as before)
+            env._made_with = None
+        return env
 
     def __init__(self, render_mode: str | None = None, config: dict | None = None,
                  **kwargs: Any) -> None:
@@ -384,7 +400,14 @@ class SpinStrikeEnv(_SpecOfScene, gym.Env):
 
     # pickling (SubprocVecEnv, Ray): rebuild from the arguments, then put back the live state
     def __getstate__(self) -> dict:
+        own = type(self).__module__.startswith("spinstrike.")
+        made = None if own else self.__dict__.get("_made_with")
+        if made is not None and isinstance(made[1].get("scene"), str):  # a file: as read
+            made = (made[0], {**made[1], "scene": self.cfg.scene})
         return {"render_mode": self.render_mode, "config": self._config,
+                # a subclass of the user's: its own arguments and attributes
+                "made_with": made, "attributes": {} if own else {
+                    k: v for k, v in self.__dict__.items() if k not in self._OWN_ATTRIBUTES},
                 "physics": self.get_physics_state(),
                 "np_random": self._np_random, "np_random_seed": self._np_random_seed,
                 "started": self._started, "ended": self._ended,
@@ -394,7 +417,13 @@ class SpinStrikeEnv(_SpecOfScene, gym.Env):
                 "spaces": (self.action_space, self.observation_space)}
 
     def __setstate__(self, state: dict) -> None:
-        self.__init__(render_mode=state["render_mode"], config=state["config"])
+        made = state.get("made_with")
+        if made is not None:
+            self._made_with = made
+            self.__init__(*made[0], **made[1])
+        else:
+            self.__init__(render_mode=state["render_mode"], config=state["config"])
+        self.__dict__.update(state.get("attributes", {}))
         self.set_physics_state(state["physics"])
         self._np_random = state["np_random"]
         self._np_random_seed = state.get("np_random_seed")

@@ -43,6 +43,21 @@ LAB = textwrap.dedent("""
             return obs, reward, terminated, truncated, info
 
 
+    class Weighted(RodSpinEnv):  # an argument of its own
+        def __init__(self, speed_weight=0.5, **kwargs):
+            self.speed_weight = speed_weight
+            super().__init__(**kwargs)
+
+        def step(self, action):
+            obs, reward, terminated, truncated, info = super().step(action)
+            return obs, reward + self.speed_weight * info["speed"], terminated, truncated, info
+
+
+    class Bouncy(Weighted):  # an __init__ of other parameters than the env's
+        def __init__(self, render_mode=None):
+            super().__init__(speed_weight=3.0, render_mode=render_mode, restitution=0.5)
+
+
     # the README's template with the entry point swapped for a subclass, its vector line kept
     gym.register("ExtLab/SpeedRod-v0", entry_point=SpeedRod,
                  vector_entry_point="spinstrike.envs.strike:RodSpinVectorEnv")
@@ -50,6 +65,8 @@ LAB = textwrap.dedent("""
     gym.register("ExtLab/Wrapped-v0", entry_point="spinstrike.envs.strike:RodSpinEnv",
                  vector_entry_point="spinstrike.envs.strike:RodSpinVectorEnv",
                  additional_wrappers=(WrapperSpec("SpeedBonus", f"{__name__}:SpeedBonus", {}),))
+    gym.register("ExtLab/Weighted-v0", entry_point=Weighted, kwargs={"speed_weight": 2.0})
+    gym.register("ExtLab/Bouncy-v0", entry_point=Bouncy)
     gym.register("ExtLab/SignOnly-v0", entry_point=SignOnly,
                  kwargs={"obs_mode": "dict", "goal": "target"})
 """)
@@ -124,3 +141,30 @@ def test_a_control_env_observes_its_world_after_an_edit_or_a_state_put_back():
     after = vec.unwrapped.task.observations()
     np.testing.assert_array_equal(after[[0, 2]], before[[0, 2]])
     assert not np.array_equal(after[1], before[1])
+
+
+def test_copies_of_a_subclass_keep_its_arguments_and_attributes(user_module):
+    """Pickle and deepcopy rebuilt an env from its config with this package's ``__init__``: a
+    subclass's own argument went back to its default (speed_weight 2.0 -> 0.5, the reward
+    with it), an attribute set since was gone, and a subclass whose ``__init__`` takes other
+    parameters failed (TypeError: unexpected keyword argument 'config')."""
+    import copy
+    import pickle
+
+    user_module(MODULE, LAB)
+    __import__(MODULE)
+    for env_id in ("ExtLab/Weighted-v0", "ExtLab/Bouncy-v0"):
+        env = gym.make(env_id)
+        env.reset(seed=5)
+        env.unwrapped.curriculum_level = 3
+        action = np.array([0.2, -0.4, 0.9], dtype=np.float32)
+        for copied in (copy.deepcopy(env.unwrapped),
+                       pickle.loads(pickle.dumps(env.unwrapped))):
+            assert type(copied) is type(env.unwrapped)
+            assert copied.speed_weight == env.unwrapped.speed_weight
+            assert copied.curriculum_level == 3
+            assert copied.cfg == env.unwrapped.cfg
+            theirs, ours = copied.step(action), env.unwrapped.step(action)
+            np.testing.assert_array_equal(theirs[0], ours[0])
+            assert theirs[1:4] == ours[1:4] and ours[1] > 1.0  # the speed paid too
+            env.reset(seed=5)
