@@ -146,7 +146,7 @@ class RodSpinOracle:
             chunk = acts[i:i + self.samples]
             scratch = scratches.get(len(chunk))
             if scratch is None:
-                scratch = scratches[len(chunk)] = RodSpinTask(task.cfg, len(chunk))
+                scratch = scratches[len(chunk)] = type(task)(task.cfg, len(chunk))
             out[i:i + len(chunk)] = _strike_from(task, scratch, chunk)[0]
         return out
 
