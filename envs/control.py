@@ -34,8 +34,8 @@ from spinstrike.envs.layout import SPEED_SCALE, SPIN_SCALE, control_layout, layo
 from spinstrike.envs.rendering import BodyDraw, Frame, Gauge, Marker, body_draws, body_points
 from spinstrike.physics.layout import FORCE
 
-__all__ = ["PuckSpeedControlEnv", "PuckSpeedControlVectorEnv", "RodSpinControlEnv",
-           "RodSpinControlVectorEnv", "limit_force"]
+__all__ = ["PuckSpeedControlEnv", "PuckSpeedControlTask", "PuckSpeedControlVectorEnv",
+           "RodSpinControlEnv", "RodSpinControlTask", "RodSpinControlVectorEnv", "limit_force"]
 
 #: distance (m) kept between the bodies and from the cushions when placing them at reset
 CLEARANCE = 0.02

@@ -43,9 +43,9 @@ from spinstrike.physics import SceneError
 from spinstrike.physics.layout import STATE_COLUMNS, X, Y
 from spinstrike.physics.solvers import TRACE_DROPPED, TRACE_ENTRIES
 
-__all__ = ["PuckSpeedEnv", "PuckSpeedV1Env", "PuckSpeedV1VectorEnv", "PuckSpeedVectorEnv",
-           "PuckSpeedVelocityTask", "RodSpinEnv", "RodSpinVectorEnv", "StrikeClip",
-           "rod_spin_after_strike", "rod_spin_max"]
+__all__ = ["PuckSpeedEnv", "PuckSpeedTask", "PuckSpeedV1Env", "PuckSpeedV1VectorEnv",
+           "PuckSpeedVectorEnv", "PuckSpeedVelocityTask", "RodSpinEnv", "RodSpinTask",
+           "RodSpinVectorEnv", "StrikeClip", "rod_spin_after_strike", "rod_spin_max"]
 
 #: longest chunk of a strike, s (the solver's step inside the strike kernel; time_cap is cut into
 #: equal chunks of at most this)
