@@ -728,9 +728,14 @@ def build_parser() -> argparse.ArgumentParser:
                        "arguments as YAML, e.g. '{restitution: 0.8}' (a run uses its own)")
         if name == "evaluate":
             e.add_argument("--episodes", type=int, default=50)
-            e.add_argument("--seed", type=_seed, default=1000)
-            e.add_argument("--json", action="store_true")
-            e.add_argument("--no-save", action="store_true")
+            e.add_argument("--seed", type=_seed, default=1000,
+                           help="episode k is reset with seed SEED + k, for every policy "
+                                "(default 1000; the learning curve's evaluations use one env "
+                                "seeded 10000 instead)")
+            e.add_argument("--json", action="store_true",
+                           help="print the scores as one JSON object")
+            e.add_argument("--no-save", action="store_true",
+                           help="leave a run's summary.md and summary.json as they are")
         else:
             e.add_argument("--out", help="video file, .mp4 or .gif, replaced if there, its "
                            "folders made if missing "

@@ -187,8 +187,13 @@ def _sb3_policy(algo: str, model_file: Path, norm_file: Path, run_dir: Path,
     where it exists)."""
     from spinstrike.agents.config import AgentConfigError, algo_class
 
+    # an off-policy model's replay buffer is not needed to act: a HER model's (SB3 asserts it
+    # gets an env to rebuild one; evaluate and record crashed, walk W21a) is built as a plain
+    # one of a single transition
+    off_policy = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1}
     try:
-        model = algo_class(algo).load(model_file, device="cpu")
+        model = algo_class(algo).load(model_file, device="cpu",
+                                      custom_objects=off_policy if algo != "ppo" else None)
     # not a zip, not an SB3 model; another algorithm's (AttributeError: a PPO policy has no
     # actor for TD3, TypeError: its arguments)
     except (ValueError, KeyError, EOFError, OSError, AttributeError, TypeError) as exc:
@@ -211,7 +216,8 @@ def _sb3_policy(algo: str, model_file: Path, norm_file: Path, run_dir: Path,
                 f"run_dir: {run_dir}'s model does not take {env_id}'s observations now "
                 f"(the model's space: {model.observation_space}; {type(exc).__name__}: {exc}); "
                 f"was the env changed since training (a variant's registered arguments, "
-                f"config.yml)?") from None
+                f"config.yml), or was the model trained under an observation wrapper its run "
+                f"does not record (SB3's VecFrameStack)?") from None
 
     return policy
 
