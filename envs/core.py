@@ -344,6 +344,17 @@ class _SpecOfScene:
                 else f"{value.namespace}/{name}"
 
 
+def _plain(value: Any) -> bool:
+    """Whether ``value`` is plain data: numbers, strings, arrays and containers of them."""
+    if isinstance(value, (numbers.Number, str, bytes, np.ndarray, np.generic)) or value is None:
+        return True
+    if isinstance(value, (list, tuple)):
+        return all(_plain(v) for v in value)
+    if isinstance(value, dict):
+        return all(_plain(k) and _plain(v) for k, v in value.items())
+    return False
+
+
 class SpinStrikeEnv(_SpecOfScene, gym.Env):
     """Gymnasium env over a :class:`Task` with one element. Subclasses set ``TASK``."""
 
@@ -423,7 +434,11 @@ class SpinStrikeEnv(_SpecOfScene, gym.Env):
             self.__init__(*made[0], **made[1])
         else:
             self.__init__(render_mode=state["render_mode"], config=state["config"])
-        self.__dict__.update(state.get("attributes", {}))
+        # a subclass's attributes: those its __init__ did not make, and the plain values of
+        # those it did (a counter's count; an attribute holding this env's world or task is
+        # the rebuilt env's own, not a copy of the old one's)
+        self.__dict__.update({k: v for k, v in state.get("attributes", {}).items()
+                              if k not in self.__dict__ or _plain(v)})
         self.set_physics_state(state["physics"])
         self._np_random = state["np_random"]
         self._np_random_seed = state.get("np_random_seed")

@@ -47,6 +47,12 @@ LAB = textwrap.dedent("""
         def __init__(self, speed_weight=0.5, **kwargs):
             self.speed_weight = speed_weight
             super().__init__(**kwargs)
+            self.strikes = 0
+            self.table = self.world  # its own world, not a copy
+
+        def reset(self, *, seed=None, options=None):
+            self.strikes += 1
+            return super().reset(seed=seed, options=options)
 
         def step(self, action):
             obs, reward, terminated, truncated, info = super().step(action)
@@ -179,6 +185,8 @@ def test_copies_of_a_subclass_keep_its_arguments_and_attributes(user_module):
             assert type(copied) is type(env.unwrapped)
             assert copied.speed_weight == env.unwrapped.speed_weight
             assert copied.curriculum_level == 3
+            assert copied.strikes == 1  # the resets counted when it was copied
+            assert copied.table is copied.world is not env.unwrapped.world
             assert copied.cfg == env.unwrapped.cfg
             theirs, ours = copied.step(action), env.unwrapped.step(action)
             np.testing.assert_array_equal(theirs[0], ours[0])
