@@ -59,8 +59,9 @@ def _remove_stale_partials(path: Path) -> None:
         try:
             os.kill(int(match.group(1)), 0)
         except ProcessLookupError:  # gone (PermissionError: alive, another user's)
-            old.unlink(missing_ok=True)
-        except (PermissionError, OverflowError, OSError):
+            with contextlib.suppress(OSError):  # (a folder it may not write: left, as before)
+                old.unlink(missing_ok=True)
+        except (OverflowError, OSError):
             continue
 
 
