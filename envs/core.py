@@ -371,12 +371,20 @@ class SpinStrikeEnv(_SpecOfScene, gym.Env):
         env = super().__new__(cls)
         # what a subclass of the user's was made with, so that a copy is rebuilt by its own
         # __init__: copies were made by this class's from its config, which dropped the
-        # subclass's own arguments or failed on an __init__ of other parameters (walk W21b)
-        try:
-            env._made_with = copy.deepcopy((args, kwargs))
-        except Exception:  # noqa: BLE001  (an argument that does not copy: rebuilt as before)
-            env._made_with = None
+        # subclass's own arguments or failed on an __init__ of other parameters (walk W21b).
+        # This package's classes are rebuilt from their config: nothing to keep
+        env._made_with = None
+        if cls._users_subclass():
+            try:
+                env._made_with = copy.deepcopy((args, kwargs))
+            except Exception:  # noqa: BLE001  (an argument that does not copy: as before)
+                pass
         return env
+
+    @classmethod
+    def _users_subclass(cls) -> bool:
+        """Whether ``cls`` is a subclass of the user's, not one of this package's classes."""
+        return not cls.__module__.startswith("spinstrike.")
 
     def __init__(self, render_mode: str | None = None, config: dict | None = None,
                  **kwargs: Any) -> None:
@@ -411,14 +419,15 @@ class SpinStrikeEnv(_SpecOfScene, gym.Env):
 
     # pickling (SubprocVecEnv, Ray): rebuild from the arguments, then put back the live state
     def __getstate__(self) -> dict:
-        own = type(self).__module__.startswith("spinstrike.")
-        made = None if own else self.__dict__.get("_made_with")
+        users = self._users_subclass()
+        made = self.__dict__.get("_made_with")  # (None for this package's classes)
         if made is not None and isinstance(made[1].get("scene"), str):  # a file: as read
             made = (made[0], {**made[1], "scene": self.cfg.scene})
         return {"render_mode": self.render_mode, "config": self._config,
                 # a subclass of the user's: its own arguments and attributes
-                "made_with": made, "attributes": {} if own else {
-                    k: v for k, v in self.__dict__.items() if k not in self._OWN_ATTRIBUTES},
+                "made_with": made, "attributes": {
+                    k: v for k, v in self.__dict__.items()
+                    if users and k not in self._OWN_ATTRIBUTES},
                 "physics": self.get_physics_state(),
                 "np_random": self._np_random, "np_random_seed": self._np_random_seed,
                 "started": self._started, "ended": self._ended,
