@@ -102,6 +102,8 @@ class _ControlTask(Task):
         self._kept = np.zeros(batch_size, dtype=np.int64)
         self._head = 0
         self._returns = np.zeros(batch_size)
+        #: each element's last step reward as its frame shows it (what the env paid)
+        self._shown = np.zeros(batch_size)
         # whether element b has stepped since its last reset or state put back: only then do
         # the world's last contacts and the step reward in tbuf belong to what its frame shows
         # (a reset frame drew the last episode's final impulse arrows and reward at t = 0);
@@ -234,6 +236,7 @@ class _ControlTask(Task):
         self._put_back = None
         if self.record_trace:
             self._returns += reward
+            self._shown[:] = reward
             self._remember()
         if not batch_info:
             return reward, self._never, None
@@ -279,12 +282,21 @@ class _ControlTask(Task):
         its contacts (0 and none before its episode's first step)."""
         if self._stepped[b]:
             c = self.world.last_contacts
-            return float(self.tbuf[b, fast.T_REWARD]), [
+            reward = self._shown[b] if self.record_trace else self.tbuf[b, fast.T_REWARD]
+            return float(reward), [
                 Marker.on(self.it, c.body_a[i], c.body_b[i], c.point[i], c.normal[i],
                           c.impulse[i]) for i in np.flatnonzero(c.batch == b)]
         if b == 0 and self._put_back is not None:
             return self._put_back
         return 0.0, []
+
+    def show_rewards(self, rewards: np.ndarray) -> None:
+        if not self.record_trace:
+            return
+        stepped = self._stepped
+        paid = np.asarray(rewards, dtype=np.float64)[stepped]
+        self._returns[stepped] += paid - self._shown[stepped]
+        self._shown[stepped] = paid
 
     def trace(self) -> dict:
         slots = self._slots(0)

@@ -23,8 +23,10 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 import numbers
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -176,6 +178,13 @@ class Task(ABC):
     def step_frames(self) -> list[Frame]:
         """Element 0's last step as video frames (one-strike tasks: the whole strike)."""
         return [self.frame(0)]
+
+    def show_rewards(self, rewards: np.ndarray) -> None:
+        """The rewards ``[B]`` the env paid for its last step, as its video frames show them
+        (the step reward, a strike's score, the return so far): a task or env subclass's
+        ``step`` may pay other than this task computed (the frames showed the shipped reward,
+        walk W21b F8). Elements reset since their step keep showing their reset."""
+        return None
 
     @abstractmethod
     def view_half(self) -> tuple[float, float]:
@@ -344,6 +353,64 @@ class _SpecOfScene:
                 else f"{value.namespace}/{name}"
 
 
+def _users_class(cls: type) -> bool:
+    """Whether ``cls`` is a class of the user's, not one of this package's."""
+    return not cls.__module__.startswith("spinstrike.")
+
+
+def _paid(out: Any, fallback: Any) -> Any:
+    """The reward of a step's return ``out`` (``fallback`` where it has none)."""
+    try:
+        return out[1]
+    except (TypeError, IndexError, KeyError):
+        return fallback
+
+
+def _films_what_it_pays(step: Callable) -> Callable:
+    """A user's single env ``step`` whose frames show the reward it returns."""
+    if getattr(step, "_films_what_it_pays", False):
+        return step
+
+    @functools.wraps(step)
+    def films(self, *args: Any, **kwargs: Any):
+        self._step_depth += 1
+        try:
+            out = step(self, *args, **kwargs)
+        finally:
+            self._step_depth -= 1
+        if not self._step_depth and self._unfilmed is not None:
+            try:
+                reward = float(_paid(out, self._unfilmed))
+            except (TypeError, ValueError):  # not a number: the frames show the env's own
+                reward = self._unfilmed
+            self._film(reward)
+        return out
+
+    films._films_what_it_pays = True
+    return films
+
+
+def _shows_what_it_pays(step: Callable) -> Callable:
+    """A user's vector env ``step`` whose frames show the rewards it returns."""
+    if getattr(step, "_films_what_it_pays", False):
+        return step
+
+    @functools.wraps(step)
+    def shows(self, *args: Any, **kwargs: Any):
+        out = step(self, *args, **kwargs)
+        if self.render_mode is not None:
+            try:
+                rewards = np.asarray(_paid(out, None), dtype=np.float64)
+            except (TypeError, ValueError):
+                return out
+            if rewards.shape == (self.num_envs,):
+                self.task.show_rewards(rewards)
+        return out
+
+    shows._films_what_it_pays = True
+    return shows
+
+
 def _plain(value: Any) -> bool:
     """Whether ``value`` is plain data: numbers, strings, arrays and containers of them."""
     if isinstance(value, (numbers.Number, str, bytes, np.ndarray, np.generic)) or value is None:
@@ -384,7 +451,19 @@ class SpinStrikeEnv(_SpecOfScene, gym.Env):
     @classmethod
     def _users_subclass(cls) -> bool:
         """Whether ``cls`` is a subclass of the user's, not one of this package's classes."""
-        return not cls.__module__.startswith("spinstrike.")
+        return _users_class(cls)
+
+    #: calls of a user's ``step`` under way (its frames are taken when the outermost returns)
+    _step_depth: int = 0
+    #: the reward of a step whose frames are not taken yet (None: none)
+    _unfilmed: float | None = None
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        # a user's subclass that pays another reward in its own step: its video frames show
+        # what it returns (they showed the shipped reward, walk W21b F8)
+        if "step" in cls.__dict__ and cls._users_subclass():
+            cls.step = _films_what_it_pays(cls.__dict__["step"])
 
     def __init__(self, render_mode: str | None = None, config: dict | None = None,
                  **kwargs: Any) -> None:
@@ -492,11 +571,21 @@ class SpinStrikeEnv(_SpecOfScene, gym.Env):
         reward, terminated, info = self.task.step(action, batch_info=False)
         self._ended = bool(terminated[0])
         obs = _take(self.task.observations(), 0)
+        if self.render_mode is not None:
+            self._unfilmed = float(reward[0])
+            if not self._step_depth:  # (a user's step around this one films what it pays)
+                self._film(self._unfilmed)
+        return obs, float(reward[0]), bool(terminated[0]), False, self.task.info_row(0, info)
+
+    def _film(self, reward: float) -> None:
+        """The last step's frames, showing ``reward``: kept (``rgb_array_list``), shown
+        (``human``), or drawn when ``render()`` asks (``rgb_array``)."""
+        self._unfilmed = None
+        self.task.show_rewards(np.array([reward]))
         if self.render_mode == "rgb_array_list":
             self._frames += self.task.step_frames()
         elif self.render_mode == "human":
             self._show(self.task.step_frames())
-        return obs, float(reward[0]), bool(terminated[0]), False, self.task.info_row(0, info)
 
     def _goal_reward(self, achieved_goal, desired_goal, info):
         """Goal-conditioned reward (``obs_mode='dict'``), vectorised like SB3's HER expects.
@@ -616,6 +705,12 @@ class SpinStrikeVectorEnv(_SpecOfScene, VectorEnv):
     TASK: ClassVar[type[Task]]
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 50,
                                           "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        # a user's subclass that pays other rewards in its own step: its frames show them
+        if "step" in cls.__dict__ and _users_class(cls):
+            cls.step = _shows_what_it_pays(cls.__dict__["step"])
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None,
                  render_mode: str | None = None, config: dict | None = None,
@@ -754,6 +849,8 @@ class SpinStrikeVectorEnv(_SpecOfScene, VectorEnv):
     def _physics_step(self, actions):
         """Step every element: (reward, terminated, truncated, info with ``_key`` masks)."""
         reward, terminated, info = self.task.step(actions)
+        if self.render_mode is not None:  # (a task subclass may pay other than it computed)
+            self.task.show_rewards(reward)
         self._steps += 1
         truncated = np.zeros(self.num_envs, dtype=bool)
         if self.max_episode_steps is not None:

@@ -377,6 +377,14 @@ class _StrikeTask(Task):
             self._clip_frames_cache = None
         return reward, np.ones(self.batch_size, dtype=bool), info
 
+    def show_rewards(self, rewards: np.ndarray) -> None:
+        struck = self._struck
+        self._last_reward[struck] = np.asarray(rewards, dtype=np.float64)[struck]
+        if (self.record_trace and self.clip is not None and struck[0]
+                and self._last_reward[0] != self._clip_reward):
+            self._clip_reward = float(self._last_reward[0])
+            self._clip_frames_cache = None
+
     # -- snapshots ----------------------------------------------------------------------------
     def snapshot(self) -> dict:
         return {"goal": self.goal.copy(), "result_v": self.result_v.copy(),

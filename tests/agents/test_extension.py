@@ -14,6 +14,7 @@ LAB = textwrap.dedent("""
     import gymnasium as gym
     import numpy as np
     from gymnasium.envs.registration import WrapperSpec
+    from spinstrike.envs.control import PuckSpeedControlEnv, PuckSpeedControlVectorEnv
     from spinstrike.envs.strike import RodSpinEnv, RodSpinVectorEnv
 
 
@@ -74,6 +75,24 @@ LAB = textwrap.dedent("""
         TASK = SpeedTask
 
 
+    class PaidControl(PuckSpeedControlEnv):  # a control env paying 1 more a step
+        def step(self, action):
+            obs, reward, terminated, truncated, info = super().step(action)
+            return obs, reward + 1.0, terminated, truncated, info
+
+
+    class PaidMore(PaidControl):  # and its subclass, 2 more
+        def step(self, action):
+            obs, reward, terminated, truncated, info = super().step(action)
+            return obs, reward + 1.0, terminated, truncated, info
+
+
+    class PaidControlVec(PuckSpeedControlVectorEnv):
+        def step(self, actions):
+            obs, reward, terminated, truncated, info = super().step(actions)
+            return obs, reward + 1.0, terminated, truncated, info
+
+
     class SpeedTaskRodVec(RodSpinVectorEnv):
         TASK = SpeedTask
 
@@ -89,6 +108,9 @@ LAB = textwrap.dedent("""
     gym.register("ExtLab/Bouncy-v0", entry_point=Bouncy)
     gym.register("ExtLab/SpeedTask-v0", entry_point=SpeedTaskRod,
                  vector_entry_point=SpeedTaskRodVec)
+    gym.register("ExtLab/PaidControl-v0", entry_point=PaidControl,
+                 vector_entry_point=PaidControlVec, max_episode_steps=50)
+    gym.register("ExtLab/PaidMore-v0", entry_point=PaidMore, max_episode_steps=50)
     gym.register("ExtLab/SignOnly-v0", entry_point=SignOnly,
                  kwargs={"obs_mode": "dict", "goal": "target"})
 """)
@@ -215,3 +237,56 @@ def test_the_rod_oracle_strikes_for_a_task_subclass_s_reward(user_module):
     assert isinstance(env.unwrapped.task, lab.SpeedTask)
     assert all(ours >= shipped for ours, shipped in paid), paid
     assert any(ours > shipped + 0.1 for ours, shipped in paid), paid
+
+
+def test_video_frames_show_the_reward_a_variant_pays(user_module):
+    """The frames' panel showed the shipped task's reward where a variant paid more (a
+    subclass's ``step`` adds after the base step drew its frames; a task subclass's after the
+    task kept its score): a video of the user's env read "reward 1.000" where it paid 2."""
+    user_module(MODULE, LAB)
+    __import__(MODULE)
+    action = np.array([0.2, -0.4, 0.9], dtype=np.float32)
+    for env_id in ("ExtLab/Weighted-v0", "ExtLab/SpeedTask-v0"):
+        for mode in ("rgb_array_list", "rgb_array"):
+            env = gym.make(env_id, render_mode=mode)
+            env.reset(seed=5)
+            _, paid, *_ = env.step(action)
+            frames = env.render()
+            last = env.unwrapped.task.step_frames()[-1]
+            assert last.panel[-1] == f"reward {paid:.3f}" and paid > 1.0, (env_id, last.panel)
+            shown = frames[-1] if mode == "rgb_array_list" else frames
+            np.testing.assert_array_equal(shown, env.unwrapped.task.draw(last))
+    # the shipped env with the same strike paid less, and its frame says so
+    base = gym.make("SpinStrike/RodSpin-v0", render_mode="rgb_array")
+    base.reset(seed=5)
+    _, shipped, *_ = base.step(action)
+    assert base.unwrapped.task.step_frames()[-1].panel[-1] == f"reward {shipped:.3f}"
+    assert shipped < paid - 0.5
+    # a vector env of the task subclass: each element's frame, its own strike's reward
+    vec = gym.make_vec("ExtLab/SpeedTask-v0", 2, vectorization_mode="vector_entry_point",
+                       render_mode="rgb_array")
+    vec.reset(seed=5)
+    _, rewards, *_ = vec.step(np.stack([action, action]))
+    for b in range(2):
+        assert vec.unwrapped.task.frame(b).panel[-1] == f"reward {rewards[b]:.3f}"
+    # control envs: the step reward and the return, for a subclass of a subclass too, and
+    # for every element of a vector env's subclass
+    push = np.array([1.0, 0.2], dtype=np.float32)
+    for env_id, extra in (("ExtLab/PaidControl-v0", 1.0), ("ExtLab/PaidMore-v0", 2.0)):
+        env = gym.make(env_id, render_mode="rgb_array_list")
+        env.reset(seed=1)
+        paid = [env.step(push)[1] for _ in range(4)]
+        frames = env.render()
+        assert len(frames) == 5  # the reset's frame and one a step
+        assert min(paid) >= extra
+        assert env.unwrapped.task.frame(0).panel[-1] == (
+            f"reward {paid[-1]:+.3f} (step)   return {sum(paid):+.3f}"), env_id
+    vec = gym.make_vec("ExtLab/PaidControl-v0", 3, vectorization_mode="vector_entry_point",
+                       render_mode="rgb_array")
+    vec.reset(seed=1)
+    total = np.zeros(3)
+    for _ in range(4):
+        total += vec.step(np.tile(push, (3, 1)))[1]
+    assert total.min() >= 4.0
+    for b in range(3):
+        assert vec.unwrapped.task.frame(b).panel[-1].endswith(f"return {total[b]:+.3f}")
