@@ -551,12 +551,23 @@ def _note_registration_changes(run: Path, meta: dict, env_kwargs: dict) -> None:
     matches what the run recorded (``registration_changes``): the run's arguments are used;
     one its record lacks (a run recorded before the record held them) comes from the
     registration now."""
-    from spinstrike.envs import registration_changes, unread_scene_file, variant_kwargs
+    from spinstrike.envs import (
+        code_changes,
+        registration_changes,
+        unread_scene_file,
+        variant_kwargs,
+    )
 
     changes = registration_changes(meta["env"], env_kwargs, meta.get("registered"))
     if changes:
         print(f"note: {meta['env']} is registered with other arguments than when {run} "
               f"trained: {'; '.join(changes)}; the run's are used", file=sys.stderr)
+    edited = code_changes(meta["env"], meta.get("code"))
+    if edited:
+        print(f"note: the source of {', '.join(edited)} (where {meta['env']}'s classes are "
+              f"defined) changed since {run} trained: a run records its arguments, not its "
+              f"code, so the code as it is now runs (a changed reward or observation changes "
+              f"what the run is scored on)", file=sys.stderr)
     # (the registration as given: registered_kwargs would read its scene file a second time)
     unread = unread_scene_file(variant_kwargs(meta["env"]).get("scene"))
     if unread and "scene" in env_kwargs:  # (the run recorded its scene as read)

@@ -695,13 +695,16 @@ def check_env_kwargs(env_id: str, env_kwargs: dict, field: str = "env_kwargs",
 
 
 def _registered(env_id: str) -> dict:
-    """``config.yml``'s record of a variant's registration when it trained (``registered``),
-    which ``evaluate`` / ``record RUN`` compare with the registration then; none for a
-    shipped id."""
-    from spinstrike.envs import registered_kwargs
+    """``config.yml``'s record of a variant's registration when it trained (``registered``)
+    and of the source of its classes of the user's (``code``: ``envs.code_fingerprint``),
+    which ``evaluate`` / ``record RUN`` compare with the registration and code then; none
+    for a shipped id."""
+    from spinstrike.envs import code_fingerprint, registered_kwargs
 
     registered = registered_kwargs(env_id)
-    return {"registered": registered} if registered else {}
+    code = code_fingerprint(env_id)
+    return {**({"registered": registered} if registered else {}),
+            **({"code": code} if code else {})}
 
 
 def _check_entry_env_kwargs(env_id: str, cfg: RunConfig, given: dict | None):

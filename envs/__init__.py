@@ -235,6 +235,58 @@ def registration_changes(env_id: str, env_kwargs: dict, registered: dict | None)
     return changes
 
 
+def code_fingerprint(env_id: str) -> dict[str, str]:
+    """A digest of the source file of each module of the user's that defines a class
+    ``env_id`` runs (its env class and vector env class, their bases and their ``TASK``
+    classes, where they are not this package's or Gymnasium's): ``{module: sha256}``, empty
+    for a shipped id and a variant of a shipped class. A run's ``config.yml`` records it, so
+    ``evaluate`` / ``record`` can say when a subclass's code changed since the run trained (a
+    run records its registered arguments, not its code; walk W21b F10)."""
+    import hashlib
+    import inspect
+    import sys
+
+    bare = env_id.rpartition(":")[2]
+    if bare in ENV_IDS:
+        return {}
+    base_id(env_id)  # checked, its module imported
+    spec = gym.registry[bare]
+    classes = []
+    for entry in (spec.entry_point, spec.vector_entry_point):
+        try:
+            cls = _entry_class(entry) if entry is not None else None
+        except Exception:  # noqa: BLE001  (an entry point that does not load: nothing to digest)
+            cls = None
+        if isinstance(cls, type):
+            task = getattr(cls, "TASK", None)
+            classes += [*cls.__mro__, *(task.__mro__ if isinstance(task, type) else ())]
+    out = {}
+    for cls in classes:
+        module = cls.__module__
+        top = module.partition(".")[0]
+        if top in ("spinstrike", "gymnasium", "__main__") or top in sys.stdlib_module_names \
+                or module in out:  # (gym.Env's typing.Generic too; a script's is not a run's)
+            continue
+        try:
+            path = inspect.getsourcefile(sys.modules[module])
+            out[module] = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+        except (KeyError, TypeError, OSError):  # a class made at run time, no source file
+            continue
+    return out
+
+
+def code_changes(env_id: str, recorded: Mapping | None) -> list[str]:
+    """The modules of :func:`code_fingerprint`'s record ``recorded`` (a run's) whose source
+    differs now or is no longer among ``env_id``'s (none where the run recorded none)."""
+    if not recorded:
+        return []
+    try:
+        now = code_fingerprint(env_id)
+    except ConfigError:
+        return []
+    return [module for module, digest in recorded.items() if now.get(module) != digest]
+
+
 def unread_scene_file(scene: Any) -> str | None:
     """``scene`` where it is a YAML file's path that is not found from the working directory
     (a variant registered with a relative path, used from another folder), else None."""

@@ -154,3 +154,47 @@ def test_a_runs_summary_names_the_env_arguments_it_was_given(tmp_path, ppo_yml, 
     title = (tmp_path / "run" / "summary.md").read_text().splitlines()[0]
     assert title.startswith("## PPO on SpinStrike/RodSpin-v0 with restitution 0.3 (seed 0, "), \
         title
+
+
+def test_an_edited_subclass_trains_the_run_again(user_module, ppo_yml, capsys):
+    """A variant that is a subclass of the user's: an edit of its code (its reward) since the
+    run trained is a change too (the run records a digest of the module's source), where only
+    its registered arguments were compared: the old run's score was reported beside the new
+    reward's random policy and oracle."""
+    import importlib
+    import sys
+
+    import gymnasium as gym
+
+    def register(bonus):
+        sys.modules.pop(MODULE, None)
+        gym.registry.pop("ReuseLab/BonusRod-v0", None)
+        here = user_module(MODULE, (
+            "import gymnasium as gym\n"
+            "import numpy as np\n"
+            "from spinstrike.envs.strike import RodSpinEnv, RodSpinTask, RodSpinVectorEnv\n"
+            "class BonusTask(RodSpinTask):\n"
+            "    def step(self, actions, batch_info=True):\n"
+            "        reward, terminated, info = super().step(actions, batch_info)\n"
+            f"        return reward + {bonus} * np.asarray(info['speed']), terminated, info\n"
+            "class BonusRod(RodSpinEnv):\n"
+            "    TASK = BonusTask\n"
+            "class BonusRodVec(RodSpinVectorEnv):\n"
+            "    TASK = BonusTask\n"
+            "gym.register('ReuseLab/BonusRod-v0', entry_point=BonusRod,"
+            " vector_entry_point=BonusRodVec)\n"))
+        importlib.invalidate_caches()
+        return here
+
+    here = register(0.5)
+    variant, run = f"{MODULE}:ReuseLab/BonusRod-v0", "ppo-ReuseLab-BonusRod-v0-s0"
+    root, doc = here / "runs", here / "baselines.md"
+    assert _baselines(variant, root, doc) == 0
+    capsys.readouterr()
+    assert _baselines(variant, root, doc, "--reuse-only") == 0  # unchanged: reused
+    register(5.0)
+    with pytest.raises(SystemExit) as refused:
+        _baselines(variant, root, doc, "--reuse-only")
+    assert str(refused.value.code).startswith(
+        f"{root / run}: trained with the code of {MODULE} as it was then (its source changed "
+        f"since)"), refused.value.code

@@ -290,3 +290,45 @@ def test_video_frames_show_the_reward_a_variant_pays(user_module):
     assert total.min() >= 4.0
     for b in range(3):
         assert vec.unwrapped.task.frame(b).panel[-1].endswith(f"return {total[b]:+.3f}")
+
+
+def test_an_edit_of_a_subclass_s_code_since_a_run_trained_is_named(user_module):
+    """A run records its registered arguments, not a subclass's code: after the user edited
+    their task's reward, ``evaluate RUN`` scored the run on the new reward with no word
+    (11.68 where it trained on 1.17). The run records a digest of the source of the user's
+    modules its classes come from, and ``evaluate`` says when one changed."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import yaml
+
+    user_module(MODULE, LAB)
+    variant = f"{MODULE}:ExtLab/SpeedTask-v0"
+    assert main(["train", "--env", variant, "--timesteps", "256", "--n-envs", "2",
+                 "--eval-episodes", "1", "--no-video", "--no-progress", "--out", "run"]) == 0
+    recorded = yaml.safe_load(Path("run/config.yml").read_text())
+    assert list(recorded["code"]) == [MODULE]
+    # a variant of the shipped classes records no code of the user's
+    assert main(["train", "--env", "SpinStrike/RodSpin-v0", "--timesteps", "256",
+                 "--n-envs", "2", "--eval-episodes", "1", "--no-video", "--no-progress",
+                 "--out", "shipped"]) == 0
+    assert "code" not in yaml.safe_load(Path("shipped/config.yml").read_text())
+    script = Path(sys.executable).with_name("spinstrike")
+    env = dict(os.environ, SDL_VIDEODRIVER="dummy", SDL_AUDIODRIVER="dummy")
+
+    def evaluate():
+        out = subprocess.run([str(script), "evaluate", "run", "--episodes", "2", "--no-save",
+                              "--json"], env=env, capture_output=True, text=True, timeout=600)
+        assert out.returncode == 0, out.stderr[-2000:]
+        return json.loads(out.stdout)["agent"]["mean"], out.stderr
+
+    before, note = evaluate()
+    assert "note:" not in note, note
+    user_module(MODULE, LAB.replace("reward + 5.0 * np.asarray", "reward + 50.0 * np.asarray"))
+    after, note = evaluate()
+    assert after > before  # the code as it is now runs ...
+    assert f"the source of {MODULE} (where {variant}'s classes are defined) changed " \
+           f"since run trained" in " ".join(note.split()), note  # ... and the user is told
