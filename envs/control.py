@@ -290,13 +290,21 @@ class _ControlTask(Task):
             return self._put_back
         return 0.0, []
 
-    def show_rewards(self, rewards: np.ndarray) -> None:
+    def show_rewards(self, rewards: np.ndarray, returns_before=None) -> bool:
         if not self.record_trace:
-            return
+            return False
         stepped = self._stepped
         paid = np.asarray(rewards, dtype=np.float64)[stepped]
-        self._returns[stepped] += paid - self._shown[stepped]
+        before = (self._returns - self._shown if returns_before is None
+                  else np.asarray(returns_before))[stepped]
+        changed = not (np.array_equal(paid, self._shown[stepped])
+                       and np.array_equal(before + paid, self._returns[stepped]))
+        self._returns[stepped] = before + paid
         self._shown[stepped] = paid
+        return changed
+
+    def shown_returns(self) -> np.ndarray | None:
+        return self._returns.copy() if self.record_trace else None
 
     def trace(self) -> dict:
         slots = self._slots(0)

@@ -179,11 +179,19 @@ class Task(ABC):
         """Element 0's last step as video frames (one-strike tasks: the whole strike)."""
         return [self.frame(0)]
 
-    def show_rewards(self, rewards: np.ndarray) -> None:
+    def show_rewards(self, rewards: np.ndarray, returns_before: Any = None) -> bool:
         """The rewards ``[B]`` the env paid for its last step, as its video frames show them
         (the step reward, a strike's score, the return so far): a task or env subclass's
         ``step`` may pay other than this task computed (the frames showed the shipped reward,
-        walk W21b F8). Elements reset since their step keep showing their reset."""
+        walk W21b F8). ``returns_before``: :meth:`shown_returns` before that step (one of a
+        subclass may be several of the task's); by default the return before the task's last
+        step. Elements reset since their step keep showing their reset. Returns whether what
+        the frames show changed."""
+        return False
+
+    def shown_returns(self) -> Any:
+        """What the frames show of each element's return so far (None: none), for
+        :meth:`show_rewards`."""
         return None
 
     @abstractmethod
@@ -358,57 +366,52 @@ def _users_class(cls: type) -> bool:
     return not cls.__module__.startswith("spinstrike.")
 
 
-def _paid(out: Any, fallback: Any) -> Any:
-    """The reward of a step's return ``out`` (``fallback`` where it has none)."""
-    try:
-        return out[1]
-    except (TypeError, IndexError, KeyError):
-        return fallback
-
-
-def _films_what_it_pays(step: Callable) -> Callable:
-    """A user's single env ``step`` whose frames show the reward it returns."""
-    if getattr(step, "_films_what_it_pays", False):
+def _shows_what_it_pays(step: Callable) -> Callable:
+    """A user's ``step`` (of an env or a vector env) whose video frames show the rewards it
+    returns: each step of the base class films as it goes (a subclass of several base steps, an
+    action repeat, keeps every frame; a ``render()`` within sees them), and when the outermost
+    call returns, the frames of its last base step and the return so far are relabelled with
+    what it paid (``_before_users_step`` / ``_after_users_step``)."""
+    if getattr(step, "_shows_what_it_pays", False):
         return step
 
     @functools.wraps(step)
-    def films(self, *args: Any, **kwargs: Any):
+    def shows(self, *args: Any, **kwargs: Any):
+        outer = not self._step_depth and self.render_mode is not None
+        before = self._before_users_step() if outer else None
         self._step_depth += 1
         try:
             out = step(self, *args, **kwargs)
         finally:
             self._step_depth -= 1
-        if not self._step_depth and self._unfilmed is not None:
+        if outer:
             try:
-                reward = float(_paid(out, self._unfilmed))
-            except (TypeError, ValueError):  # not a number: the frames show the env's own
-                reward = self._unfilmed
-            self._film(reward)
-        return out
-
-    films._films_what_it_pays = True
-    return films
-
-
-def _shows_what_it_pays(step: Callable) -> Callable:
-    """A user's vector env ``step`` whose frames show the rewards it returns."""
-    if getattr(step, "_films_what_it_pays", False):
-        return step
-
-    @functools.wraps(step)
-    def shows(self, *args: Any, **kwargs: Any):
-        out = step(self, *args, **kwargs)
-        if self.render_mode is not None:
-            try:
-                rewards = np.asarray(_paid(out, None), dtype=np.float64)
-            except (TypeError, ValueError):
+                paid = np.asarray(out[1], dtype=np.float64)
+            except (TypeError, ValueError, IndexError, KeyError):  # no reward: nothing to show
                 return out
-            if rewards.shape == (self.num_envs,):
-                self.task.show_rewards(rewards)
+            self._after_users_step(paid, before)
         return out
 
-    shows._films_what_it_pays = True
+    shows._shows_what_it_pays = True
     return shows
+
+
+class _ShowsWhatItPays:
+    """The frames of a user's subclass overriding ``step`` (itself, or by a mixin before the
+    env's class) show the reward it returns (they showed the shipped task's, walk W21b F8)."""
+
+    #: calls of a user's ``step`` under way (the outermost relabels the frames)
+    _step_depth: int = 0
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        step = getattr(cls, "step", None)
+        if (_users_class(cls) and callable(step) and step is not SpinStrikeEnv.step
+                and step is not SpinStrikeVectorEnv.step):
+            cls.step = _shows_what_it_pays(step)
+
+    def _before_users_step(self) -> Any:
+        return self.task.shown_returns()
 
 
 def _plain(value: Any) -> bool:
@@ -422,7 +425,7 @@ def _plain(value: Any) -> bool:
     return False
 
 
-class SpinStrikeEnv(_SpecOfScene, gym.Env):
+class SpinStrikeEnv(_ShowsWhatItPays, _SpecOfScene, gym.Env):
     """Gymnasium env over a :class:`Task` with one element. Subclasses set ``TASK``."""
 
     TASK: ClassVar[type[Task]]
@@ -453,17 +456,19 @@ class SpinStrikeEnv(_SpecOfScene, gym.Env):
         """Whether ``cls`` is a subclass of the user's, not one of this package's classes."""
         return _users_class(cls)
 
-    #: calls of a user's ``step`` under way (its frames are taken when the outermost returns)
-    _step_depth: int = 0
-    #: the reward of a step whose frames are not taken yet (None: none)
-    _unfilmed: float | None = None
+    #: where the frames of the last step start in ``_frames`` (None: not kept there)
+    _filmed_from: int | None = None
 
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        super().__init_subclass__(**kwargs)
-        # a user's subclass that pays another reward in its own step: its video frames show
-        # what it returns (they showed the shipped reward, walk W21b F8)
-        if "step" in cls.__dict__ and cls._users_subclass():
-            cls.step = _films_what_it_pays(cls.__dict__["step"])
+    def _after_users_step(self, paid: np.ndarray, before: Any) -> None:
+        """A user's ``step`` paid ``paid``: its last base step's frames show it (those not
+        rendered yet, or the window again), the return ``before`` it plus ``paid``."""
+        if paid.shape != () or not self._started or not self.task.show_rewards(
+                paid.reshape(1), before):
+            return
+        if self.render_mode == "rgb_array_list" and self._filmed_from is not None:
+            self._frames[self._filmed_from:] = self.task.step_frames()
+        elif self.render_mode == "human":
+            self._show(self.task.step_frames()[-1:])
 
     def __init__(self, render_mode: str | None = None, config: dict | None = None,
                  **kwargs: Any) -> None:
@@ -558,6 +563,7 @@ class SpinStrikeEnv(_SpecOfScene, gym.Env):
         self._ended = False
         if self.render_mode == "rgb_array_list":
             self._frames = [self.task.frame(0)]
+            self._filmed_from = None
         elif self.render_mode == "human":
             self._show([self.task.frame(0)])
         return _take(self.task.observations(), 0), _scalar_info(info, 0)
@@ -572,20 +578,13 @@ class SpinStrikeEnv(_SpecOfScene, gym.Env):
         self._ended = bool(terminated[0])
         obs = _take(self.task.observations(), 0)
         if self.render_mode is not None:
-            self._unfilmed = float(reward[0])
-            if not self._step_depth:  # (a user's step around this one films what it pays)
-                self._film(self._unfilmed)
+            self.task.show_rewards(reward)  # (a task subclass's, where it pays another)
+            if self.render_mode == "rgb_array_list":
+                self._filmed_from = len(self._frames)
+                self._frames += self.task.step_frames()
+            elif self.render_mode == "human":
+                self._show(self.task.step_frames())
         return obs, float(reward[0]), bool(terminated[0]), False, self.task.info_row(0, info)
-
-    def _film(self, reward: float) -> None:
-        """The last step's frames, showing ``reward``: kept (``rgb_array_list``), shown
-        (``human``), or drawn when ``render()`` asks (``rgb_array``)."""
-        self._unfilmed = None
-        self.task.show_rewards(np.array([reward]))
-        if self.render_mode == "rgb_array_list":
-            self._frames += self.task.step_frames()
-        elif self.render_mode == "human":
-            self._show(self.task.step_frames())
 
     def _goal_reward(self, achieved_goal, desired_goal, info):
         """Goal-conditioned reward (``obs_mode='dict'``), vectorised like SB3's HER expects.
@@ -626,6 +625,7 @@ class SpinStrikeEnv(_SpecOfScene, gym.Env):
             return None
         if self.render_mode == "rgb_array_list":
             frames, self._frames = self._frames, []
+            self._filmed_from = None
             return [self.task.draw(f) for f in frames]
         if self.render_mode == "human":
             self._show([self.task.frame(0)])
@@ -675,7 +675,7 @@ def _reset_mask(options: dict | None, n: int) -> np.ndarray | None:
     return mask
 
 
-class SpinStrikeVectorEnv(_SpecOfScene, VectorEnv):
+class SpinStrikeVectorEnv(_ShowsWhatItPays, _SpecOfScene, VectorEnv):
     """Native vector env: N elements in one batched world, in one of Gymnasium's autoreset modes.
 
     ``autoreset_mode`` (``gym.make_vec(id, n, autoreset_mode=...)``: a
@@ -706,11 +706,11 @@ class SpinStrikeVectorEnv(_SpecOfScene, VectorEnv):
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 50,
                                           "autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        super().__init_subclass__(**kwargs)
-        # a user's subclass that pays other rewards in its own step: its frames show them
-        if "step" in cls.__dict__ and _users_class(cls):
-            cls.step = _shows_what_it_pays(cls.__dict__["step"])
+    def _after_users_step(self, paid: np.ndarray, before: Any) -> None:
+        """A user's ``step`` paid ``paid``: each element's frame shows it, its return
+        ``before`` it plus ``paid``."""
+        if paid.shape == (self.num_envs,) and self._started:
+            self.task.show_rewards(paid, before)
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None,
                  render_mode: str | None = None, config: dict | None = None,

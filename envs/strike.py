@@ -377,13 +377,17 @@ class _StrikeTask(Task):
             self._clip_frames_cache = None
         return reward, np.ones(self.batch_size, dtype=bool), info
 
-    def show_rewards(self, rewards: np.ndarray) -> None:
+    def show_rewards(self, rewards: np.ndarray, returns_before=None) -> bool:
         struck = self._struck
-        self._last_reward[struck] = np.asarray(rewards, dtype=np.float64)[struck]
+        paid = np.asarray(rewards, dtype=np.float64)[struck]
+        changed = not np.array_equal(paid, self._last_reward[struck])
+        self._last_reward[struck] = paid
         if (self.record_trace and self.clip is not None and struck[0]
                 and self._last_reward[0] != self._clip_reward):
             self._clip_reward = float(self._last_reward[0])
             self._clip_frames_cache = None
+            changed = True
+        return changed
 
     # -- snapshots ----------------------------------------------------------------------------
     def snapshot(self) -> dict:

@@ -87,6 +87,41 @@ LAB = textwrap.dedent("""
             return obs, reward + 1.0, terminated, truncated, info
 
 
+    class Repeat(PuckSpeedControlEnv):  # an action repeat: 4 steps of the env a step
+        def step(self, action):
+            total = 0.0
+            for _ in range(4):
+                obs, reward, terminated, truncated, info = super().step(action)
+                total += reward
+            return obs, total + 1.0, terminated, truncated, info
+
+
+    class RepeatVec(PuckSpeedControlVectorEnv):
+        def step(self, actions):
+            total = 0.0
+            for _ in range(4):
+                obs, reward, terminated, truncated, info = super().step(actions)
+                total = total + reward
+            return obs, total + 1.0, terminated, truncated, info
+
+
+    class KeepsClips(RodSpinEnv):  # renders within its step: each strike's clip in its info
+        def step(self, action):
+            obs, reward, terminated, truncated, info = super().step(action)
+            info["clip"] = self.render()
+            return obs, reward + 1.0, terminated, truncated, info
+
+
+    class Bonus:  # a reward-shaping mixin, before the env's class
+        def step(self, action):
+            obs, reward, terminated, truncated, info = super().step(action)
+            return obs, reward + 1.0, terminated, truncated, info
+
+
+    class MixRod(Bonus, RodSpinEnv):
+        pass
+
+
     class PaidControlVec(PuckSpeedControlVectorEnv):
         def step(self, actions):
             obs, reward, terminated, truncated, info = super().step(actions)
@@ -111,6 +146,10 @@ LAB = textwrap.dedent("""
     gym.register("ExtLab/PaidControl-v0", entry_point=PaidControl,
                  vector_entry_point=PaidControlVec, max_episode_steps=50)
     gym.register("ExtLab/PaidMore-v0", entry_point=PaidMore, max_episode_steps=50)
+    gym.register("ExtLab/Repeat-v0", entry_point=Repeat, vector_entry_point=RepeatVec,
+                 max_episode_steps=50)
+    gym.register("ExtLab/KeepsClips-v0", entry_point=KeepsClips)
+    gym.register("ExtLab/MixRod-v0", entry_point=MixRod)
     gym.register("ExtLab/SignOnly-v0", entry_point=SignOnly,
                  kwargs={"obs_mode": "dict", "goal": "target"})
 """)
@@ -256,6 +295,15 @@ def test_video_frames_show_the_reward_a_variant_pays(user_module):
             assert last.panel[-1] == f"reward {paid:.3f}" and paid > 1.0, (env_id, last.panel)
             shown = frames[-1] if mode == "rgb_array_list" else frames
             np.testing.assert_array_equal(shown, env.unwrapped.task.draw(last))
+    # a mixin's step alike; a step that renders within gets the strike's clip (every frame)
+    env = gym.make("ExtLab/MixRod-v0", render_mode="rgb_array")
+    env.reset(seed=5)
+    _, paid, *_ = env.step(action)
+    assert env.unwrapped.task.step_frames()[-1].panel[-1] == f"reward {paid:.3f}"
+    env = gym.make("ExtLab/KeepsClips-v0", render_mode="rgb_array_list")
+    env.reset(seed=5)
+    *_, info = env.step(action)
+    assert len(info["clip"]) > 10 and env.render() == []
     # the shipped env with the same strike paid less, and its frame says so
     base = gym.make("SpinStrike/RodSpin-v0", render_mode="rgb_array")
     base.reset(seed=5)
@@ -332,3 +380,26 @@ def test_an_edit_of_a_subclass_s_code_since_a_run_trained_is_named(user_module):
     assert after > before  # the code as it is now runs ...
     assert f"the source of {MODULE} (where {variant}'s classes are defined) changed " \
            f"since run trained" in " ".join(note.split()), note  # ... and the user is told
+
+
+def test_an_action_repeat_subclass_films_every_step_and_shows_what_it_paid(user_module):
+    """A subclass stepping the env 4 times a step: its video kept one frame of 4 (played 4x
+    fast, said "real time") and its return counted the first 3 rewards twice (the frames
+    of the F8 fix were taken when the subclass's step returned, walk W22b F1)."""
+    user_module(MODULE, LAB)
+    __import__(MODULE)
+    push = np.array([1.0, 0.2], dtype=np.float32)
+    env = gym.make("ExtLab/Repeat-v0", render_mode="rgb_array_list")
+    env.reset(seed=1)
+    paid = [env.step(push)[1] for _ in range(5)]
+    assert len(env.render()) == 1 + 4 * 5  # the reset's frame, then every step of the env's
+    assert env.unwrapped.task.frame(0).panel[-1] == (
+        f"reward {paid[-1]:+.3f} (step)   return {sum(paid):+.3f}")
+    vec = gym.make_vec("ExtLab/Repeat-v0", 2, vectorization_mode="vector_entry_point",
+                       render_mode="rgb_array")
+    vec.reset(seed=1)
+    total = np.zeros(2)
+    for _ in range(5):
+        total += vec.step(np.tile(push, (2, 1)))[1]
+    for b in range(2):
+        assert vec.unwrapped.task.frame(b).panel[-1].endswith(f"return {total[b]:+.3f}")
