@@ -718,7 +718,8 @@ class SpinStrikeVectorEnv(_ShowsWhatItPays, _SpecOfScene, VectorEnv):
                  **kwargs: Any) -> None:
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ConfigError(f"render_mode: must be one of {self.metadata['render_modes']} or "
-                              f"None (got {render_mode!r})")
+                              f"None (got {render_mode!r}); gym.make_vec(..., "
+                              f"vectorization_mode='sync') takes every mode of the single env")
         if (isinstance(num_envs, (bool, np.bool_)) or not isinstance(num_envs, (int, np.integer))
                 or num_envs < 1):
             raise ConfigError(f"num_envs: must be an int >= 1 (got {num_envs!r})")

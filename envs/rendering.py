@@ -371,6 +371,8 @@ class Renderer:
         colour = _mix(COLOURS["impulse"], COLOURS["table"], m.fade)
         start = self._px(m.x, m.y)
         end = self._marker_end(m)
+        if math.hypot(end[0] - start[0], end[1] - start[1]) < 1.0:
+            return  # an impulse too small to draw (a body at rest on a cushion: 1e-7 N s)
         width = max(2, self.height // 160)
         self._arrow(surf, start, end, colour, width)
         pg.draw.circle(surf, colour, start, max(4, self.height // 80) + int(6 * m.fade), 2)
@@ -381,14 +383,21 @@ class Renderer:
         start = self._px(m.x, m.y)
         return start[0] + m.nx * length, start[1] - m.ny * length
 
-    def _label(self, surf, m: Marker, taken: list) -> None:
-        """A marker's impulse label beside its arrow's head, unless its box would overlap one
-        in ``taken`` (boxes drawn before in this frame; it joins them)."""
+    def _label(self, surf, m: Marker, taken: list, disks: list) -> None:
+        """A marker's impulse label beside its arrow's head, on the first side that keeps it
+        off the ``disks`` (pixel boxes: a striker was hidden under its own label, walk W22b),
+        unless its box would overlap one in ``taken`` (labels drawn before in this frame; it
+        joins them)."""
         pg = self._pygame
+        end, start = self._marker_end(m), self._px(m.x, m.y)
+        if math.hypot(end[0] - start[0], end[1] - start[1]) < 1.0:
+            return  # (no arrow drawn)
         text = f"j = {m.j:.3f} N s"
         w, h = self._small.size(text)
-        at = self._label_at(self._marker_end(m), w, h)
-        box = pg.Rect(at[0] - 2, at[1] - 1, w + 4, h + 2)
+        for at in self._label_at(end, w, h):  # the first place clear of the disks
+            box = pg.Rect(at[0] - 2, at[1] - 1, w + 4, h + 2)
+            if box.collidelist(disks) < 0:
+                break
         if box.collidelist(taken) >= 0:
             return
         taken.append(box)
@@ -398,16 +407,30 @@ class Renderer:
         surf.blit(back, box.topleft)
         surf.blit(label, at)
 
-    def _label_at(self, end, w: int, h: int) -> tuple[int, int]:
-        """Where a ``w`` x ``h`` label goes beside an arrow's head at ``end``: right of it, or
-        left of it where the right would leave the frame (an impulse at the right cushion),
-        kept whole inside the frame."""
-        x = end[0] + 6
-        if x + w + 2 > self.width:
-            x = end[0] - 6 - w
-        x = min(max(2, x), self.width - w - 2)
-        y = min(max(1, end[1] - h // 2), self.height - h - 1)
-        return int(x), int(y)
+    def _label_at(self, end, w: int, h: int) -> list[tuple[int, int]]:
+        """Where a ``w`` x ``h`` label may go beside an arrow's head at ``end``, best first:
+        right of it (left where the right would leave the frame: an impulse at the right
+        cushion), then the other side, then above and below it, each kept whole inside the
+        frame."""
+        right, left = end[0] + 6, end[0] - 6 - w
+        sides = [right, left] if right + w + 2 <= self.width else [left, right]
+        y = end[1] - h // 2
+        places = [(x, y) for x in sides] + [(end[0] - w // 2, end[1] - 6 - h),
+                                            (end[0] - w // 2, end[1] + 6)]
+        return [(int(min(max(2, x), self.width - w - 2)),
+                 int(min(max(1, y), self.height - h - 1))) for x, y in places]
+
+    def _disk_boxes(self, bodies: list[BodyDraw]) -> list:
+        """The pixel boxes of the disks among ``bodies`` (a striker, a puck, a mallet), which
+        impulse labels keep clear of where they can."""
+        pg = self._pygame
+        boxes = []
+        for b in bodies:
+            if b.half_length == 0:
+                x, y = self._px(b.x, b.y)
+                r = max(1, int(round(b.radius * self.scale)))
+                boxes.append(pg.Rect(x - r, y - r, 2 * r + 1, 2 * r + 1))
+        return boxes
 
     def _vector(self, surf, v: Vector) -> None:
         start = self._px(v.x, v.y)
@@ -505,8 +528,9 @@ class Renderer:
         # impulse), each where it overlaps none drawn (a jam's hundreds of contacts in one
         # frame piled their labels into an unreadable block)
         taken: list = []
+        disks = self._disk_boxes(frame.bodies) if frame.markers else []
         for m in sorted(frame.markers, key=lambda m: (-m.fade, -m.j)):
-            self._label(surf, m, taken)
+            self._label(surf, m, taken, disks)
         if frame.text:
             # (a plain frame's room as text_fits counts it: a pixel observation's caption,
             # which must fit, is drawn as it always was; a video's keeps 8 px to the right)
