@@ -190,6 +190,10 @@ def strike_times(duration: float, fps: float, contacts: np.ndarray,
     return times, factor
 
 
+def _area(rect) -> int:
+    return rect.width * rect.height
+
+
 def _mix(colour, background, fade: float) -> tuple[int, int, int]:
     """``colour`` faded towards ``background`` (``fade`` 1: the colour, 0: the background)."""
     f = min(1.0, max(0.0, fade))
@@ -394,10 +398,10 @@ class Renderer:
             return  # (no arrow drawn)
         text = f"j = {m.j:.3f} N s"
         w, h = self._small.size(text)
-        for at in self._label_at(end, w, h):  # the first place clear of the disks
-            box = pg.Rect(at[0] - 2, at[1] - 1, w + 4, h + 2)
-            if box.collidelist(disks) < 0:
-                break
+        # the first place clear of the disks, else the one that covers least of them
+        boxes = [pg.Rect(x - 2, y - 1, w + 4, h + 2) for x, y in self._label_at(end, w, h)]
+        box = min(boxes, key=lambda b: sum(_area(b.clip(d)) for d in disks))
+        at = (box.x + 2, box.y + 1)
         if box.collidelist(taken) >= 0:
             return
         taken.append(box)
