@@ -114,8 +114,8 @@ def _trained_otherwise(run: Path, env_id: str, planned: dict, where: str,
     code_then, code_now = meta.get("code") or {}, planned.get("code") or {}
     for module in code_then:  # (a run recorded before 2026-11-29 has none to compare)
         if code_now.get(module) != code_then[module]:
-            changes.append(f"trained with the code of {module} as it was then (its source "
-                           f"changed since)")
+            changes.append(f"trained with the code of {module} as it was then (it changed "
+                           f"since)")
     for key in dict.fromkeys([*recorded, *now]):
         if recorded.get(key, _NONE) != now.get(key, _NONE):
             scaled = f" scaled by {scale:g}" if scale != 1 and key in (

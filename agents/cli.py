@@ -564,10 +564,10 @@ def _note_registration_changes(run: Path, meta: dict, env_kwargs: dict) -> None:
               f"trained: {'; '.join(changes)}; the run's are used", file=sys.stderr)
     edited = code_changes(meta["env"], meta.get("code"))
     if edited:
-        print(f"note: the source of {', '.join(edited)} (where {meta['env']}'s classes are "
-              f"defined) changed since {run} trained: a run records its arguments, not its "
-              f"code, so the code as it is now runs (a changed reward or observation changes "
-              f"what the run is scored on)", file=sys.stderr)
+        print(f"note: the code of {', '.join(edited)} ({meta['env']}'s classes and the "
+              f"modules of yours they import) changed since {run} trained: a run records its "
+              f"arguments, not its code, so the code as it is now runs (a changed reward or "
+              f"observation changes what the run is scored on)", file=sys.stderr)
     # (the registration as given: registered_kwargs would read its scene file a second time)
     unread = unread_scene_file(variant_kwargs(meta["env"]).get("scene"))
     if unread and "scene" in env_kwargs:  # (the run recorded its scene as read)

@@ -236,14 +236,16 @@ def registration_changes(env_id: str, env_kwargs: dict, registered: dict | None)
 
 
 def code_fingerprint(env_id: str) -> dict[str, str]:
-    """A digest of the source file of each module of the user's that defines a class
-    ``env_id`` runs (its env class and vector env class, their bases and their ``TASK``
-    classes, where they are not this package's or Gymnasium's): ``{module: sha256}``, empty
-    for a shipped id and a variant of a shipped class. A run's ``config.yml`` records it, so
-    ``evaluate`` / ``record`` can say when a subclass's code changed since the run trained (a
-    run records its registered arguments, not its code; walk W21b F10)."""
-    import hashlib
-    import inspect
+    """A digest of the code of each module of the user's that ``env_id`` runs: the modules
+    defining its env class, its vector env class, their bases and their ``TASK`` classes, where
+    they are the user's (not this package's, the standard library's or an installed
+    package's), and the modules of the user's these import, in turn (a reward kept in a
+    helper module). ``{module: sha256}``, empty for a shipped id and a variant of a shipped
+    class. The digest is of the module's syntax tree without its docstrings and its top-level
+    ``register(...)`` calls: a comment or a layout changes nothing, nor does an edit of the
+    registered arguments (the run records those, and ``registration_changes`` names them).
+    A run's ``config.yml`` records it, so ``evaluate`` / ``record`` can say when the code
+    changed since the run trained (walk W21b F10)."""
     import sys
 
     bare = env_id.rpartition(":")[2]
@@ -251,7 +253,7 @@ def code_fingerprint(env_id: str) -> dict[str, str]:
         return {}
     base_id(env_id)  # checked, its module imported
     spec = gym.registry[bare]
-    classes = []
+    roots = []
     for entry in (spec.entry_point, spec.vector_entry_point):
         try:
             cls = _entry_class(entry) if entry is not None else None
@@ -259,25 +261,85 @@ def code_fingerprint(env_id: str) -> dict[str, str]:
             cls = None
         if isinstance(cls, type):
             task = getattr(cls, "TASK", None)
-            classes += [*cls.__mro__, *(task.__mro__ if isinstance(task, type) else ())]
-    out = {}
-    for cls in classes:
-        module = cls.__module__
-        top = module.partition(".")[0]
-        if top in ("spinstrike", "gymnasium", "__main__") or top in sys.stdlib_module_names \
-                or module in out:  # (gym.Env's typing.Generic too; a script's is not a run's)
+            roots += [c.__module__ for c in
+                      (*cls.__mro__, *(task.__mro__ if isinstance(task, type) else ()))]
+    out: dict[str, str] = {}
+    todo = list(dict.fromkeys(roots))
+    while todo:
+        name = todo.pop()
+        if name in out:
             continue
-        try:
-            path = inspect.getsourcefile(sys.modules[module])
-            out[module] = hashlib.sha256(Path(path).read_bytes()).hexdigest()
-        except (KeyError, TypeError, OSError):  # a class made at run time, no source file
+        read = _users_module_code(name, sys.modules.get(name))
+        if read is None:
             continue
-    return out
+        out[name], imports = read
+        todo += [m for m in imports if m in sys.modules and m not in out]
+    return dict(sorted(out.items()))
+
+
+def _users_module_code(name: str, module: Any) -> tuple[str, list[str]] | None:
+    """``(digest, names of the modules it imports)`` of module ``name`` where it is the
+    user's (a source file outside this package, Gymnasium, the standard library and the
+    installed packages; not ``__main__``, a script's), else None."""
+    import ast
+    import hashlib
+    import inspect
+    import sysconfig
+
+    if name == "__main__" or name.partition(".")[0] in ("spinstrike", "gymnasium"):
+        return None
+    try:
+        path = Path(inspect.getsourcefile(module)).resolve()
+        source = path.read_text(encoding="utf-8")
+        tree = ast.parse(source)
+    except (TypeError, OSError, SyntaxError, ValueError, UnicodeDecodeError):
+        return None  # (a class made at run time, a module without a source file)
+    installed = {Path(sysconfig.get_paths()[k]).resolve()
+                 for k in ("stdlib", "platstdlib", "purelib", "platlib")}
+    if any(path.is_relative_to(root) for root in installed):
+        return None
+    imports = []
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            imports += [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:  # relative: from the module's package up
+                parts = package.split(".")
+                up = parts[:len(parts) - node.level + 1] if node.level > 1 else parts
+                base = ".".join([*up, *([base] if base else [])])
+            imports += [base, *(f"{base}.{alias.name}" for alias in node.names)]
+    return hashlib.sha256(ast.dump(_without_docs_and_registers(tree)).encode()).hexdigest(), \
+        imports
+
+
+def _without_docs_and_registers(tree):
+    """``tree`` without docstrings and top-level ``register(...)`` / ``gym.register(...)``
+    calls (a module's code as far as a run's record does not already hold it)."""
+    import ast
+
+    def registers(node) -> bool:
+        call = node.value if isinstance(node, ast.Expr) else None
+        func = call.func if isinstance(call, ast.Call) else None
+        return (isinstance(func, ast.Name) and func.id == "register") or (
+            isinstance(func, ast.Attribute) and func.attr == "register")
+
+    tree.body = [n for n in tree.body if not registers(n)]
+    for node in ast.walk(tree):
+        body = getattr(node, "body", None)
+        if (isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
+                and body and isinstance(body[0], ast.Expr)
+                and isinstance(body[0].value, ast.Constant)
+                and isinstance(body[0].value.value, str)):
+            node.body = body[1:] or [ast.Pass()]
+    return tree
 
 
 def code_changes(env_id: str, recorded: Mapping | None) -> list[str]:
-    """The modules of :func:`code_fingerprint`'s record ``recorded`` (a run's) whose source
-    differs now or is no longer among ``env_id``'s (none where the run recorded none)."""
+    """The modules of a run's :func:`code_fingerprint` record ``recorded`` whose code
+    differs now (or that are found no more, or are no longer among ``env_id``'s); none where
+    the run recorded none."""
     if not recorded:
         return []
     try:

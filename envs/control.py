@@ -104,6 +104,8 @@ class _ControlTask(Task):
         self._returns = np.zeros(batch_size)
         #: each element's last step reward as its frame shows it (what the env paid)
         self._shown = np.zeros(batch_size)
+        #: each element's resets so far (a return from before its episode began is not its)
+        self._episodes = np.zeros(batch_size, dtype=np.int64)
         # whether element b has stepped since its last reset or state put back: only then do
         # the world's last contacts and the step reward in tbuf belong to what its frame shows
         # (a reset frame drew the last episode's final impulse arrows and reward at t = 0);
@@ -171,6 +173,7 @@ class _ControlTask(Task):
         if current:
             self._observed = w.revision
         self._stepped[env] = False
+        self._episodes[env] += 1
         if 0 in np.arange(self.batch_size)[env]:
             self._put_back = None
         if self.record_trace:
@@ -295,16 +298,19 @@ class _ControlTask(Task):
             return False
         stepped = self._stepped
         paid = np.asarray(rewards, dtype=np.float64)[stepped]
-        before = (self._returns - self._shown if returns_before is None
-                  else np.asarray(returns_before))[stepped]
+        if returns_before is None:
+            before = (self._returns - self._shown)[stepped]
+        else:  # (0 for an element whose episode began since: a user's step that resets)
+            returns, episodes = returns_before
+            before = np.where(episodes == self._episodes, returns, 0.0)[stepped]
         changed = not (np.array_equal(paid, self._shown[stepped])
                        and np.array_equal(before + paid, self._returns[stepped]))
         self._returns[stepped] = before + paid
         self._shown[stepped] = paid
         return changed
 
-    def shown_returns(self) -> np.ndarray | None:
-        return self._returns.copy() if self.record_trace else None
+    def shown_returns(self) -> tuple[np.ndarray, np.ndarray] | None:
+        return (self._returns.copy(), self._episodes.copy()) if self.record_trace else None
 
     def trace(self) -> dict:
         slots = self._slots(0)

@@ -24,7 +24,9 @@ from __future__ import annotations
 import copy
 import dataclasses
 import functools
+import inspect
 import numbers
+import warnings
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from typing import Any, ClassVar
@@ -377,41 +379,69 @@ def _shows_what_it_pays(step: Callable) -> Callable:
 
     @functools.wraps(step)
     def shows(self, *args: Any, **kwargs: Any):
-        outer = not self._step_depth and self.render_mode is not None
-        before = self._before_users_step() if outer else None
-        self._step_depth += 1
+        if self._step_depth or self.render_mode is None:  # (within, or nothing to show)
+            return step(self, *args, **kwargs)
+        before = self._before_users_step()
+        self._step_depth = 1
         try:
             out = step(self, *args, **kwargs)
         finally:
-            self._step_depth -= 1
-        if outer:
-            try:
-                paid = np.asarray(out[1], dtype=np.float64)
-            except (TypeError, ValueError, IndexError, KeyError):  # no reward: nothing to show
-                return out
-            self._after_users_step(paid, before)
+            self._step_depth = 0
+        self._after_users_step(_reward_of(out), before)
         return out
 
     shows._shows_what_it_pays = True
     return shows
 
 
+def _reward_of(out: Any) -> np.ndarray | None:
+    """The reward of a user's step's return ``out`` as a float array, or None where it has no
+    number there (a reward of None, a tensor that needs its graph, no tuple)."""
+    try:
+        reward = out[1]
+    except Exception:  # noqa: BLE001  (whatever the user's step returned: shown as the env's)
+        return None
+    for number in (lambda r: np.asarray(r, dtype=np.float64),  # (a tensor needing its graph:)
+                   lambda r: np.asarray(float(r))):
+        try:
+            with warnings.catch_warnings():  # (torch's about its graph: the user's reward)
+                warnings.simplefilter("ignore")
+                return None if reward is None else number(reward)
+        except Exception:  # noqa: BLE001
+            continue
+    return None
+
+
 class _ShowsWhatItPays:
     """The frames of a user's subclass overriding ``step`` (itself, or by a mixin before the
-    env's class) show the reward it returns (they showed the shipped task's, walk W21b F8)."""
+    env's class) show the reward it returns (they showed the shipped task's, walk W21b F8).
+    Not seen: a reward a ``gym.Wrapper`` changes (the env draws its frames), a ``step``
+    assigned to the class after it was made, a mixin's ``__init_subclass__`` that does not
+    call ``super()``'s."""
 
-    #: calls of a user's ``step`` under way (the outermost relabels the frames)
+    #: a user's ``step`` is under way (1): the outermost relabels the frames when it returns
     _step_depth: int = 0
+    #: steps of the base class so far (a user's step that made none relabels nothing)
+    _base_steps: int = 0
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        step = getattr(cls, "step", None)
-        if (_users_class(cls) and callable(step) and step is not SpinStrikeEnv.step
-                and step is not SpinStrikeVectorEnv.step):
+        if not _users_class(cls):
+            return
+        step = inspect.getattr_static(cls, "step", None)
+        if (inspect.isfunction(step) and step is not SpinStrikeEnv.step
+                and step is not SpinStrikeVectorEnv.step):  # (not a staticmethod's)
             cls.step = _shows_what_it_pays(step)
 
     def _before_users_step(self) -> Any:
-        return self.task.shown_returns()
+        return self._base_steps, self.task.shown_returns()
+
+    def __getstate__(self) -> dict:
+        # (the vector env's pickle: a user's step under way is not the copy's; the single
+        # env has its own, which rebuilds the env)
+        state = dict(self.__dict__)
+        state.pop("_step_depth", None)
+        return state
 
 
 def _plain(value: Any) -> bool:
@@ -435,7 +465,9 @@ class SpinStrikeEnv(_ShowsWhatItPays, _SpecOfScene, gym.Env):
     _OWN_ATTRIBUTES: ClassVar[frozenset[str]] = frozenset({
         "_config", "_ended", "_frames", "_np_random", "_np_random_seed", "_own", "_spec",
         "_started", "action_space", "cfg", "compute_reward", "observation_space", "render_mode",
-        "task", "metadata", "_made_with"})
+        "task", "metadata", "_made_with",
+        # a user's step under way when copied is not the copy's (it stuck, never relabelling)
+        "_step_depth", "_base_steps", "_filmed_from"})
 
     def __new__(cls, *args: Any, **kwargs: Any):
         env = super().__new__(cls)
@@ -459,16 +491,18 @@ class SpinStrikeEnv(_ShowsWhatItPays, _SpecOfScene, gym.Env):
     #: where the frames of the last step start in ``_frames`` (None: not kept there)
     _filmed_from: int | None = None
 
-    def _after_users_step(self, paid: np.ndarray, before: Any) -> None:
+    def _after_users_step(self, paid: np.ndarray | None, before: Any) -> None:
         """A user's ``step`` paid ``paid``: its last base step's frames show it (those not
-        rendered yet, or the window again), the return ``before`` it plus ``paid``."""
-        if paid.shape != () or not self._started or not self.task.show_rewards(
-                paid.reshape(1), before):
-            return
-        if self.render_mode == "rgb_array_list" and self._filmed_from is not None:
+        rendered yet), its return ``before`` it plus ``paid``; ``human`` shows them now."""
+        steps, returns = before
+        if (paid is not None and paid.size == 1 and self._started
+                and self._base_steps != steps
+                and self.task.show_rewards(paid.reshape(1), returns)
+                and self._filmed_from is not None):
             self._frames[self._filmed_from:] = self.task.step_frames()
-        elif self.render_mode == "human":
-            self._show(self.task.step_frames()[-1:])
+        if self.render_mode == "human":  # (kept while the user's step ran)
+            frames, self._frames, self._filmed_from = self._frames, [], None
+            self._show(frames)
 
     def __init__(self, render_mode: str | None = None, config: dict | None = None,
                  **kwargs: Any) -> None:
@@ -578,8 +612,10 @@ class SpinStrikeEnv(_ShowsWhatItPays, _SpecOfScene, gym.Env):
         self._ended = bool(terminated[0])
         obs = _take(self.task.observations(), 0)
         if self.render_mode is not None:
+            self._base_steps += 1
             self.task.show_rewards(reward)  # (a task subclass's, where it pays another)
-            if self.render_mode == "rgb_array_list":
+            if self.render_mode == "rgb_array_list" or self._step_depth:
+                # (human: shown when a user's step around this one returns, relabelled)
                 self._filmed_from = len(self._frames)
                 self._frames += self.task.step_frames()
             elif self.render_mode == "human":
@@ -706,11 +742,13 @@ class SpinStrikeVectorEnv(_ShowsWhatItPays, _SpecOfScene, VectorEnv):
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 50,
                                           "autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def _after_users_step(self, paid: np.ndarray, before: Any) -> None:
+    def _after_users_step(self, paid: np.ndarray | None, before: Any) -> None:
         """A user's ``step`` paid ``paid``: each element's frame shows it, its return
         ``before`` it plus ``paid``."""
-        if paid.shape == (self.num_envs,) and self._started:
-            self.task.show_rewards(paid, before)
+        steps, returns = before
+        if (paid is not None and paid.size == self.num_envs and self._started
+                and self._base_steps != steps):
+            self.task.show_rewards(paid.reshape(self.num_envs), returns)
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None,
                  render_mode: str | None = None, config: dict | None = None,
@@ -851,6 +889,7 @@ class SpinStrikeVectorEnv(_ShowsWhatItPays, _SpecOfScene, VectorEnv):
         """Step every element: (reward, terminated, truncated, info with ``_key`` masks)."""
         reward, terminated, info = self.task.step(actions)
         if self.render_mode is not None:  # (a task subclass may pay other than it computed)
+            self._base_steps += 1
             self.task.show_rewards(reward)
         self._steps += 1
         truncated = np.zeros(self.num_envs, dtype=bool)

@@ -196,5 +196,5 @@ def test_an_edited_subclass_trains_the_run_again(user_module, ppo_yml, capsys):
     with pytest.raises(SystemExit) as refused:
         _baselines(variant, root, doc, "--reuse-only")
     assert str(refused.value.code).startswith(
-        f"{root / run}: trained with the code of {MODULE} as it was then (its source changed "
+        f"{root / run}: trained with the code of {MODULE} as it was then (it changed "
         f"since)"), refused.value.code

@@ -3,6 +3,7 @@ changes must be what every path runs, or be refused naming why. Each test goes t
 ``gym.make`` / ``gym.make_vec`` or the CLI, as the user's own code does."""
 
 import textwrap
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -120,6 +121,42 @@ LAB = textwrap.dedent("""
 
     class MixRod(Bonus, RodSpinEnv):
         pass
+
+
+    class ResetsFirst(PuckSpeedControlEnv):  # starts a new episode every 3 steps, itself
+        def step(self, action):
+            self.count = getattr(self, "count", 0) + 1
+            if self.count % 3 == 1:
+                self.reset()
+            obs, reward, terminated, truncated, info = super().step(action)
+            return obs, reward + 1.0, terminated, truncated, info
+
+
+    class Odd(PuckSpeedControlEnv):  # rewards of odd types; a step that makes no base step
+        kind = "float"
+
+        def step(self, action):
+            if self.kind == "skip":
+                return self.task.observations()[0], 5.0, False, False, {}
+            obs, reward, terminated, truncated, info = super().step(action)
+            paid = reward + 1.0
+            if self.kind == "tensor":
+                import torch
+                paid = torch.tensor(paid, requires_grad=True) * 1.0
+            elif self.kind == "array":
+                paid = np.array([paid])
+            elif self.kind == "none":
+                paid = None
+            elif self.kind == "copy":
+                import copy
+                self.copied = copy.deepcopy(self)
+            return obs, paid, terminated, truncated, info
+
+
+    class Static(RodSpinEnv):  # a staticmethod step (odd, but Python allows it)
+        @staticmethod
+        def step(action):
+            return "static", action
 
 
     class PaidControlVec(PuckSpeedControlVectorEnv):
@@ -375,11 +412,56 @@ def test_an_edit_of_a_subclass_s_code_since_a_run_trained_is_named(user_module):
 
     before, note = evaluate()
     assert "note:" not in note, note
+    # a comment, a docstring, another registration's arguments: no change of the code
+    user_module(MODULE, LAB.replace("class SpeedTask(RodSpinEnv.TASK):",
+                                    "class SpeedTask(RodSpinEnv.TASK):\n    'Pays speed.'"
+                                    "  # edited").replace('{"speed_weight": 2.0}',
+                                                          '{"speed_weight": 3.0}'))
+    assert evaluate() == (before, "")
     user_module(MODULE, LAB.replace("reward + 5.0 * np.asarray", "reward + 50.0 * np.asarray"))
     after, note = evaluate()
     assert after > before  # the code as it is now runs ...
-    assert f"the source of {MODULE} (where {variant}'s classes are defined) changed " \
-           f"since run trained" in " ".join(note.split()), note  # ... and the user is told
+    assert f"the code of {MODULE} ({variant}'s classes and the modules of yours they import) " \
+           f"changed since run trained" in " ".join(note.split()), note  # ... and it is said
+
+
+def test_an_edit_of_a_helper_module_a_subclass_imports_is_named(user_module):
+    """The digest covered only the module defining the classes: a reward weight kept in a
+    helper module was edited (x10) and ``evaluate`` scored the run at 120.22 instead of 12.02
+    with no word (walk W23 H1). The user's modules those import are digested too."""
+    import importlib
+    import sys
+
+    import yaml
+
+    from spinstrike.envs import code_changes, code_fingerprint
+
+    user_module("spinstrike_ext_weights", "BONUS = 5.0\n")
+    user_module("spinstrike_ext_helper", (
+        "import gymnasium as gym\n"
+        "import numpy as np\n"
+        "from spinstrike.envs.strike import RodSpinEnv, RodSpinVectorEnv\n"
+        "from spinstrike_ext_weights import BONUS\n"
+        "class Task(RodSpinEnv.TASK):\n"
+        "    def step(self, actions, batch_info=True):\n"
+        "        reward, terminated, info = super().step(actions, batch_info)\n"
+        "        return reward + BONUS * np.asarray(info['speed']), terminated, info\n"
+        "class Rod(RodSpinEnv):\n"
+        "    TASK = Task\n"
+        "class RodVec(RodSpinVectorEnv):\n"
+        "    TASK = Task\n"
+        "gym.register('ExtHelper/Rod-v0', entry_point=Rod, vector_entry_point=RodVec)\n"))
+    variant = "spinstrike_ext_helper:ExtHelper/Rod-v0"
+    assert main(["train", "--env", variant, "--timesteps", "256", "--n-envs", "2",
+                 "--eval-episodes", "1", "--no-video", "--no-progress", "--out", "run"]) == 0
+    code = yaml.safe_load(Path("run/config.yml").read_text())["code"]
+    assert sorted(code) == ["spinstrike_ext_helper", "spinstrike_ext_weights"]
+    assert code == code_fingerprint(variant) and code_changes(variant, code) == []
+    user_module("spinstrike_ext_weights", "BONUS = 50.0\n")  # the user edits the helper
+    sys.modules.pop("spinstrike_ext_weights")
+    importlib.invalidate_caches()
+    importlib.import_module("spinstrike_ext_weights")
+    assert code_changes(variant, code) == ["spinstrike_ext_weights"]
 
 
 def test_an_action_repeat_subclass_films_every_step_and_shows_what_it_paid(user_module):
@@ -403,3 +485,58 @@ def test_an_action_repeat_subclass_films_every_step_and_shows_what_it_paid(user_
         total += vec.step(np.tile(push, (2, 1)))[1]
     for b in range(2):
         assert vec.unwrapped.task.frame(b).panel[-1].endswith(f"return {total[b]:+.3f}")
+
+
+def test_odd_user_steps_show_what_they_pay(user_module):
+    """Walk W23: a user's step that resets first carried the last episode's return into the
+    frames (+4, +5 where the returns were 1, 2); a reward tensor needing its graph raised
+    once rendering (RuntimeError); a copy made within a step stuck and never relabelled; a
+    step that made no step of the env relabelled the last one's frame; a reward of shape (1,)
+    was not shown; a staticmethod step was broken by the wrapping."""
+    user_module(MODULE, LAB)
+    lab = __import__(MODULE)
+    push = np.array([1.0, 0.2], dtype=np.float32)
+    env = lab.ResetsFirst(render_mode="rgb_array")
+    env.reset(seed=0)
+    for k in range(5):
+        env.step(push)
+        assert env.task.frame(0).panel[-1].endswith(f"return {1.0 + k % 3:+.3f}"), k
+    for kind, shown in (("tensor", "+1.000"), ("array", "+1.000"), ("none", "+0.000")):
+        env = lab.Odd(render_mode="rgb_array")
+        env.kind = kind
+        env.reset(seed=0)
+        env.step(push)
+        assert env.task.frame(0).panel[-1].startswith(f"reward {shown} (step)"), kind
+    env.kind = "skip"  # (the last step's frame keeps what that step paid)
+    env.step(push)
+    assert env.task.frame(0).panel[-1].startswith("reward +0.000 (step)")
+    env = lab.Odd(render_mode="rgb_array")
+    env.kind = "copy"
+    env.reset(seed=0)
+    env.step(push)
+    copied = env.copied
+    copied.kind = "float"
+    copied.step(push)
+    # (its return is what the frames showed when it was copied, before the relabelling)
+    assert copied.task.frame(0).panel[-1].startswith("reward +1.000 (step)   return +1.000")
+    assert lab.Static.step(3) == ("static", 3)
+
+
+def test_a_paying_subclass_in_human_mode_shows_each_frame_once(user_module, monkeypatch):
+    """``human`` mode showed a paying subclass's every step twice (the base step's frame, then
+    the relabelled one), playing it at half speed under "real time (x1)" (walk W23)."""
+    user_module(MODULE, LAB)
+    lab = __import__(MODULE)
+    push = np.array([1.0, 0.2], dtype=np.float32)
+    for cls in (lab.PaidControl, lab.Repeat):
+        env = cls(render_mode="human")
+        shown: list = []
+        monkeypatch.setattr(type(env.task.renderer), "show",
+                            lambda self, image, fps, shown=shown: shown.append(image))
+        env.reset(seed=0)
+        for _ in range(3):
+            env.step(push)
+        per_step = 4 if cls is lab.Repeat else 1
+        assert len(shown) == 1 + 3 * per_step, cls
+        assert env.task.frame(0).panel[-1].startswith("reward +1.000")
+        env.close()
