@@ -89,9 +89,16 @@ def _run_policy(run: Path):
         _note_registration_changes(run, meta, env_kwargs)
         return policy, meta["env"], env_kwargs, "agent"
     if not (run / "config.yml").is_file():  # a Tune trial (or its checkpoint), rl-zoo3's run
-        from spinstrike.agents.rllib_train import load_tune_policy, tune_checkpoint
+        from spinstrike.agents.rllib_train import (
+            algorithm_checkpoint,
+            load_algorithm_policy,
+            load_tune_policy,
+            tune_checkpoint,
+        )
 
         for found, load, what in ((tune_checkpoint, load_tune_policy, "Tune trial"),
+                                  (algorithm_checkpoint, load_algorithm_policy,
+                                   "RLlib checkpoint"),
                                   (zoo_run_files, load_zoo_policy, "rl-zoo3 run")):
             if found(run) is not None:
                 policy, env_id, env_kwargs = load(run)
@@ -109,7 +116,10 @@ def _run_policy(run: Path):
                                f"interrupted run; `spinstrike train --resume --out {run}` "
                                f"finishes it")
     if missing:
-        raise AgentConfigError(f"run_dir: {run} has no {' or '.join(missing)} (not a run)")
+        raise AgentConfigError(f"run_dir: {run} has no {' or '.join(missing)} (not a run: "
+                               f"takes a `spinstrike train` run, an rl-zoo3 run, a Tune "
+                               f"trial of RLlib or one of its checkpoint_* folders, or an "
+                               f"RLlib algo.save() folder)")
     policy, meta = load_model_policy(run)
     env_kwargs = meta["hyperparameters"][meta["env"]].get("env_kwargs", {})
     _note_registration_changes(run, meta, env_kwargs)

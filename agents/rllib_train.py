@@ -110,7 +110,10 @@ def ppo_config(cfg: RunConfig, seed: int, num_env_runners: int):
 
 
 def module_policy(module):
-    """``policy(env, obs)``: the RLModule's deterministic action (the mean), for one env."""
+    """``policy(env, obs)``: the RLModule's deterministic action (the mean), for one env; a
+    squashed Gaussian's (SAC's) squashed: RLlib's ``to_deterministic`` gives its mean before
+    the squash, an action outside the bounds the policy never takes (clipped, a mean of 1.5
+    acted 1.0 where the policy acts tanh(1.5) = 0.91, walk W22a)."""
     import torch
 
     dist_cls = module.get_inference_action_dist_cls()
@@ -119,7 +122,11 @@ def module_policy(module):
         with torch.no_grad():
             out = module.forward_inference(
                 {"obs": torch.as_tensor(np.asarray(obs, dtype=np.float32)[None])})
-        action = dist_cls.from_logits(out["action_dist_inputs"]).to_deterministic().sample()
+            dist = dist_cls.from_logits(out["action_dist_inputs"])
+            action = dist.to_deterministic().sample()
+            squash = getattr(dist, "_squash", None)
+            if squash is not None:
+                action = squash(action)
         return np.clip(action[0].numpy(), -1.0, 1.0)
 
     return policy
@@ -185,6 +192,51 @@ def load_tune_policy(path: str | Path):
     policy = _checkpoint_policy(checkpoint, "checkpoint", "not an RLlib checkpoint of the new "
                                 "API stack's default policy")
     return policy, env_id.removeprefix(PREFIX), env_config
+
+
+def algorithm_checkpoint(path: str | Path) -> Path | None:
+    """``path`` where it is an RLlib ``Algorithm`` checkpoint (``algo.save()``'s folder: its
+    ``rllib_checkpoint.json`` and ``class_and_ctor_args.pkl``), else None."""
+    path = Path(path)
+    if (path / "rllib_checkpoint.json").is_file() and \
+            (path / "class_and_ctor_args.pkl").is_file():
+        return path
+    return None
+
+
+def load_algorithm_policy(path: str | Path):
+    """(policy, env id, env arguments) of a user's own RLlib checkpoint (``algo.save()``):
+    its RLModule, deterministic, and the env and ``env_config`` its config holds, for
+    ``spinstrike evaluate``/``record`` (it was "not a run", walk W22a). Only a SpinStrike env's
+    checkpoint."""
+    import pickle
+
+    from spinstrike.envs.rllib import PREFIX
+
+    path = algorithm_checkpoint(path)
+    try:
+        import ray.rllib  # noqa: F401  (the pickle names its classes)
+    except ImportError:
+        raise AgentConfigError("run_dir: an RLlib checkpoint needs Ray RLlib: pip install "
+                               "'spinstrike[rllib]'") from None
+    try:
+        state = pickle.loads((path / "class_and_ctor_args.pkl").read_bytes())
+        config = state["ctor_args_and_kwargs"][0][0]
+        if not isinstance(config, dict):
+            config = config.to_dict()
+    except Exception as exc:  # noqa: BLE001  (another Ray's or a damaged checkpoint)
+        raise AgentConfigError(f"run_dir: {path}'s class_and_ctor_args.pkl could not be read "
+                               f"({type(exc).__name__}: {exc})") from None
+    env_id, env_config = config.get("env"), config.get("env_config") or {}
+    if not isinstance(env_id, str):
+        raise AgentConfigError(f"run_dir: {path} is an RLlib checkpoint of no env id (env "
+                               f"{env_id!r}): a checkpoint of another env than a SpinStrike "
+                               f"id")
+    if not isinstance(env_config, dict):
+        raise AgentConfigError(f"run_dir: {path}'s env_config is not a mapping")
+    policy = _checkpoint_policy(path, "checkpoint", "not an RLlib checkpoint of the new API "
+                                "stack's default policy")
+    return policy, env_id.removeprefix(PREFIX), dict(env_config)
 
 
 def _versions() -> dict[str, str]:

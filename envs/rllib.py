@@ -383,10 +383,11 @@ def _read_scene(env_config: Any) -> None:
             env_config["scene"] = resolve_scene(scene)
 
 
-def _check_algorithm_env(config, where: str) -> tuple | None:
+def _check_algorithm_env(config, where: str) -> list | None:
     """Check one ``AlgorithmConfig``'s env and ``env_config`` as its runners will make them;
-    ``where`` names it in the message. Returns the env's (observation space, action space), or
-    None where the env is not a SpinStrike env (not checked)."""
+    ``where`` names it in the message. Returns ``_checked_env``'s list (each env's parsed
+    config and its (observation space, action space)), or None where the env is not a
+    SpinStrike env (not checked)."""
     env = config.env
     if not isinstance(env, str):
         return None
@@ -417,7 +418,7 @@ def _check_algorithm_env(config, where: str) -> tuple | None:
                           f"spinstrike.envs.rllib.resolve gives)")
     vector = str(getattr(config.gym_env_vectorize_mode, "value", config.gym_env_vectorize_mode))
     try:
-        return _checked_env(env, env_config, vector == "vector_entry_point")[0][1]
+        return _checked_env(env, env_config, vector == "vector_entry_point")
     except ConfigError as exc:
         raise ConfigError(f"{where}: {exc}") from None
 
@@ -434,6 +435,7 @@ def _check_evaluation(config, spaces: tuple | None) -> tuple | None:
     _read_scene(override.get("env_config") if isinstance(override, dict)
                 else getattr(override, "env_config", None))
     theirs = _check_algorithm_env(config.get_evaluation_config_object(), "evaluation_config")
+    theirs = None if theirs is None else theirs[0][1]
     if theirs is not None and spaces is not None and theirs != spaces:
         raise ConfigError(f"evaluation_config: its env's spaces (observations {theirs[0]}, "
                           f"actions {theirs[1]}) are not the training env's ({spaces[0]}, "
@@ -441,7 +443,7 @@ def _check_evaluation(config, spaces: tuple | None) -> tuple | None:
     return theirs
 
 
-def check_config(config) -> None:
+def check_config(config, *, default_encoders: bool | None = None) -> None:
     """Check, here in the driver, the envs an RLlib ``AlgorithmConfig`` will make in its runners:
     its own env and ``env_config`` (as :func:`check_env_config`) and, when
     ``.evaluation(evaluation_config=...)`` changes them, the evaluation runners' (RLlib merges
@@ -455,11 +457,26 @@ def check_config(config) -> None:
     Raises:
         ConfigError: naming ``env_config`` or ``evaluation_config``, the key and what is
             allowed; an evaluation env whose spaces are not the training env's; an
-            ``autoreset_mode`` other than NEXT_STEP; or a variant id
-            (``"module:Namespace/Name-vN"``) set directly, which the runners cannot make.
+            ``autoreset_mode`` other than NEXT_STEP; a variant id
+            (``"module:Namespace/Name-vN"``) set directly, which the runners cannot make; or,
+            with ``default_encoders``, an ``obs_mode`` RLlib's default model cannot encode
+            (``"dict"``, ``"pixels"``), as :func:`configure` refuses it. ``default_encoders``
+            None: the config has no env-to-module connector and no RLModule spec of its own
+            (it passed, and the runners failed with ``IndexError``, walk W22a).
     """
     _read_scene(config.env_config)
-    ours = _check_algorithm_env(config, "env_config")
+    checked = _check_algorithm_env(config, "env_config")
+    ours = None if checked is None else checked[0][1]
+    if default_encoders is None:
+        default_encoders = (getattr(config, "_env_to_module_connector", None) is None
+                            and getattr(config, "_rl_module_spec", None) is None)
+    if default_encoders and checked is not None:
+        try:
+            for parsed, _ in checked:
+                _check_default_encoders(parsed)
+        except ConfigError as exc:
+            raise ConfigError(f"env_config: {exc}; or check_config(..., "
+                              f"default_encoders=False)") from None
     if _check_evaluation(config, ours) is not None or ours is not None:
         register_envs()
 

@@ -1064,3 +1064,61 @@ def test_cli_backend_rllib_trains_and_evaluates_a_variant(rllib_lab):
                                cwd=rllib_lab)
     assert evaluated.returncode == 0, evaluated.stderr[-3000:]
     assert "agent" in evaluated.stdout
+
+
+def test_a_users_saved_sac_checkpoint_is_scored_with_the_actions_its_policy_takes(
+        local_ray, tmp_path, capsys):
+    """Walk W22a: ``evaluate``/``record`` took a SAC policy's deterministic action as RLlib's
+    ``to_deterministic`` gives it, the squashed Gaussian's mean before the squash, clipped (a
+    mean of 1.5 acted 1.0 where the policy acts tanh(1.5) = 0.91); and a user's own
+    ``algo.save()`` folder was "not a run". Both through the CLI, on the env its config holds."""
+    import torch
+    from ray.rllib.algorithms.sac import SACConfig
+    from ray.rllib.core.rl_module.rl_module import RLModule
+
+    from spinstrike.agents.cli import main
+    from spinstrike.agents.evaluate import evaluate
+    from spinstrike.agents.rllib_train import load_algorithm_policy
+
+    config = configure(SACConfig(), STRIKE, {"striker_mass": 0.3}).env_runners(
+        num_env_runners=0).rl_module(model_config={"fcnet_hiddens": [16]})
+    algo = config.build_algo()
+    saved = tmp_path / "mine"
+    algo.save(str(saved))
+    algo.stop()
+    # the policy's mean made constant, beyond the bounds for two actions
+    where = saved / "learner_group" / "learner" / "rl_module" / "default_policy"
+    module = RLModule.from_checkpoint(str(where))
+    head = dict(module.named_parameters())
+    loc = torch.tensor([1.5, -2.5, 0.3])
+    with torch.no_grad():
+        head["pi.net.mlp.0.weight"][:3] = 0.0
+        head["pi.net.mlp.0.bias"][:3] = loc
+    module.save_to_path(str(where))
+    policy, env_id, env_config = load_algorithm_policy(saved)
+    assert (env_id, env_config) == (STRIKE, {"striker_mass": 0.3})
+    env = gym.make(STRIKE, **env_config)
+    obs, _ = env.reset(seed=0)
+    np.testing.assert_allclose(policy(env, obs), np.tanh(loc.numpy()), atol=1e-6)
+    capsys.readouterr()
+    assert main(["evaluate", str(saved), "--episodes", "3", "--json", "--no-save"]) == 0
+    scores = json.loads(capsys.readouterr().out)
+    mine = evaluate(STRIKE, lambda env, obs: np.tanh(loc.numpy()), 3, 1000, env_config,
+                    baselines=False)[0].mean
+    assert scores["agent"]["mean"] == pytest.approx(mine, abs=1e-12)
+
+
+def test_check_config_refuses_what_the_default_model_cannot_encode(local_ray):
+    """Walk W22a: ``check_config`` let ``obs_mode: dict`` through on a plain
+    ``config.environment(...)``; ``build_algo()`` then died with ``IndexError``. It refuses it
+    as ``configure`` does, unless the config has its own connector (or it is told)."""
+    from ray.rllib.connectors.env_to_module import FlattenObservations
+
+    config = PPOConfig().environment(f"spinstrike:{STRIKE}",
+                                     env_config={"obs_mode": "dict", "goal": "target"})
+    with pytest.raises(ConfigError, match=r"env_config: obs_mode: 'dict' has no encoder.*"
+                                          r"default_encoders=False"):
+        check_config(config)
+    check_config(config, default_encoders=False)
+    check_config(config.env_runners(env_to_module_connector=lambda env, spaces=None,
+                                    device=None: FlattenObservations()))
