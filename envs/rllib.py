@@ -383,6 +383,21 @@ def _read_scene(env_config: Any) -> None:
             env_config["scene"] = resolve_scene(scene)
 
 
+def _without_autoreset(env_config: dict | None, where: str) -> dict:
+    """``env_config`` without Gymnasium's ``autoreset_mode``, which must be RLlib's NEXT_STEP
+    (refused otherwise, naming ``where``)."""
+    env_config = dict(env_config or {})
+    mode = env_config.pop("autoreset_mode", None)
+    if mode is not None:
+        from spinstrike.envs.core import parse_autoreset_mode
+
+        if parse_autoreset_mode(mode) != AutoresetMode.NEXT_STEP:
+            raise ConfigError(f"{where}: autoreset_mode {mode!r}: RLlib's runners assume "
+                              f"NEXT_STEP (in another mode they take each episode's last "
+                              f"or first step for the wrong one); leave it out")
+    return env_config
+
+
 def _check_algorithm_env(config, where: str) -> list | None:
     """Check one ``AlgorithmConfig``'s env and ``env_config`` as its runners will make them;
     ``where`` names it in the message. Returns ``_checked_env``'s list (each env's parsed
@@ -396,15 +411,7 @@ def _check_algorithm_env(config, where: str) -> list | None:
         # RLlib makes it itself (gym.make / gym.make_vec with env_config as keyword arguments,
         # importing the package from the id): its env_config is the env's arguments, plus
         # Gymnasium's autoreset_mode for a vector env, which must be RLlib's NEXT_STEP
-        env_config = dict(env_config or {})
-        mode = env_config.pop("autoreset_mode", None)
-        if mode is not None:
-            from spinstrike.envs.core import parse_autoreset_mode
-
-            if parse_autoreset_mode(mode) != AutoresetMode.NEXT_STEP:
-                raise ConfigError(f"{where}: autoreset_mode {mode!r}: RLlib's runners assume "
-                                  f"NEXT_STEP (in another mode they take each episode's last "
-                                  f"or first step for the wrong one); leave it out")
+        env_config = _without_autoreset(env_config, where)
     elif env not in ENV_IDS:
         try:
             shipped, env_config = resolve(env, config.env_config)
@@ -493,6 +500,9 @@ def configure(config, env_id: str, env_config: dict | None = None, *,
     ``default_encoders``: the config uses RLlib's default model, so an ``obs_mode`` it cannot
     encode (``"dict"``, ``"pixels"``) is refused here; pass False with your own RLModule, or a
     connector that turns the observations into what it takes. Returns ``config``."""
+    # (Gymnasium's argument, not the env's: said as check_config says it, walk W22a)
+    env_config = _without_autoreset(env_config, "env_config") \
+        if isinstance(env_config, dict) else env_config
     env_id, env_config = resolve(env_id, env_config)
     # the scene itself, read now: the config (its pickles, the runners, a checkpoint) held the
     # path, which another folder could not open and a later edit changed

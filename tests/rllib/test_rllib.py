@@ -209,6 +209,11 @@ def test_check_config_checks_what_the_runners_will_make(tmp_path, monkeypatch, u
                      .env_runners(gym_env_vectorize_mode="vector_entry_point"))
     check_config(PPOConfig().environment(prefixed, env_config={"autoreset_mode": "next_step"})
                  .env_runners(gym_env_vectorize_mode="vector_entry_point"))
+    # configure says it alike (it said "autoreset_mode: unknown argument", next_step too)
+    with pytest.raises(ConfigError, match=r"^env_config: autoreset_mode 'same_step': RLlib's "
+                                          r"runners assume NEXT_STEP"):
+        configure(PPOConfig(), STRIKE, {"autoreset_mode": "same_step"})
+    assert configure(PPOConfig(), STRIKE, {"autoreset_mode": "next_step"}).env_config == {}
 
     scene = load_packaged_scene("rod_control")
     scene["bodies"] = [dict(b, length=0.25) if b["name"] == "rod" else b for b in scene["bodies"]]
