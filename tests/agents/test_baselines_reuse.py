@@ -46,18 +46,24 @@ def ppo_yml(tmp_path, monkeypatch):
 def _register(user_module, restitution):
     """The user's module, registering the variant with ``restitution`` (edited between the
     reports as a user edits it, then imported again by the next ``spinstrike baselines``)."""
+    return _write_module(user_module, "ReuseLab/EditRod-v0", (
+        "import gymnasium as gym\n"
+        "gym.register('ReuseLab/EditRod-v0', entry_point='spinstrike.envs.strike:RodSpinEnv',"
+        " vector_entry_point='spinstrike.envs.strike:RodSpinVectorEnv',"
+        f" kwargs={{'restitution': {restitution}}})\n"))
+
+
+def _write_module(user_module, env_id: str, source: str):
+    """The user's module as ``source`` (registering ``env_id``), as the next ``spinstrike
+    baselines`` imports it again after the user edited it."""
     import importlib
     import sys
 
     import gymnasium as gym
 
     sys.modules.pop(MODULE, None)
-    gym.registry.pop("ReuseLab/EditRod-v0", None)
-    here = user_module(MODULE, (
-        "import gymnasium as gym\n"
-        "gym.register('ReuseLab/EditRod-v0', entry_point='spinstrike.envs.strike:RodSpinEnv',"
-        " vector_entry_point='spinstrike.envs.strike:RodSpinVectorEnv',"
-        f" kwargs={{'restitution': {restitution}}})\n"))
+    gym.registry.pop(env_id, None)
+    here = user_module(MODULE, source)
     importlib.invalidate_caches()
     return here
 
@@ -161,15 +167,8 @@ def test_an_edited_subclass_trains_the_run_again(user_module, ppo_yml, capsys):
     run trained is a change too (the run records a digest of the module's source), where only
     its registered arguments were compared: the old run's score was reported beside the new
     reward's random policy and oracle."""
-    import importlib
-    import sys
-
-    import gymnasium as gym
-
     def register(bonus):
-        sys.modules.pop(MODULE, None)
-        gym.registry.pop("ReuseLab/BonusRod-v0", None)
-        here = user_module(MODULE, (
+        return _write_module(user_module, "ReuseLab/BonusRod-v0", (
             "import gymnasium as gym\n"
             "import numpy as np\n"
             "from spinstrike.envs.strike import RodSpinEnv, RodSpinTask, RodSpinVectorEnv\n"
@@ -183,8 +182,6 @@ def test_an_edited_subclass_trains_the_run_again(user_module, ppo_yml, capsys):
             "    TASK = BonusTask\n"
             "gym.register('ReuseLab/BonusRod-v0', entry_point=BonusRod,"
             " vector_entry_point=BonusRodVec)\n"))
-        importlib.invalidate_caches()
-        return here
 
     here = register(0.5)
     variant, run = f"{MODULE}:ReuseLab/BonusRod-v0", "ppo-ReuseLab-BonusRod-v0-s0"

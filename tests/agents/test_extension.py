@@ -366,15 +366,21 @@ def test_video_frames_show_the_reward_a_variant_pays(user_module):
         assert min(paid) >= extra
         assert env.unwrapped.task.frame(0).panel[-1] == (
             f"reward {paid[-1]:+.3f} (step)   return {sum(paid):+.3f}"), env_id
-    vec = gym.make_vec("ExtLab/PaidControl-v0", 3, vectorization_mode="vector_entry_point",
+    assert min(_vector_returns_shown("ExtLab/PaidControl-v0", 3, 4, push)) >= 4.0
+
+
+def _vector_returns_shown(env_id, n, steps, action):
+    """The returns ``n`` elements of ``env_id``'s native vector env were paid in ``steps``
+    steps of ``action``, after checking each element's frame shows its own."""
+    vec = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point",
                        render_mode="rgb_array")
     vec.reset(seed=1)
-    total = np.zeros(3)
-    for _ in range(4):
-        total += vec.step(np.tile(push, (3, 1)))[1]
-    assert total.min() >= 4.0
-    for b in range(3):
-        assert vec.unwrapped.task.frame(b).panel[-1].endswith(f"return {total[b]:+.3f}")
+    total = np.zeros(n)
+    for _ in range(steps):
+        total += vec.step(np.tile(action, (n, 1)))[1]
+    for b in range(n):
+        assert vec.unwrapped.task.frame(b).panel[-1].endswith(f"return {total[b]:+.3f}"), b
+    return total
 
 
 def test_an_edit_of_a_subclass_s_code_since_a_run_trained_is_named(user_module):
@@ -477,14 +483,7 @@ def test_an_action_repeat_subclass_films_every_step_and_shows_what_it_paid(user_
     assert len(env.render()) == 1 + 4 * 5  # the reset's frame, then every step of the env's
     assert env.unwrapped.task.frame(0).panel[-1] == (
         f"reward {paid[-1]:+.3f} (step)   return {sum(paid):+.3f}")
-    vec = gym.make_vec("ExtLab/Repeat-v0", 2, vectorization_mode="vector_entry_point",
-                       render_mode="rgb_array")
-    vec.reset(seed=1)
-    total = np.zeros(2)
-    for _ in range(5):
-        total += vec.step(np.tile(push, (2, 1)))[1]
-    for b in range(2):
-        assert vec.unwrapped.task.frame(b).panel[-1].endswith(f"return {total[b]:+.3f}")
+    _vector_returns_shown("ExtLab/Repeat-v0", 2, 5, push)
 
 
 def test_odd_user_steps_show_what_they_pay(user_module):
