@@ -539,3 +539,17 @@ def test_a_paying_subclass_in_human_mode_shows_each_frame_once(user_module, monk
         assert len(shown) == 1 + 3 * per_step, cls
         assert env.task.frame(0).panel[-1].startswith("reward +1.000")
         env.close()
+
+
+def test_evaluate_says_the_oracle_aims_at_the_task_where_a_subclass_pays_in_its_step(
+        user_module, capsys):
+    """An env subclass paying in its own ``step``: the oracle's what-if strikes aim at its
+    task's reward, so its row is no upper reference, and the summary presented it as one with
+    no word (walk W21b F9). A task subclass, which the oracle aims at, gets no note."""
+    user_module(MODULE, LAB)
+    for env_id, noted in (("ExtLab/Weighted-v0", True), ("ExtLab/SpeedTask-v0", False)):
+        assert main(["evaluate", "--env", f"{MODULE}:{env_id}", "--oracle", "--episodes", "2",
+                     "--no-save"]) == 0
+        err = " ".join(capsys.readouterr().err.split())
+        assert ("Weighted pays in its own step: the oracle aims at its task's reward "
+                "(RodSpinTask)" in err) is noted, (env_id, err)
