@@ -241,11 +241,12 @@ def code_fingerprint(env_id: str) -> dict[str, str]:
     they are the user's (not this package's, the standard library's or an installed
     package's), and the modules of the user's these import, in turn (a reward kept in a
     helper module). ``{module: sha256}``, empty for a shipped id and a variant of a shipped
-    class. The digest is of the module's syntax tree without its docstrings and its top-level
-    ``register(...)`` calls: a comment or a layout changes nothing, nor does an edit of the
-    registered arguments (the run records those, and ``registration_changes`` names them).
-    A run's ``config.yml`` records it, so ``evaluate`` / ``record`` can say when the code
-    changed since the run trained (walk W21b F10)."""
+    class. The digest is of the module's code as its syntax tree reads back (``ast.unparse``),
+    without its docstrings and its top-level ``register(...)`` calls: a comment or a layout
+    changes nothing, nor does an edit of the registered arguments (the run records those,
+    and ``registration_changes`` names them). A run's ``config.yml`` records it, so
+    ``evaluate`` / ``record`` can say when the code changed since the run trained (walk W21b
+    F10)."""
     import sys
 
     bare = env_id.rpartition(":")[2]
@@ -310,7 +311,9 @@ def _users_module_code(name: str, module: Any) -> tuple[str, list[str]] | None:
                 up = parts[:len(parts) - node.level + 1] if node.level > 1 else parts
                 base = ".".join([*up, *([base] if base else [])])
             imports += [base, *(f"{base}.{alias.name}" for alias in node.names)]
-    return hashlib.sha256(ast.dump(_without_docs_and_registers(tree)).encode()).hexdigest(), \
+    # (read back as code, not ast.dump's form, which changes between Pythons: 3.13 leaves out
+    # empty fields; a run evaluated under another Python may still read as changed)
+    return hashlib.sha256(ast.unparse(_without_docs_and_registers(tree)).encode()).hexdigest(), \
         imports
 
 

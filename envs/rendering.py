@@ -377,11 +377,11 @@ class Renderer:
 
     def _marker(self, surf, m: Marker) -> None:
         pg = self._pygame
+        if m.j < SHOWN_IMPULSE:
+            return
         colour = _mix(COLOURS["impulse"], COLOURS["table"], m.fade)
         start = self._px(m.x, m.y)
         end = self._marker_end(m)
-        if m.j < SHOWN_IMPULSE:
-            return
         width = max(2, self.height // 160)
         self._arrow(surf, start, end, colour, width)
         pg.draw.circle(surf, colour, start, max(4, self.height // 80) + int(6 * m.fade), 2)
