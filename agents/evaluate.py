@@ -236,29 +236,27 @@ def evaluate(env_id: str, policy: Policy | None = None, episodes: int = 50, seed
                                     "random"))
         results.append(run_episodes(oracle_for(env_id), env_id, episodes, seed, env_kwargs,
                                     "oracle"))
-        caveat = oracle_caveat(env_id, env_kwargs)
+        caveat = oracle_caveat(env_id)
         if caveat:
             print(f"note: {caveat}", file=sys.stderr)
     return results
 
 
-def oracle_caveat(env_id: str, env_kwargs: dict | None = None) -> str | None:
-    """What the oracle row does not mean for ``env_id``: where its env class is a user's
-    subclass paying in its own ``step``, the oracle (its what-if strikes, the control envs'
-    chase-and-hit) aims at the task's reward, not at what that step pays (the oracle row sat
-    below an agent's, walk W21b F9)."""
-    env = gym.make(env_id, **(env_kwargs or {}))
-    try:
-        cls = type(env.unwrapped)
-        if not getattr(cls.step, "_shows_what_it_pays", False):
-            return None
-        task = type(env.unwrapped.task)
-        return (f"{env_id}'s {cls.__name__} pays in its own step: the oracle aims at its "
-                f"task's reward ({task.__name__}), not at what that step pays, so it is no "
-                f"upper reference there (a reward changed in a subclass of the task, set as "
-                f"TASK, is what it aims at)")
-    finally:
-        env.close()
+def oracle_caveat(env_id: str) -> str | None:
+    """What the oracle row does not mean for ``env_id`` (registered: its episodes ran): where
+    its env class is a user's subclass paying in its own ``step``, the oracle (its what-if
+    strikes, the control envs' chase-and-hit) aims at the task's reward, not at what that step
+    pays (the oracle row sat below an agent's, walk W21b F9)."""
+    from gymnasium.envs.registration import load_env_creator
+
+    entry = gym.spec(env_id.rpartition(":")[2]).entry_point
+    cls = load_env_creator(entry) if isinstance(entry, str) else entry
+    if not getattr(getattr(cls, "step", None), "_shows_what_it_pays", False):
+        return None
+    return (f"{env_id}'s {cls.__name__} pays in its own step: the oracle aims at its task's "
+            f"reward ({cls.TASK.__name__}), not at what that step pays, so it is no upper "
+            f"reference there (a reward changed in a subclass of the task, set as TASK, is what "
+            f"it aims at)")
 
 
 def summarise(results: list[Evaluation], path: str | Path | None = None,

@@ -401,12 +401,14 @@ def _reward_of(out: Any) -> np.ndarray | None:
         reward = out[1]
     except Exception:  # noqa: BLE001  (whatever the user's step returned: shown as the env's)
         return None
+    if reward is None:
+        return None
     for number in (lambda r: np.asarray(r, dtype=np.float64),  # (a tensor needing its graph:)
                    lambda r: np.asarray(float(r))):
         try:
             with warnings.catch_warnings():  # (torch's about its graph: the user's reward)
                 warnings.simplefilter("ignore")
-                return None if reward is None else number(reward)
+                return number(reward)
         except Exception:  # noqa: BLE001
             continue
     return None
@@ -476,17 +478,12 @@ class SpinStrikeEnv(_ShowsWhatItPays, _SpecOfScene, gym.Env):
         # subclass's own arguments or failed on an __init__ of other parameters (walk W21b).
         # This package's classes are rebuilt from their config: nothing to keep
         env._made_with = None
-        if cls._users_subclass():
+        if _users_class(cls):
             try:
                 env._made_with = copy.deepcopy((args, kwargs))
             except Exception:  # noqa: BLE001  (an argument that does not copy: as before)
                 pass
         return env
-
-    @classmethod
-    def _users_subclass(cls) -> bool:
-        """Whether ``cls`` is a subclass of the user's, not one of this package's classes."""
-        return _users_class(cls)
 
     #: where the frames of the last step start in ``_frames`` (None: not kept there)
     _filmed_from: int | None = None
@@ -537,7 +534,7 @@ class SpinStrikeEnv(_ShowsWhatItPays, _SpecOfScene, gym.Env):
 
     # pickling (SubprocVecEnv, Ray): rebuild from the arguments, then put back the live state
     def __getstate__(self) -> dict:
-        users = self._users_subclass()
+        users = _users_class(type(self))
         made = self.__dict__.get("_made_with")  # (None for this package's classes)
         if made is not None and isinstance(made[1].get("scene"), str):  # a file: as read
             made = (made[0], {**made[1], "scene": self.cfg.scene})
