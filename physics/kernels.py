@@ -83,6 +83,7 @@ from spinstrike.physics.layout import (
     REC_J,
     REC_JT,
     REC_WATCHED_J,
+    REST_COLUMNS,
     STAT_COLUMNS,
     STAT_FALLBACK,
     STAT_WATCH,
@@ -152,7 +153,7 @@ def unpack(fbuf, ibuf):
     kind = _ints(ibuf, I_KIND, B * P).reshape((B, P))
     changed = _ints(ibuf, I_CHANGED, B * N).reshape((B, N))
     icfg = _ints(ibuf, I_ICFG, ICFG_SIZE)
-    rest = _floats(fbuf, ibuf, F_REST, B * N * FORCE_COLUMNS).reshape((B, N, FORCE_COLUMNS))
+    rest = _floats(fbuf, ibuf, F_REST, B * N * REST_COLUMNS).reshape((B, N, REST_COLUMNS))
     return Views(S, Pm, F, HW, MAT, crec, toi, fcfg, PA, PB, cpair, stats, kind, changed, icfg,
                  clock, fbuf, ibuf, rest)
 

@@ -96,6 +96,14 @@ FORCE = Table("force", "fx", "fy")
 FX, FY = FORCE
 FORCE_COLUMNS = len(FORCE)
 
+#: a body's rest on the cushions ``[B, N, .]`` (``solvers._rest_on_cushions``), per axis: the
+#: force component a cushion holds back (N), when the rest began (s), the impulse booked at
+#: its start (N s: the normal velocity it zeroed, times the mass) and the body-cushion pair
+#: (its index, as a float); zero between steps
+REST = Table("cushion rest", "fx", "fy", "tx", "ty", "jx", "jy", "px", "py", prefix="REST_")
+REST_FX, REST_FY, REST_TX, REST_TY, REST_JX, REST_JY, REST_PX, REST_PY = REST
+REST_COLUMNS = len(REST)
+
 #: table half size ``[B, .]``, m (inf when unbounded)
 HALF = Table("table half size", "half_w", "half_h")
 HALF_W, HALF_H = HALF
@@ -224,15 +232,15 @@ def field_shapes(B: int, N: int, P: int, M: int,
     pair lists (many bodies), which needs
     the calendar rows ``calf``, ``cali`` (:func:`calendar_widths`) and the pair index
     ``[N, N + 4]`` (the pair of two bodies, or of a body and cushion w at column N + w; -1:
-    none); otherwise they are empty. ``rest``: the force components the cushions a body rests
-    on hold back during a step (``solvers._rest_on_cushions``; zero between steps)."""
+    none); otherwise they are empty. ``rest``: a body's rests on the cushions during a step
+    (:data:`REST`, ``solvers._rest_on_cushions``; zero between steps)."""
     cf, ci = calendar_widths(N, P) if calendar else (0, 0)
     rows, cols = (N, N + 4) if calendar else (0, 0)
     return {"state": (B, N, STATE_COLUMNS), "params": (B, N, PARAM_COLUMNS),
             "forces": (B, N, FORCE_COLUMNS), "half": (B, HALF_COLUMNS),
             "materials": (B, P, MATERIAL_COLUMNS), "crec": (B, M + 1, REC_COLUMNS),
             "toi": (B, P),
-            "fcfg": (FCFG_SIZE,), "time": (B,), "calf": (B, cf), "rest": (B, N, FORCE_COLUMNS),
+            "fcfg": (FCFG_SIZE,), "time": (B,), "calf": (B, cf), "rest": (B, N, REST_COLUMNS),
             "pair_a": (P,), "pair_b": (P,), "cpair": (B, M), "stats": (B, STAT_COLUMNS),
             "kind": (B, P), "changed": (B, N), "icfg": (ICFG_SIZE,), "cali": (B, ci),
             "pair_index": (rows, cols)}

@@ -117,6 +117,14 @@ from spinstrike.physics.layout import (
     REC_PY,
     REC_TIME,
     REC_WATCHED_J,
+    REST_FX,
+    REST_FY,
+    REST_JX,
+    REST_JY,
+    REST_PX,
+    REST_PY,
+    REST_TX,
+    REST_TY,
     RESTITUTION,
     SPIN_DECEL,
     STAT_CONTACTS,
@@ -712,7 +720,7 @@ def fixed_element(S, Pm, F, hw, PA, PB, MAT, T, substeps, iterations, slop, t0, 
 
 @jit_uncounted
 def _rest_on_cushions(S, Pm, F, hw, PA, PB, MAT, rest, changed, tol, zeno_speed,
-                      contact_friction, table_friction):
+                      contact_friction, table_friction, t, cpair, crec, stats):
     """After an event: decide which of the bodies it changed rest on a cushion.
 
     A disk pushed into a frictionless cushion by a constant force bounces ever lower and more
@@ -731,66 +739,105 @@ def _rest_on_cushions(S, Pm, F, hw, PA, PB, MAT, rest, changed, tol, zeno_speed,
     knocked it off the cushion); then each is tested again, cushion by cushion (two in a
     corner). Disks only (a cushion's normal through the centre: no torque), with the force as
     their net force (no cloth friction on them) and no contact friction with that cushion.
+
+    A rest is a contact: when it ends (at time ``t`` of an event that changed the body, or of
+    the step's end, :func:`_end_rests`) it is recorded as one, its impulse what the cushion
+    held back over it plus what zeroing the normal velocity took (:func:`_hand_back`), so that
+    the records sum to the momentum the cushions gave, as on the fixed solver (walk W24a F1:
+    a disk pressed on a cushion had no reaction in ``contacts`` or ``watched_impulse``).
     """
     n = S.shape[0]
-    _release(F, rest, changed)
+    _release(S, Pm, F, rest, changed, t, cpair, crec, stats)
     for p in range(PA.shape[0]):
         i = PA[p]
         wall = PB[p] - n
         if wall >= 0 and changed[i]:
             _rest(S, Pm, F, hw, MAT, rest, p, i, wall, tol, zeno_speed, contact_friction,
-                  table_friction)
+                  table_friction, t)
 
 
 @jit_uncounted
 def _rest_on_cushions_indexed(S, Pm, F, hw, MAT, rest, changed, pidx, tol, zeno_speed,
-                              contact_friction, table_friction):
+                              contact_friction, table_friction, t, cpair, crec, stats):
     """:func:`_rest_on_cushions` for the event calendar: the changed bodies' cushion pairs
     from the pair index (``pidx [N, N + 4]``), not a scan of every pair. Each decision touches
     only its body's normal component, so the order does not matter: the same rests."""
     n = S.shape[0]
-    _release(F, rest, changed)
+    _release(S, Pm, F, rest, changed, t, cpair, crec, stats)
     for i in range(n):
         if changed[i]:
             for wall in range(4):
                 p = pidx[i, n + wall]
                 if p >= 0:
                     _rest(S, Pm, F, hw, MAT, rest, p, i, wall, tol, zeno_speed,
-                          contact_friction, table_friction)
+                          contact_friction, table_friction, t)
 
 
 @jit_inline
-def _hand_back(F, rest, i):
-    """Body i gets the force a cushion held back from it (if any) back."""
-    if rest[i, FX] != 0.0 or rest[i, FY] != 0.0:
-        F[i, FX] += rest[i, FX]
-        F[i, FY] += rest[i, FY]
-        rest[i, FX] = 0.0
-        rest[i, FY] = 0.0
+def _hand_back(S, Pm, F, rest, i, t, cpair, crec, stats):
+    """Body i gets the force a cushion held back from it (if any) back at time ``t``, and the
+    rest is recorded as a contact (:func:`_end_rest`)."""
+    if rest[i, REST_FX] != 0.0:
+        F[i, FX] += rest[i, REST_FX]
+        _end_rest(S, Pm, rest[i, REST_FX], 0.0, rest[i, REST_JX] + abs(rest[i, REST_FX]) * (
+            t - rest[i, REST_TX]), rest[i, REST_PX], i, t, cpair, crec, stats)
+        rest[i, REST_FX] = 0.0
+    if rest[i, REST_FY] != 0.0:
+        F[i, FY] += rest[i, REST_FY]
+        _end_rest(S, Pm, 0.0, rest[i, REST_FY], rest[i, REST_JY] + abs(rest[i, REST_FY]) * (
+            t - rest[i, REST_TY]), rest[i, REST_PY], i, t, cpair, crec, stats)
+        rest[i, REST_FY] = 0.0
 
 
 @jit_inline
-def _release(F, rest, changed):
-    """The changed bodies get their held-back forces back (another body may have knocked one
-    off its cushion)."""
+def _end_rest(S, Pm, fx, fy, j, p, i, t, cpair, crec, stats):
+    """Record body i's rest on a cushion (pair ``p``, a float) that ends at ``t``: the
+    normal is the held force's direction (into the cushion, from the body to it), the point
+    where the disk touches the cushion, ``j`` the impulse. A rest released before the force
+    made up for the velocity away from the cushion it zeroed at its start (``j`` < 0: within
+    ``u m / F`` of it, u < ``zeno_speed``; e.g. a settle that begins at the same event) gives
+    the body what is left of that velocity back and records nothing: a cushion cannot pull."""
+    nx = 1.0 if fx > 0.0 else (-1.0 if fx < 0.0 else 0.0)
+    ny = 1.0 if fy > 0.0 else (-1.0 if fy < 0.0 else 0.0)
+    if j > 0.0:
+        r = Pm[i, RADIUS]
+        _record(int(p), t, S[i, X] + r * nx, S[i, Y] + r * ny, nx, ny, j, 0.0, cpair, crec,
+                stats)
+    elif j < 0.0:  # (-j n, away from the cushion)
+        S[i, VX] += j * nx * Pm[i, INV_MASS]
+        S[i, VY] += j * ny * Pm[i, INV_MASS]
+
+
+@jit_inline
+def _release(S, Pm, F, rest, changed, t, cpair, crec, stats):
+    """The changed bodies get their held-back forces back at time ``t`` (another body may have
+    knocked one off its cushion)."""
     for i in range(F.shape[0]):
         if changed[i]:
-            _hand_back(F, rest, i)
+            _hand_back(S, Pm, F, rest, i, t, cpair, crec, stats)
 
 
 @jit_inline
 def _rest(S, Pm, F, hw, MAT, rest, p, i, wall, tol, zeno_speed, contact_friction,
-          table_friction):
-    """Put body i at rest on cushion ``wall`` (pair p) if :func:`rests_on` says so."""
+          table_friction, t):
+    """Put body i at rest on cushion ``wall`` (pair p) at time ``t`` if :func:`rests_on` says
+    so: its velocity along the cushion's normal zeroed (the impulse that takes is booked at
+    the rest's start), its force's normal component held back."""
     if rests_on(S, Pm, F, hw, MAT, p, i, wall, tol, zeno_speed, contact_friction,
                 table_friction):
         if wall < 2:  # the cushions are axis-aligned: one component each
+            rest[i, REST_JX] = S[i, VX] * math.copysign(1.0, F[i, FX]) / Pm[i, INV_MASS]
+            rest[i, REST_TX] = t
+            rest[i, REST_PX] = p
             S[i, VX] = 0.0
-            rest[i, FX] += F[i, FX]
+            rest[i, REST_FX] = F[i, FX]
             F[i, FX] = 0.0
         else:
+            rest[i, REST_JY] = S[i, VY] * math.copysign(1.0, F[i, FY]) / Pm[i, INV_MASS]
+            rest[i, REST_TY] = t
+            rest[i, REST_PY] = p
             S[i, VY] = 0.0
-            rest[i, FY] += F[i, FY]
+            rest[i, REST_FY] = F[i, FY]
             F[i, FY] = 0.0
 
 
@@ -812,10 +859,11 @@ def rests_on(S, Pm, F, hw, MAT, p, i, wall, tol, zeno_speed, contact_friction, t
 
 
 @jit_inline
-def _end_rests(F, rest):
-    """Hand the held-back forces back (the end of the step, or before settling)."""
+def _end_rests(S, Pm, F, rest, t, cpair, crec, stats):
+    """Hand the held-back forces back at time ``t`` (the end of the step, or before settling),
+    each rest recorded as a contact (:func:`_hand_back`)."""
     for i in range(F.shape[0]):
-        _hand_back(F, rest, i)
+        _hand_back(S, Pm, F, rest, i, t, cpair, crec, stats)
 
 
 @jit_inline
@@ -1321,7 +1369,7 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
                                contact_friction, changed, cpair, crec, stats, sweeps, jam, None,
                                0)
             _rest_on_cushions(S, Pm, F, hw, PA, PB, MAT, rest, changed, tol, zeno_speed,
-                              contact_friction, table_friction)
+                              contact_friction, table_friction, t_now, cpair, crec, stats)
             if trace is not None:  # the trace hook
                 trace_state(trace, t_now, S)
         horizon = dt - t_now
@@ -1333,7 +1381,7 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
                 kind[p] = k
                 iterations += it
         if events >= max_events or resting >= zeno_impacts:
-            _end_rests(F, rest)
+            _end_rests(S, Pm, F, rest, t_now, cpair, crec, stats)
             if t_now < dt and events < max_events:
                 t_now, outcome = _hold_unless(jam, S, Pm, F, hw, PA, PB, MAT, t_now, dt, tol,
                                               zeno_speed, rotation, contact_friction,
@@ -1349,7 +1397,7 @@ def exact_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations
                         rotation, flat, contact_friction, table_friction, cpair, crec, stats,
                         changed, jam, trace, None)
             break
-    _end_rests(F, rest)
+    _end_rests(S, Pm, F, rest, t_now, cpair, crec, stats)
     stats[STAT_EVENTS] += events
     stats[STAT_ITERATIONS] += iterations
 
@@ -1514,7 +1562,7 @@ def exact_many_element(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_itera
         zeno_impacts, rotation, flat, contact_friction, table_friction, LEVEL_MANY_BODIES, cpair,
         crec, stats, toi, kind, changed, rest, near, box, cnt, heap, hpos, watch, stamp, watched,
         order, pidx, trace)
-    _end_rests(F, rest)
+    _end_rests(S, Pm, F, rest, t_now, cpair, crec, stats)
     if settle:
         _settle(S, Pm, F, hw, PA, PB, MAT, t_now, dt, settle_substep, _int(MAX_SWEEPS), tol,
                 rotation, flat, contact_friction, table_friction, cpair, crec, stats, changed,
@@ -1592,7 +1640,8 @@ def _many_events(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations,
                                        cpair, crec, stats, sweeps, jam, watch,
                                        cnt[CAL_WATCH_SIZE], near)
             _rest_on_cushions_indexed(S, Pm, F, hw, MAT, rest, changed, pidx, tol, zeno_speed,
-                                      contact_friction, table_friction)
+                                      contact_friction, table_friction, t_now, cpair, crec,
+                                      stats)
             if trace is not None:  # the trace hook
                 trace_state(trace, t_now, S)
         iterations += _repredict(best, S, Pm, F, hw, PA, PB, t_now, dt, tol, max_iterations,

@@ -193,6 +193,13 @@ class Contacts:
         dropped: [B] contacts not stored because an element exceeded ``max_contacts``.
         dropped_impulse, dropped_tangent_impulse: [B] their normal and friction impulses,
             summed (N s): ``impulse`` summed per element plus these is the step's total.
+
+    Per body, ``m dv = F dt + sum(-j n)`` over its records as a (``+j n`` as b), to
+    round-off, on every solver: a disk the exact solver holds on a cushion under its force is
+    one record when the rest ends (at the step's end, or when something hits it), its impulse
+    the cushion's whole push (``docs/design.md`` §4). The exception: the exact solver's held
+    pairs (a striker left on a spinning rod) record their RATTLE substeps' impulses to ~1e-4
+    relative (``StepStats.substeps``).
     """
 
     batch: np.ndarray
