@@ -340,6 +340,17 @@ class WorldEdit:
     def __exit__(self, kind, value, traceback) -> None:
         if kind is None:
             self.commit()
+        else:  # the block raised: nothing is written, on purpose
+            self._done = True
+
+    def __del__(self) -> None:
+        """Warn about changes never written: ``world.edit(env).set_body(...)`` (no ``with``,
+        no ``commit()``) silently did nothing (walk W24a F4)."""
+        if not self.__dict__.get("_done", True) and self.__dict__.get("_changed"):
+            fields = sorted(name.lstrip("_") for name in self._changed)
+            warnings.warn(f"world.edit(): the changes to {fields} were never written: use "
+                          f"`with world.edit(env) as e: e.set_...(...)`, or call e.commit()",
+                          RuntimeWarning, stacklevel=2)
 
     def commit(self) -> None:
         """Check the whole change once and write it (the world is unchanged if it raises)."""

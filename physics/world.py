@@ -156,14 +156,19 @@ _PARAMETER_ARRAYS = [("mass", "_mass"), ("radius", "_radius"), ("half_length", "
 
 
 def _read_only(a: np.ndarray) -> np.ndarray:
-    v = a.view()
-    v.flags.writeable = False
-    return v
+    """A view of ``a`` that numpy refuses to make writeable again (a plain view's flag could be
+    set back, and a write then reached the world unchecked: walk W24a F7)."""
+    return np.lib.stride_tricks.as_strided(a, writeable=False)
 
 
 @dataclass(frozen=True)
 class State:
-    """Named, read-only views of the world's state (see module docstring for units)."""
+    """Named, read-only views of the world's state (see module docstring for units).
+
+    *Live* views, as MuJoCo's ``data.qpos``: they show the state as the world steps, so a
+    trajectory is recorded with ``.copy()`` (``traj.append(world.state.positions.copy())``)
+    or ``world.get_state()``; appending the views themselves keeps N references to the last
+    state (walk W24a F3)."""
 
     positions: np.ndarray
     angles: np.ndarray
@@ -721,7 +726,10 @@ class World:
 
     def restore(self, snapshot: dict[str, np.ndarray], env: Any = None) -> None:
         """Put back a snapshot from ``get_state`` (all elements, or those in ``env``); its
-        parameters too, if it has them."""
+        parameters too, if it has them. With ``env``, the snapshot is either the whole batch's
+        (its rows ``env`` are put back) or has one row per selected element (a B = 1 world's
+        snapshot into element ``env=[i]``, walk W24a F9); ``load_element`` copies an element
+        of a live world."""
         rows = batch_rows(env, self.batch_size)
         names = [("state", "_state"), ("forces", "_forces"), ("time", "_time")]
         missing = [key for key, _ in names if key not in snapshot]
@@ -744,14 +752,17 @@ class World:
         for key, name in names:
             mine = getattr(self, name)
             value = np.asarray(snapshot[key])
-            if value.shape != mine.shape:
-                raise SceneError(f"snapshot: {key} shape {value.shape} != {mine.shape}")
+            whole = value.shape == mine.shape
+            if not whole and value.shape != (len(rows), *mine.shape[1:]):
+                raise SceneError(f"snapshot: {key} shape {value.shape} is neither the whole "
+                                 f"batch's {mine.shape} nor the selected elements' "
+                                 f"{(len(rows), *mine.shape[1:])}")
             if name in ("_state", "_forces", "_time"):
-                value = as_batch(value, mine.shape, f"snapshot.{key}")
+                value = as_batch(value, value.shape, f"snapshot.{key}")
             elif value.dtype.kind not in "iuf" or np.isnan(value).any():
                 # parameters may be inf (a static body's mass, an unbounded table)
                 raise SceneError(f"snapshot: {key} must be numbers, not NaN")
-            arrays[name] = value[rows]
+            arrays[name] = value[rows] if whole else value
         check_snapshot(self, arrays)
         params = None
         if with_params:
@@ -884,6 +895,8 @@ class World:
                              _entries={})
 
     def _set_dt(self, dt: Any) -> None:
+        if isinstance(dt, np.ndarray) and dt.ndim == 0 and dt.dtype.kind in "iuf":
+            dt = dt.item()  # one number (np.clip's or np.asarray's, walk W24a F8)
         if isinstance(dt, bool) or not isinstance(dt, (int, float, np.integer, np.floating)):
             # float() took "0.1" and True (a 1 s step); one dt for every element
             raise SceneError(f"dt: must be one number of seconds, the same for all elements (got "
@@ -902,6 +915,7 @@ class World:
         """
         if type(dt) is not float:  # checked here: run() reads None as "the last dt", and
             self._set_dt(dt)       # True == 1.0 would pass as an unchanged 1 s step
+            dt = self._dt
         if self.run(STEP, dt=dt) >= FALLBACK_CAPPED:
             self._report_fallback()
         return self.last_contacts
@@ -1053,10 +1067,12 @@ class World:
         return np.where(self._params[..., INV_INERTIA] > 0, self._inertia, 0.0)
 
     def kinetic_energy(self) -> np.ndarray:
-        """[B] translational plus rotational kinetic energy of the movable bodies, J."""
-        v2 = (self._state[..., VX:VY + 1] ** 2).sum(-1)
-        return 0.5 * (self._finite_mass() * v2).sum(-1) + 0.5 * (
-            self._finite_inertia() * self._state[..., OMEGA] ** 2).sum(-1)
+        """[B] translational plus rotational kinetic energy of the movable bodies, J (inf
+        where float64 cannot hold it: a body at 1e300 m/s, with no overflow warning)."""
+        with np.errstate(over="ignore"):
+            v2 = (self._state[..., VX:VY + 1] ** 2).sum(-1)
+            return 0.5 * (self._finite_mass() * v2).sum(-1) + 0.5 * (
+                self._finite_inertia() * self._state[..., OMEGA] ** 2).sum(-1)
 
     def momentum(self) -> np.ndarray:
         """[B, 2] linear momentum of the bodies with finite mass, kg m/s."""

@@ -1,0 +1,98 @@
+"""The physics as a library in a user's own loop (walk W24a): what a researcher porting from
+pymunk did with ``physics.World`` and what it did silently wrong."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from spinstrike import physics
+
+SCENE = {"table": {"size": [1.2, 0.8]}, "effects": ["rotation", "walls"],
+         "bodies": [{"name": "rod", "shape": "rod", "length": 0.3, "thickness": 0.02,
+                     "mass": 0.1},
+                    {"name": "puck", "shape": "disk", "radius": 0.03, "mass": 0.05,
+                     "position": [-0.3, 0.1], "velocity": [1.0, -0.2]}]}
+
+
+def test_the_public_arrays_cannot_be_made_writeable():
+    """F7: numpy let ``flags.writeable = True`` back on a read-only view, and a write then
+    reached the world unchecked (an overlap; a mass out of step with the impulses')."""
+    world = physics.World(SCENE, batch_size=2)
+    for a in (world.state.positions, world.state.omegas, world.mass, world.inertia,
+              world.radius, world.time, world.params, world.forces, world.state.positions[0]):
+        with pytest.raises(ValueError):
+            a.flags.writeable = True
+    with pytest.raises(ValueError):
+        world.mass[0, 0] = 100.0
+
+
+def test_an_edit_never_written_warns():
+    """F4: ``world.edit(env).set_body(...)`` without ``with`` dropped the change silently."""
+    world = physics.World(SCENE, batch_size=4)
+    with pytest.warns(RuntimeWarning, match=r"never written.*with world.edit"):
+        world.edit(env=[3]).set_body("rod", mass=2.0)
+    assert (world.mass[:, 0] == 0.1).all()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with world.edit(env=[3]) as e:  # the documented forms: written, no warning
+            e.set_body("rod", mass=2.0)
+        e = world.edit(env=[2])
+        e.set_body("rod", mass=3.0)
+        e.commit()
+        with pytest.raises(KeyError), world.edit(env=[1]) as e:  # a block that raises
+            e.set_body("rod", mass=4.0)
+            raise KeyError("the user's own error: nothing written, nothing to warn of")
+        del e
+    np.testing.assert_array_equal(world.mass[:, 0], [0.1, 0.1, 3.0, 2.0])
+
+
+def test_a_step_takes_a_0d_array():
+    """F8: ``world.step(np.clip(dt, ...))`` (a 0-d array) was refused as "not one number"."""
+    a, b = physics.World(SCENE), physics.World(SCENE)
+    for _ in range(20):
+        a.step(np.array(0.01))
+        b.step(0.01)
+    np.testing.assert_array_equal(a.get_state()["state"], b.get_state()["state"])
+    assert a.dt == 0.01 and type(a.dt) is float
+    with pytest.raises(physics.SceneError, match="one number"):
+        a.step(np.array([0.01, 0.02]))
+
+
+def test_a_one_element_snapshot_restores_into_a_chosen_element():
+    """F9: ``restore(snapshot, env=[i])`` wanted a whole batch's snapshot."""
+    one = physics.World(SCENE)
+    for _ in range(10):
+        one.step(0.01)
+    snap = one.get_state(parameters=True)
+    many = physics.World(SCENE, batch_size=4)
+    many.restore(snap, env=[2])
+    np.testing.assert_array_equal(many.get_state()["state"][2], snap["state"][0])
+    for _ in range(15):
+        one.step(0.01)
+        many.step(0.01)
+    np.testing.assert_array_equal(many.get_state()["state"][2], one.get_state()["state"][0])
+    with pytest.raises(physics.SceneError, match=r"neither the whole batch's .* nor the selected"):
+        many.restore(snap, env=[0, 1])
+
+
+def test_kinetic_energy_reads_inf_without_a_warning():
+    """F10: a puck at 1e300 m/s: ``kinetic_energy()`` is inf, as the README says, with no bare
+    numpy overflow warning."""
+    world = physics.World({"bodies": [{"name": "puck", "shape": "disk", "radius": 0.03,
+                                       "mass": 0.05, "velocity": [1e300, 0.0]}]})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert world.kinetic_energy()[0] == np.inf
+
+
+def test_recording_the_live_state_needs_a_copy():
+    """F3, as documented (``State``): the views follow the world; copies keep each step."""
+    world = physics.World(SCENE)
+    views, copies = [], []
+    for _ in range(3):
+        world.step(0.05)
+        views.append(world.state.positions)
+        copies.append(world.state.positions.copy())
+    assert all(np.array_equal(v, copies[-1]) for v in views)
+    assert not np.array_equal(copies[0], copies[-1])
