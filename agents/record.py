@@ -221,6 +221,7 @@ def record_world(world, path: str | Path, seconds: float = 3.0, dt: float = 0.02
             contacts = world.step(dt)
             mine = contacts.batch == b
             total += int(mine.sum())
+            mine &= ~contacts.held  # impacts are marked; a disk held on a cushion is not
             markers = [Marker(m.x, m.y, m.nx, m.ny, m.j, m.fade * 0.6) for m in markers
                        if m.fade > 0.1]
             for a, c, point, normal, j in zip(contacts.body_a[mine], contacts.body_b[mine],

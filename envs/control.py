@@ -288,7 +288,7 @@ class _ControlTask(Task):
             reward = self._shown[b] if self.record_trace else self.tbuf[b, fast.T_REWARD]
             return float(reward), [
                 Marker.on(self.it, c.body_a[i], c.body_b[i], c.point[i], c.normal[i],
-                          c.impulse[i]) for i in np.flatnonzero(c.batch == b)]
+                          c.impulse[i]) for i in np.flatnonzero((c.batch == b) & ~c.held)]
         if b == 0 and self._put_back is not None:
             return self._put_back
         return 0.0, []

@@ -119,8 +119,11 @@ MATERIAL_COLUMNS = len(MATERIAL)
 #: contact record ``crec [B, M + 1, .]``: s, m, m, unit normal (a to b), N s, N s (along
 #: (-ny, nx)); row M holds the sums of ``j`` and ``jt`` over the contacts beyond the M records
 #: (a strike of a thousand tiny bounces: its total impulse, where the records stop)
-RECORD = Table("contact record", "time", "px", "py", "nx", "ny", "j", "jt", prefix="REC_")
-REC_TIME, REC_PX, REC_PY, REC_NX, REC_NY, REC_J, REC_JT = RECORD
+#: (``held``: 1 for a held contact's record, a disk the exact solver held on a cushion over a
+#: stretch of the step, ``solvers._end_rest``; 0 for an impact)
+RECORD = Table("contact record", "time", "px", "py", "nx", "ny", "j", "jt", "held",
+               prefix="REC_")
+REC_TIME, REC_PX, REC_PY, REC_NX, REC_NY, REC_J, REC_JT, REC_HELD = RECORD
 REC_COLUMNS = len(RECORD)
 #: the column of row M (the sums row, which has no time) that holds the sum of ``j`` over every
 #: contact of the watched pair in the step, stored in the records or not (``World.watch``,

@@ -93,6 +93,7 @@ from spinstrike.physics.layout import (
     FRICTION,
     FRICTION_DECEL,
     OMEGA,
+    REC_HELD,
     REC_J,
     REC_JT,
     REC_NX,
@@ -366,6 +367,7 @@ class PymunkBackend:
             rec[REC_NY] = ny
             rec[REC_J] = j
             rec[REC_JT] = jt
+            rec[REC_HELD] = 0.0
 
         return post_solve
 

@@ -109,6 +109,7 @@ from spinstrike.physics.layout import (
     NONE,
     OMEGA,
     RADIUS,
+    REC_HELD,
     REC_J,
     REC_JT,
     REC_NX,
@@ -225,6 +226,7 @@ def _record(p, t, px, py, nx, ny, j, jt, cpair, crec, stats):
         crec[k, REC_NY] = ny
         crec[k, REC_J] = j
         crec[k, REC_JT] = jt
+        crec[k, REC_HELD] = 0.0
     else:  # the records are full: summed in row m (layout.RECORD)
         crec[m, REC_J] += j
         crec[m, REC_JT] += jt
@@ -803,6 +805,9 @@ def _end_rest(S, Pm, fx, fy, j, p, i, t, cpair, crec, stats):
         r = Pm[i, RADIUS]
         _record(int(p), t, S[i, X] + r * nx, S[i, Y] + r * ny, nx, ny, j, 0.0, cpair, crec,
                 stats)
+        k = stats[STAT_CONTACTS] - 1
+        if k < cpair.shape[0]:
+            crec[k, REC_HELD] = 1.0
     elif j < 0.0:  # (-j n, away from the cushion)
         S[i, VX] += j * nx * Pm[i, INV_MASS]
         S[i, VY] += j * ny * Pm[i, INV_MASS]

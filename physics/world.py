@@ -87,6 +87,7 @@ from spinstrike.physics.layout import (
     OMEGA,
     PARAM_COLUMNS,
     RADIUS,
+    REC_HELD,
     REC_J,
     REC_JT,
     REC_NX,
@@ -198,6 +199,9 @@ class Contacts:
         dropped: [B] contacts not stored because an element exceeded ``max_contacts``.
         dropped_impulse, dropped_tangent_impulse: [B] their normal and friction impulses,
             summed (N s): ``impulse`` summed per element plus these is the step's total.
+        held: [K] bool, a held contact: a disk the exact solver held on a cushion under its
+            force, recorded once when the hold ends, its impulse the push over the time held
+            (the other records are impacts; the videos mark impacts only).
 
     Per body, ``m dv = F dt + sum(-j n)`` over its records as a (``+j n`` as b), to
     round-off, on every solver: a disk the exact solver holds on a cushion under its force is
@@ -218,6 +222,7 @@ class Contacts:
     dropped: np.ndarray
     dropped_impulse: np.ndarray
     dropped_tangent_impulse: np.ndarray
+    held: np.ndarray
 
     def __post_init__(self) -> None:
         for a in self.__dict__.values():
@@ -374,7 +379,7 @@ class World:
         e, ei = np.zeros(0), np.zeros(0, dtype=np.int64)
         self._no_contacts = Contacts(ei, ei, ei, e, np.zeros((0, 2)), np.zeros((0, 2)), e,
                                      e.copy(), np.zeros(B, dtype=np.int64), np.zeros(B),
-                                     np.zeros(B))
+                                     np.zeros(B), np.zeros(0, dtype=bool))
         self._frozen = True
         self.reset()  # the scene's placement, checked as any other change
         if isinstance(self.solver, PymunkSolver):
@@ -1054,7 +1059,7 @@ class World:
         return Contacts(b, self._pair_a[p], self._pair_b[p], rec[:, REC_TIME],
                         rec[:, [REC_PX, REC_PY]], rec[:, [REC_NX, REC_NY]], rec[:, REC_J],
                         rec[:, REC_JT], counts - stored, over[:, REC_J].copy(),
-                        over[:, REC_JT].copy())
+                        over[:, REC_JT].copy(), rec[:, REC_HELD] != 0.0)
 
     # ------------------------------------------------------------------------------------------
     # conserved quantities

@@ -1183,11 +1183,16 @@ def test_impulse_labels_keep_the_striker_in_sight():
 
 def test_a_mallet_at_rest_on_the_cushions_gets_no_impulse_markers():
     """A mallet pushed into a corner rests on two cushions: their impulses (1e-7 N s) were drawn
-    as markers labelled "j = 0.000 N s" every step; an impulse too small to draw is not."""
+    as markers labelled "j = 0.000 N s" every step; an impulse too small to draw is not. Nor
+    is the cushions' push while they hold it, recorded since walk W24a F1 (``held``, 0.05 N s
+    a step): the video marks impacts."""
     env = gym.make("SpinStrike/PuckSpeedControl-v0", render_mode="rgb_array")
     env.reset(seed=0)
     for _ in range(150):
         env.step(np.array([-1.0, -1.0], dtype=np.float32))
+    held = env.unwrapped.world.last_contacts.held
+    assert held.sum() == 2  # the two cushions' pushes, recorded
+    assert env.unwrapped.world.last_contacts.impulse[held].min() > 1e-2
     frame = env.unwrapped.task.frame(0)
     assert frame.markers and max(m.j for m in frame.markers) < 1e-4  # resting contacts
     bare = env.unwrapped.task.draw(dataclasses.replace(frame, markers=[]))
