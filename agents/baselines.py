@@ -89,8 +89,11 @@ def _trained_otherwise(run: Path, env_id: str, planned: dict, where: str,
     and hyperparameter file, with this report's budget scaling and warm-up). A run without
     the record (before config.yml, or one that cannot be read) has nothing to compare, and a
     variant's argument its record lacks (recorded before its registration was, 2026-11-28) is
-    not known: both are kept as they were."""
-    from spinstrike.envs import flat_kwargs
+    not known: both are kept as they were; so is the code of a module whose digest cannot be
+    compared (``envs.compare_code``: recorded with an older digest scheme, a source not
+    readable), said in a note (an identical ``mylab.py`` read as changed, and ``--reuse-only``
+    refused the run, walk W24b F4)."""
+    from spinstrike.envs import compare_code, flat_kwargs
 
     meta = run_record(run / "config.yml")
     recorded = meta.get("hyperparameters", {}).get(env_id)
@@ -111,11 +114,14 @@ def _trained_otherwise(run: Path, env_id: str, planned: dict, where: str,
         by = ("the registration now gives" if key in registered_now
               or key in (registered_then or {}) else "this report now gives")
         changes.append(_change(key, then_kwargs, now_kwargs, by))
-    code_then, code_now = meta.get("code") or {}, planned.get("code") or {}
-    for module in code_then:  # (a run recorded before 2026-11-29 has none to compare)
-        if code_now.get(module) != code_then[module]:
-            changes.append(f"trained with the code of {module} as it was then (it changed "
-                           f"since)")
+    # (a run recorded before 2026-11-29 has none to compare)
+    changed, unchecked = compare_code(meta.get("code"), planned.get("code") or {})
+    changes += [f"trained with the code of {module} as it was then (it changed since)"
+                for module in changed]
+    if unchecked:  # reused, as a run with no digest is: not known to differ (walk W24b F4)
+        print(f"note: {run}: cannot check the code of "
+              f"{'; '.join(f'{m} ({why})' for m, why in unchecked.items())}; reused if nothing "
+              f"else changed (delete the run to train it again)", flush=True)
     for key in dict.fromkeys([*recorded, *now]):
         if recorded.get(key, _NONE) != now.get(key, _NONE):
             scaled = f" scaled by {scale:g}" if scale != 1 and key in (

@@ -346,19 +346,20 @@ def cmd_evaluate(args) -> int:
     results = evaluate(env_id, policy if named else None, args.episodes, args.seed,
                        env_kwargs, baselines=True, name=name)
     out = Path(args.run_dir) if args.run_dir and not args.no_save else None
-    header = f"## {env_id}"
+    header, fields = f"## {env_id}", {}
     if out is not None:  # the run's own title (algorithm, seed, steps, time) stays on top
         old = out / "summary.md"
         title = old.read_text().splitlines()[0] if old.is_file() else ""
         again = title.startswith("#")
+        record = _run_record(str(out / "config.yml"), full=True)
         if not again:  # a --no-eval run has no summary: its record has the title
             from spinstrike.agents.train import run_title
 
-            record = _run_record(str(out / "config.yml"), full=True)
             title = run_title(record) if record else header
         header = (f"{title}\n\n{'Re-evaluated' if again else 'Evaluated'} by `spinstrike "
-                  f"evaluate`: {args.episodes} episodes from seed {args.seed}.")
-    text = summarise(results, out, header)
+                  f"evaluate`: {args.episodes} episodes from seed {args.seed}."
+                  + _code_notes(env_id, record, fields))
+    text = summarise(results, out, header, fields)
     if args.json:  # stdout is the JSON alone, for a pipe
         print(json.dumps({r.policy: {"mean": r.mean, "std": r.std, "episodes": r.episodes,
                                      **({"hits": r.hits} if r.hits else {})}
@@ -369,6 +370,27 @@ def cmd_evaluate(args) -> int:
         print(f"wrote {out / 'summary.md'} and summary.json (--no-save leaves them)",
               file=sys.stderr)
     return 0
+
+
+def _code_notes(env_id: str, record: dict, fields: dict) -> str:
+    """What a run's re-written ``summary.md`` says under its title where the code of the
+    user's its variant runs is not the code the run trained with (``envs.code_check``), and
+    ``fields`` gets for each entry of ``summary.json``: ``code_changed`` (the modules) and
+    ``code_unchecked`` (each with why it is not compared). The note went to stderr only, and a
+    shared run's summary held another code's scores with no word of it (walk W24b F6)."""
+    from spinstrike.envs import code_check
+
+    changed, unchecked = code_check(env_id, record.get("code")) if record else ([], {})
+    text = ""
+    if changed:
+        fields["code_changed"] = changed
+        text += (f" The code of {', '.join(f'`{m}`' for m in changed)} changed since the run "
+                 f"trained: these scores are of the code as it is now.")
+    if unchecked:
+        fields["code_unchecked"] = unchecked
+        text += (f" The code of {', '.join(f'`{m}`' for m in unchecked)} was not checked "
+                 f"against the run's ({'; '.join(unchecked.values())}).")
+    return text
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -503,7 +525,33 @@ def cmd_envs(args) -> int:
     return 0
 
 
+def _kernel_counts(d: dict) -> str:
+    return (f"{d['files']} files, {d['bytes'] / 1e6:.1f} MB in {d['folders']} "
+            f"folder{'' if d['folders'] == 1 else 's'}")
+
+
+def _not_removed(failed, what: str) -> int:
+    """Say on stderr what ``spinstrike cache --clear``/``--prune`` could not remove, one line
+    per directory; 1 if anything (the exit status), else 0 (walk W24b F8: a read-only cache
+    kept its files while ``--clear`` said they were removed, exit 0)."""
+    for where, count, why in failed:
+        print(f"spinstrike cache: could not remove {count} {what} in {where} ({why})",
+              file=sys.stderr)
+    return 1 if failed else 0
+
+
+def _by_directory(failed) -> list[tuple[Path, int, str]]:
+    """``[(path, why)]`` of files or folders -> ``[(the folder they are in, how many, why)]``."""
+    grouped: dict[Path, list] = {}
+    for path, why in failed:
+        grouped.setdefault(Path(path).parent, [0, why])[0] += 1
+    return [(d, n, why) for d, (n, why) in grouped.items()]
+
+
 def cmd_cache(args) -> int:
+    """``spinstrike cache``: the cache directory and the fallback, each with its own counts (the
+    fallback only where it is in use or holds kernels); ``--clear``/``--prune`` say what they
+    could not remove and exit 1 then (walk W24b F8)."""
     from spinstrike.physics.cache import (
         ENV_VAR,
         cache_info,
@@ -513,23 +561,25 @@ def cmd_cache(args) -> int:
     )
 
     if args.clear:
-        removed = clear_cache()
-        print(f"removed {removed} cached kernel files; the next run recompiles (about half a "
-              "minute)")
-        return 0
+        removed, failed = clear_cache()
+        print(f"removed {removed} cached kernel files"
+              + ("; the next run recompiles (about half a minute)" if removed else ""))
+        return _not_removed(failed, "kernel files")
     if args.prune:
-        print(f"removed {prune_cache()} cache folders of source directories that are gone")
-        files, size = prune_outdated()
+        folders, failed_folders = prune_cache()
+        print(f"removed {folders} cache folders of source directories that are gone")
+        files, size, failed_files = prune_outdated()
         print(f"removed {files} files ({size / 1e6:.1f} MB) of this install's kernels that its "
               "edited sources have outdated")
-        return 0
+        return max(_not_removed(_by_directory(failed_folders), "folders of sources that are gone"),
+                   _not_removed(_by_directory(failed_files), "outdated kernel files"))
     info = cache_info()
     where = (f"from {ENV_VAR}" if os.environ.get(ENV_VAR)
              else f"set {ENV_VAR} to move it")
-    print(f"compiled kernels: {info['path']} ({info['files']} files, "
-          f"{info['bytes'] / 1e6:.1f} MB in {info['folders']} "
-          f"folder{'' if info['folders'] == 1 else 's'}, one per source "
-          f"directory; {where})")
+    read_only = ("" if info["writable"]
+                 else "; not writable: its kernels load, new ones go to the fallback")
+    print(f"compiled kernels: {info['path']} ({_kernel_counts(info)}, one per source "
+          f"directory; {where}{read_only})")
     if info["stale"]:
         print(f"{info['stale']} of them ({info['stale_bytes'] / 1e6:.1f} MB) belong to source "
               f"directories that are gone: spinstrike cache --prune removes them")
@@ -537,8 +587,14 @@ def cmd_cache(args) -> int:
         print(f"{info['outdated']} files ({info['outdated_bytes'] / 1e6:.1f} MB) are this "
               "install's kernels that its edited sources have outdated (numba names them by "
               "line, so an edit leaves them behind): spinstrike cache --prune removes them")
-    if info["fallback"]:
-        print(f"fallback (the directory above was not writable): {info['fallback']}")
+    fallback = info["fallback"]
+    if fallback and fallback["in_use"]:
+        print(f"fallback: {fallback['path']} ({_kernel_counts(fallback)}): the directory above "
+              "is not writable, so the kernels it lacks compile into the fallback")
+    elif fallback:
+        print(f"fallback: {fallback['path']} ({_kernel_counts(fallback)}), from when the "
+              "directory above was not writable; not used while it is (spinstrike cache "
+              "--clear removes them)")
     return 0
 
 
@@ -562,7 +618,7 @@ def _note_registration_changes(run: Path, meta: dict, env_kwargs: dict) -> None:
     one its record lacks (a run recorded before the record held them) comes from the
     registration now."""
     from spinstrike.envs import (
-        code_changes,
+        code_check,
         registration_changes,
         unread_scene_file,
         variant_kwargs,
@@ -572,12 +628,16 @@ def _note_registration_changes(run: Path, meta: dict, env_kwargs: dict) -> None:
     if changes:
         print(f"note: {meta['env']} is registered with other arguments than when {run} "
               f"trained: {'; '.join(changes)}; the run's are used", file=sys.stderr)
-    edited = code_changes(meta["env"], meta.get("code"))
+    edited, unchecked = code_check(meta["env"], meta.get("code"))
     if edited:
         print(f"note: the code of {', '.join(edited)} ({meta['env']}'s classes and the "
               f"modules of yours they import) changed since {run} trained: a run records its "
               f"arguments, not its code, so the code as it is now runs (a changed reward or "
               f"observation changes what the run is scored on)", file=sys.stderr)
+    if unchecked:  # (said, not silent: walk W24b F2, F4)
+        print(f"note: cannot check the code of "
+              f"{'; '.join(f'{m} ({why})' for m, why in unchecked.items())} against what {run} "
+              f"trained with: the code as it is now runs", file=sys.stderr)
     # (the registration as given: registered_kwargs would read its scene file a second time)
     unread = unread_scene_file(variant_kwargs(meta["env"]).get("scene"))
     if unread and "scene" in env_kwargs:  # (the run recorded its scene as read)
@@ -681,7 +741,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="spinstrike", description=__doc__.replace("``", "`"),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--version", action=_Version, nargs=0,
-                   help="SpinStrike's version and commit (unknown: an installed wheel), and exit")
+                   help="SpinStrike's version and commit (a run's config.yml records the same: "
+                   "from git; read from .git where git refuses the checkout; stamped into a "
+                   "wheel at build; else 'unknown: <why>'), and exit")
     sub = p.add_subparsers(dest="command", required=True)
 
     t = sub.add_parser("train", help="train an SB3 agent from an rl-zoo3 hyperparameter file")

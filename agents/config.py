@@ -578,32 +578,93 @@ def _resolve(algo: str, env_id: str, entry: dict, where: str, source: str) -> Ru
                      source, raw, where)
 
 
+#: the file a wheel's build writes the commit it was built from into, at the package's top
+#: (``setup.py``'s ``build_py``): an installed wheel has no ``.git`` to ask
+BUILD_COMMIT_FILE = "_build_commit.txt"
+
+
 def commit() -> str:
     """The commit of the code that runs (the checkout this module is in; not the folder the
     command runs from, which recorded another repository's commit), ``+dirty`` where tracked
-    files are edited, or "unknown" (a wheel)."""
+    files are edited. Where git gives none (walk W24b F9: all of these said "unknown", which
+    the help explained as a wheel):
+
+    * git refuses the checkout (another user's: "dubious ownership", ``safe.directory``), or
+      is not installed: the commit read from the checkout's ``.git`` (``HEAD`` and its ref),
+      with ``(edits unchecked: <why>)`` (asking git about edits would run another user's
+      configuration: what ``safe.directory`` guards against);
+    * no checkout (an installed wheel): the commit its build stamped into the package
+      (:data:`BUILD_COMMIT_FILE`);
+    * else ``unknown: <why>``: ``not a git checkout`` (a copy without ``.git``, a wheel built
+      from one), ``git refused (safe.directory)`` (and ``.git`` unreadable)."""
     import subprocess
 
     here = Path(__file__).resolve().parent
+    checkout = here.parent  # a source checkout's root (agents/ is at its top)
+
+    def git(*args: str) -> str:
+        return subprocess.run(["git", "-C", str(here), *args], capture_output=True, text=True,
+                              check=True).stdout.strip()
+
+    refused = None
     try:
         # this file tracked there: an installed copy inside some repository is not its code
-        subprocess.run(["git", "-C", str(here), "ls-files", "--error-unmatch", Path(__file__).name],
-                       capture_output=True, check=True)
-        head = subprocess.run(["git", "-C", str(here), "rev-parse", "--short", "HEAD"],
-                              capture_output=True, text=True, check=True).stdout.strip()
+        git("ls-files", "--error-unmatch", Path(__file__).name)
+        head = git("rev-parse", "--short", "HEAD")
         # edited and not committed: the commit alone named code that no longer matches (W16)
-        edited = subprocess.run(["git", "-C", str(here), "status", "--porcelain",
-                                 "--untracked-files=no"],
-                                capture_output=True, text=True, check=True).stdout.strip()
+        edited = git("status", "--porcelain", "--untracked-files=no")
         return head + ("+dirty" if edited else "")
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
+    except OSError:
+        refused = "git not found"
+    except subprocess.CalledProcessError as exc:
+        if "safe.directory" in (exc.stderr or "") or "dubious ownership" in (exc.stderr or ""):
+            refused = "git refused (safe.directory)"
+    if refused is not None and (checkout / ".git").exists():
+        head = _read_git_head(checkout / ".git")
+        return f"{head} (edits unchecked: {refused})" if head else f"unknown: {refused}"
+    try:
+        stamp = (checkout / BUILD_COMMIT_FILE).read_text().strip()
+    except OSError:
+        stamp = ""
+    return stamp or "unknown: not a git checkout"
+
+
+def _read_git_head(dotgit: Path) -> str | None:
+    """The short commit ``dotgit``'s ``HEAD`` names, read from its files (no git: nothing of
+    the repository's configuration runs): a detached ``HEAD``, or its branch's ref file or
+    line of ``packed-refs``; a worktree's ``.git`` file followed. None if unreadable."""
+    import re
+
+    try:
+        gitdir = dotgit
+        if dotgit.is_file():  # a worktree or submodule: "gitdir: <path>"
+            text = dotgit.read_text().strip()
+            if not text.startswith("gitdir:"):
+                return None
+            gitdir = (dotgit.parent / text[len("gitdir:"):].strip()).resolve()
+        common = gitdir
+        if (gitdir / "commondir").is_file():
+            common = (gitdir / (gitdir / "commondir").read_text().strip()).resolve()
+        sha = (gitdir / "HEAD").read_text().strip()
+        if sha.startswith("ref:"):
+            ref = sha[len("ref:"):].strip()
+            loose = [base / ref for base in (gitdir, common) if (base / ref).is_file()]
+            if loose:
+                sha = loose[0].read_text().strip()
+            else:
+                packed = common / "packed-refs"
+                lines = packed.read_text().splitlines() if packed.is_file() else []
+                sha = next((line.split()[0] for line in lines
+                            if line.split()[1:] == [ref] and not line.startswith("#")), "")
+    except (OSError, UnicodeDecodeError):
+        return None
+    return sha[:7] if re.fullmatch(r"[0-9a-f]{40}([0-9a-f]{24})?", sha) else None
 
 
 def code_version() -> dict[str, str]:
-    """SpinStrike's version and commit (``unknown`` where it runs from an installed wheel),
-    which a run records beside its libraries' versions: builds share one version number, so
-    the commit tells them apart."""
+    """SpinStrike's version and commit (:func:`commit`: ``unknown: <why>`` where it cannot be
+    known), which a run records beside its libraries' versions: builds share one version
+    number, so the commit tells them apart. ``spinstrike --version`` prints the same."""
     from importlib.metadata import PackageNotFoundError, version
 
     try:

@@ -260,8 +260,9 @@ def oracle_caveat(env_id: str) -> str | None:
 
 
 def summarise(results: list[Evaluation], path: str | Path | None = None,
-              header: str = "") -> str:
-    """A markdown table of the results; also written as ``summary.md``/``summary.json``."""
+              header: str = "", fields: dict | None = None) -> str:
+    """A markdown table of the results; also written as ``summary.md``/``summary.json``
+    (``fields`` added to each result there: ``evaluate RUN``'s ``code_changed``)."""
     hits = any(r.hits for r in results)
     extra = "".join(f" {h} |" for h in HIT_COLUMNS.values()) if hits else ""
     lines = [header, "", "| policy | mean return | std | episodes |" + extra,
@@ -279,5 +280,6 @@ def summarise(results: list[Evaluation], path: str | Path | None = None,
         path = Path(path)
         path.mkdir(parents=True, exist_ok=True)
         (path / "summary.md").write_text(text)
-        (path / "summary.json").write_text(json.dumps([asdict(r) for r in results], indent=2))
+        (path / "summary.json").write_text(json.dumps([{**asdict(r), **(fields or {})}
+                                                        for r in results], indent=2))
     return text

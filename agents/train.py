@@ -190,11 +190,35 @@ def _recorded_run(work: Path, given: dict[str, Any], config, timesteps,
                                f"the command line contradicts it: {'; '.join(wrong)}. Leave "
                                "them out: --resume --out RUN continues the run as recorded "
                                "(only --timesteps may change, to set a new budget)")
+    _check_recorded_code(work, env_id, meta.get("code"))
     if timesteps is not None:
         if isinstance(timesteps, bool) or not isinstance(timesteps, int) or timesteps < 1:
             raise AgentConfigError(f"timesteps: must be an integer >= 1 (got {timesteps!r})")
         cfg.n_timesteps = cfg.raw["n_timesteps"] = timesteps
     return algo, cfg, seed, meta.get("finish") or {}
+
+
+def _check_recorded_code(work: Path, env_id: str, recorded: dict | None) -> None:
+    """Refuse to resume a variant run whose code of the user's (``mylab.py``, the modules of
+    theirs it imports) changed since it trained (``envs.code_check``): it trained on the new
+    reward with no word and kept the old digest in ``config.yml``, which then said the whole
+    run used code it did not (walk W24b F1). A digest that cannot be compared (recorded with an
+    older scheme, or of a source not readable) is said, and the run goes on."""
+    from spinstrike.envs import code_check
+
+    changed, unchecked = code_check(env_id, recorded)
+    if changed:
+        raise AgentConfigError(
+            f"resume: the code of {', '.join(changed)} ({env_id}'s classes and the modules of "
+            f"yours they import) changed since {work} trained (its config.yml records a digest "
+            f"of the code it trained on), so it would go on training on other code than it "
+            f"records. Put the code back as it was to continue the run, or start a new run from "
+            f"its record with the code as it is now: spinstrike train --config "
+            f"{work / 'config.yml'} --out NEW_RUN")
+    if unchecked:
+        print(f"note: resume: cannot check the code of "
+              f"{'; '.join(f'{m} ({why})' for m, why in unchecked.items())} against what {work} "
+              f"trained on: the code as it is now trains", file=sys.stderr)
 
 
 def recorded_budget(work: Path, meta: dict | None = None) -> int | None:
@@ -842,7 +866,8 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
             ``algo``, ``env_id``, ``seed``, ``config``, ``n_envs``, ``env_kwargs``,
             ``evaluate``, ``eval_episodes`` and ``video`` may be None (or repeat the record;
             anything else is refused), ``timesteps`` sets a new budget (recorded in
-            ``config.yml``).
+            ``config.yml``); refused where the code of the user's that a variant runs changed
+            since the run trained (``_check_recorded_code``).
         force: replace an existing run directory.
         evaluate, eval_episodes, video: after training, evaluate against random and oracle
             over ``eval_episodes`` (default True, 50), record an mp4 (default True); a resumed

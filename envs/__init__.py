@@ -28,9 +28,10 @@ import numpy as np
 
 from spinstrike.envs.config import ConfigError
 
-__all__ = ["ENV_IDS", "ConfigError", "as_registered", "base_id", "describe", "flat_kwargs",
-           "native_vector", "registered_kwargs", "registration_changes", "scene_as_read",
-           "unread_scene_file", "variant_kwargs"]
+__all__ = ["ENV_IDS", "ConfigError", "as_registered", "base_id", "code_changes", "code_check",
+           "code_fingerprint", "compare_code", "describe", "flat_kwargs", "native_vector",
+           "registered_kwargs", "registration_changes", "scene_as_read", "unread_scene_file",
+           "variant_kwargs"]
 
 #: registered ids and a one-line description each
 ENV_IDS: dict[str, str] = {
@@ -235,18 +236,34 @@ def registration_changes(env_id: str, env_kwargs: dict, registered: dict | None)
     return changes
 
 
+#: top-level packages whose modules are never the user's, wherever they are installed (an
+#: editable checkout of SpinStrike, a Gymnasium from source), beside the standard library's
+_LIBRARIES = frozenset({"spinstrike", "gymnasium", "gym", "numpy", "numba", "scipy", "torch",
+                        "stable_baselines3", "sb3_contrib", "rl_zoo3", "ray", "pygame",
+                        "imageio", "yaml"})
+
+#: the digest of a module of the user's whose source is not readable (a class defined in a
+#: script, ``__main__``, or in a module installed without its ``.py``): recorded, not compared
+UNKNOWN = "unknown"
+
+
 def code_fingerprint(env_id: str) -> dict[str, str]:
     """A digest of the code of each module of the user's that ``env_id`` runs: the modules
-    defining its env class, its vector env class, their bases and their ``TASK`` classes, where
-    they are the user's (not this package's, the standard library's or an installed
-    package's), and the modules of the user's these import, in turn (a reward kept in a
-    helper module). ``{module: sha256}``, empty for a shipped id and a variant of a shipped
-    class. The digest is of the module's code as its syntax tree reads back (``ast.unparse``),
-    without its docstrings and its top-level ``register(...)`` calls: a comment or a layout
-    changes nothing, nor does an edit of the registered arguments (the run records those,
-    and ``registration_changes`` names them). A run's ``config.yml`` records it, so
-    ``evaluate`` / ``record`` can say when the code changed since the run trained (walk W21b
-    F10)."""
+    defining its env class, its vector env class, their bases and their ``TASK`` classes, but
+    SpinStrike's, Gymnasium's, the other libraries' of ``_LIBRARIES`` and the standard
+    library's, wherever the module is (in the working folder, on ``PYTHONPATH`` or installed:
+    an installed ``mylab`` got no digest, so a changed reward went unnoticed and identical code
+    read as changed against a run trained from a folder copy, walk W24b F2); and the modules of
+    the user's these import, in turn (a reward kept in a helper module): those of the same
+    top-level package, or not installed (a ``weights.py`` beside ``mylab.py``). ``{module:
+    digest}``, empty for a shipped id and a variant of a shipped class; ``"unknown"``
+    (``UNKNOWN``) for a module whose source is not readable. The digest
+    (``spinstrike.envs._digest``: ``"ast-3:<sha256>"``) is of the module's syntax tree in a
+    form no Python version changes, without its docstrings and its top-level ``register(...)``
+    calls: a comment or a layout changes nothing, nor does an edit of the registered arguments
+    (the run records those, and ``registration_changes`` names them). A run's ``config.yml``
+    records it, so ``evaluate`` / ``record`` can say when the code changed since the run
+    trained (walk W21b F10), and ``train --resume`` refuses to go on with other code."""
     import sys
 
     bare = env_id.rpartition(":")[2]
@@ -265,40 +282,52 @@ def code_fingerprint(env_id: str) -> dict[str, str]:
             roots += [c.__module__ for c in
                       (*cls.__mro__, *(task.__mro__ if isinstance(task, type) else ()))]
     out: dict[str, str] = {}
-    todo = list(dict.fromkeys(roots))
-    while todo:
-        name = todo.pop()
+    todo: list[tuple[str, str | None]] = [(name, None) for name in dict.fromkeys(roots)]
+    while todo:  # (module, the module of the user's that imports it; None: a class's own)
+        name, by = todo.pop()
         if name in out:
             continue
-        read = _users_module_code(name, sys.modules.get(name))
+        read = _users_module_code(name, sys.modules.get(name), by)
         if read is None:
             continue
         out[name], imports = read
-        todo += [m for m in imports if m in sys.modules and m not in out]
+        todo += [(m, name) for m in imports if m in sys.modules and m not in out]
     return dict(sorted(out.items()))
 
 
-def _users_module_code(name: str, module: Any) -> tuple[str, list[str]] | None:
+def _users_module_code(name: str, module: Any,
+                       imported_by: str | None = None) -> tuple[str, list[str]] | None:
     """``(digest, names of the modules it imports)`` of module ``name`` where it is the
-    user's (a source file outside this package, Gymnasium, the standard library and the
-    installed packages; not ``__main__``, a script's), else None."""
+    user's, else None: not of a library (``_LIBRARIES``, the standard library) and, where
+    ``imported_by`` (a module of the user's) imports it, of the same top-level package or not
+    installed (outside the standard library's and site-packages' folders). Its digest is
+    ``UNKNOWN`` where its source is not readable (``__main__``, a script's; a module installed
+    without its source)."""
     import ast
-    import hashlib
     import inspect
+    import sys
     import sysconfig
 
-    if name == "__main__" or name.partition(".")[0] in ("spinstrike", "gymnasium"):
+    from spinstrike.envs._digest import digest
+
+    top = name.partition(".")[0]
+    if top in _LIBRARIES or top in sys.stdlib_module_names:
         return None
+    if name == "__main__":
+        return (UNKNOWN, []) if imported_by is None else None
     try:
         path = Path(inspect.getsourcefile(module)).resolve()
-        source = path.read_text(encoding="utf-8")
-        tree = ast.parse(source)
-    except (TypeError, OSError, SyntaxError, ValueError, UnicodeDecodeError):
-        return None  # (a class made at run time, a module without a source file)
-    installed = {Path(sysconfig.get_paths()[k]).resolve()
-                 for k in ("stdlib", "platstdlib", "purelib", "platlib")}
-    if any(path.is_relative_to(root) for root in installed):
-        return None
+    except TypeError:  # (no source file: a compiled module, a class made at run time)
+        path = None
+    if imported_by is not None and top != imported_by.partition(".")[0]:
+        installed = {Path(sysconfig.get_paths()[k]).resolve()
+                     for k in ("stdlib", "platstdlib", "purelib", "platlib")}
+        if path is None or any(path.is_relative_to(root) for root in installed):
+            return None  # another package's, installed: a library's
+    try:
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+    except (AttributeError, OSError, SyntaxError, ValueError, UnicodeDecodeError):
+        return UNKNOWN, []
     imports = []
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
     for node in ast.walk(tree):
@@ -311,45 +340,53 @@ def _users_module_code(name: str, module: Any) -> tuple[str, list[str]] | None:
                 up = parts[:len(parts) - node.level + 1] if node.level > 1 else parts
                 base = ".".join([*up, *([base] if base else [])])
             imports += [base, *(f"{base}.{alias.name}" for alias in node.names)]
-    # (read back as code, not ast.dump's form, which changes between Pythons: 3.13 leaves out
-    # empty fields; a run evaluated under another Python may still read as changed)
-    return hashlib.sha256(ast.unparse(_without_docs_and_registers(tree)).encode()).hexdigest(), \
-        imports
+    return digest(tree), imports
 
 
-def _without_docs_and_registers(tree):
-    """``tree`` without docstrings and top-level ``register(...)`` / ``gym.register(...)``
-    calls (a module's code as far as a run's record does not already hold it)."""
-    import ast
+def compare_code(recorded: Mapping | None, now: Mapping) -> tuple[list[str], dict[str, str]]:
+    """``(changed, unchecked)``: the modules of a run's :func:`code_fingerprint` record
+    ``recorded`` whose code differs from ``now``'s (or that are found no more, or are no longer
+    among the env's), and those that cannot be compared, each with why: recorded with another
+    digest scheme (a bare sha256: ``ast.dump``'s or ``ast.unparse``'s, the forms before
+    ``ast-3``; each read as changed against the other, walk W24b F4), or whose source was not
+    readable then or is not now (``UNKNOWN``). Only digests of one scheme are compared; none
+    where the run recorded none."""
+    from spinstrike.envs._digest import SCHEME
 
-    def registers(node) -> bool:
-        call = node.value if isinstance(node, ast.Expr) else None
-        func = call.func if isinstance(call, ast.Call) else None
-        return (isinstance(func, ast.Name) and func.id == "register") or (
-            isinstance(func, ast.Attribute) and func.attr == "register")
+    changed, unchecked = [], {}
+    for module, then in (recorded or {}).items():
+        then, digest = str(then), now.get(module)
+        scheme = then.partition(":")[0] if ":" in then else None
+        if then == UNKNOWN:
+            unchecked[module] = "its source was not readable when the run trained"
+        elif scheme != SCHEME:
+            unchecked[module] = ("recorded with an older digest; not compared" if scheme is None
+                                 else f"recorded with another digest ({scheme}); not compared")
+        elif digest == UNKNOWN:
+            unchecked[module] = "its source is not readable now"
+        elif digest != then:
+            changed.append(module)
+    return changed, unchecked
 
-    tree.body = [n for n in tree.body if not registers(n)]
-    for node in ast.walk(tree):
-        body = getattr(node, "body", None)
-        if (isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
-                and body and isinstance(body[0], ast.Expr)
-                and isinstance(body[0].value, ast.Constant)
-                and isinstance(body[0].value.value, str)):
-            node.body = body[1:] or [ast.Pass()]
-    return tree
+
+def code_check(env_id: str, recorded: Mapping | None) -> tuple[list[str], dict[str, str]]:
+    """:func:`compare_code` of a run's record ``recorded`` with ``env_id``'s code now
+    (nothing where the run recorded none, or where ``env_id`` is not found now)."""
+    if not recorded:
+        return [], {}
+    try:
+        now = code_fingerprint(env_id)
+    except ConfigError:
+        return [], {}
+    return compare_code(recorded, now)
 
 
 def code_changes(env_id: str, recorded: Mapping | None) -> list[str]:
     """The modules of a run's :func:`code_fingerprint` record ``recorded`` whose code
     differs now (or that are found no more, or are no longer among ``env_id``'s); none where
-    the run recorded none."""
-    if not recorded:
-        return []
-    try:
-        now = code_fingerprint(env_id)
-    except ConfigError:
-        return []
-    return [module for module, digest in recorded.items() if now.get(module) != digest]
+    the run recorded none (:func:`code_check`'s first half: a digest of another scheme, or an
+    unreadable source, is not compared)."""
+    return code_check(env_id, recorded)[0]
 
 
 def unread_scene_file(scene: Any) -> str | None:

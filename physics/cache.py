@@ -12,15 +12,23 @@ behaviour, ``NUMBA_CACHE_DIR`` included):
   per-user cache directory (``platformdirs``: ``~/.cache/spinstrike/kernels`` on Linux), one
   subdirectory per source directory. Nothing is written into the install directory. If neither is
   writable, a per-user directory under the system's temporary directory is used; if that fails
-  too, kernels compile in every process (a warning says so).
+  too, kernels compile in every process (a warning says so). A cache directory that is readable
+  but not writable (a prebuilt cache shared read-only: NFS, an image layer, a ``ro`` mount) is
+  still *loaded from*; only the kernels it lacks compile, into the fallback, and the first
+  compilation says why, once: ``<dir> is not writable: new kernels go to <fallback>`` (walk
+  W24b F8: the read-only directory was skipped whole, every process recompiled into /tmp, 35 s
+  instead of 2, without a word).
 * **Freshness**: a cached kernel carries a stamp: the hash of its module's source *and of every
   ``spinstrike`` module (or module beside it) that module imports, transitively, in any import
   form (read with ``ast``: relative imports too)* (what numba may inline or freeze into
   it: kernels, layout tables, constants). An edit to any of them recompiles the kernels that
   depend on it, wherever the cache lives, read-only installs included.
-* ``spinstrike cache`` shows the location and size; ``spinstrike cache --clear`` removes the
+* ``spinstrike cache`` shows the location and size, the fallback's apart (only where it is in
+  use or holds kernels; W24b F8 counted its files as the configured folder's, and named it when
+  the folder was writable again); ``spinstrike cache --clear`` removes the
   kernel folders (those with a ``SOURCE`` marker or numba's files; anything else in a folder
-  ``SPINSTRIKE_CACHE_DIR`` names stays);
+  ``SPINSTRIKE_CACHE_DIR`` names stays), and says what it could not remove (a read-only
+  folder: it claimed to have removed them);
   ``--prune`` removes only what no run will load again: the folders of source directories that
   are gone (each clone, virtual environment or CI checkout compiles into a folder of its own,
   and a deleted one's kernels would otherwise stay), and in this install's own folders the
@@ -41,6 +49,8 @@ for :data:`LOCK_TIMEOUT` s is not waited for longer (the waiting process compile
 from __future__ import annotations
 
 import ast
+import contextlib
+import errno
 import glob
 import hashlib
 import importlib.util
@@ -58,7 +68,12 @@ from typing import Any
 import numba
 from filelock import FileLock, Timeout
 from numba.core import sigutils
-from numba.core.caching import CompileResultCacheImpl, FunctionCache, UserWideCacheLocator
+from numba.core.caching import (
+    CompileResultCacheImpl,
+    FunctionCache,
+    IndexDataCacheFile,
+    UserWideCacheLocator,
+)
 from numba.core.compiler_lock import global_compiler_lock
 
 __all__ = ["LOCK_TIMEOUT", "KernelCache", "cache_dir", "cache_info", "clear_cache",
@@ -186,11 +201,21 @@ class _KernelLocator(UserWideCacheLocator):
     def ensure_cache_path(self):
         """Usable if the directory could be made: no directory is created at import (the first
         save makes it)."""
-        path = Path(self.get_cache_path())
-        while not path.exists():
-            path = path.parent
-        if not (path.is_dir() and os.access(path, os.W_OK | os.X_OK)):
-            raise OSError(f"{path} is not a writable directory")
+        blocked = _unwritable(Path(self.get_cache_path()))
+        if blocked is not None:
+            raise OSError(f"{blocked} is not a writable directory")
+
+
+def _unwritable(path: Path) -> Path | None:
+    """None if kernels can be saved in folder ``path`` (made on the first save): its nearest
+    existing ancestor (itself, if it exists) is a writable directory; else that ancestor. The
+    one check of writability here: the locators', ``spinstrike cache``'s (which names the
+    fallback only while it is in use) and the fallback notice's."""
+    while not path.exists() and path.parent != path:
+        path = path.parent
+    if path.is_dir() and os.access(path, os.W_OK | os.X_OK):
+        return None
+    return path
 
 
 class _FallbackLocator(_KernelLocator):
@@ -202,13 +227,46 @@ class _KernelCacheImpl(CompileResultCacheImpl):
 
 
 class KernelCache(FunctionCache):
-    """numba's function cache for one SpinStrike kernel (see the module docstring)."""
+    """numba's function cache for one SpinStrike kernel (see the module docstring).
+
+    Where the cache directory is not writable (numba picked the fallback's locator) but this
+    kernel's folder there is readable, that folder is read too (``_shared``): a kernel it holds,
+    fresh, loads from it, and only the others compile, saved into the fallback (walk W24b F8:
+    a read-only shared cache was not read at all)."""
 
     _impl_class = _KernelCacheImpl
+
+    def __init__(self, py_func):
+        super().__init__(py_func)
+        self._shared: IndexDataCacheFile | None = None
+        self._blocked: Path | None = None  # the configured path that is not writable
+        locator = self._impl.locator
+        if isinstance(locator, _FallbackLocator):
+            configured = _KernelLocator(py_func, locator._py_file)
+            folder = Path(configured.get_cache_path())
+            self._blocked = _unwritable(folder)
+            if folder.is_dir() and os.access(folder, os.R_OK | os.X_OK):
+                self._shared = IndexDataCacheFile(
+                    cache_path=str(folder), filename_base=self._impl.filename_base,
+                    source_stamp=configured.get_source_stamp())
+
+    def _load_overload(self, sig, target_context):
+        data = super()._load_overload(sig, target_context)
+        if data is None and self._enabled and self._shared is not None:
+            key = self._index_key(sig, target_context.codegen())
+            try:
+                data = self._shared.load(key)
+            except OSError:  # a file there this user may not read: compiled instead
+                data = None
+            if data is not None:
+                data = self._impl.rebuild(target_context, data)
+        return data
 
     def load_overload(self, sig, target_context):
         data = super().load_overload(sig, target_context)
         if data is None:
+            if self._blocked is not None:
+                _fallback_notice(self._blocked, _FallbackLocator._root)
             _compile_notice(Path(self._cache_path))
         return data
 
@@ -294,6 +352,20 @@ class _turn:
 
 
 _noticed = False
+_fallback_noticed = False
+
+
+def _fallback_notice(blocked: Path, fallback: Path) -> None:
+    """One line on stderr, at the first kernel a process compiles into the fallback: why there
+    (not silenced by ``SPINSTRIKE_QUIET``: it is about the user's setting, not progress)."""
+    global _fallback_noticed
+    if _fallback_noticed:
+        return
+    _fallback_noticed = True
+    root = cache_dir()
+    where = root if _unwritable(root) is not None else blocked  # a kernel folder in it: that
+    print(f"spinstrike: {where} is not writable: new kernels go to {fallback} (the kernels "
+          f"already in {root} still load)", file=sys.stderr, flush=True)
 
 
 def _compile_notice(where: Path) -> None:
@@ -314,7 +386,7 @@ def _kernel_file(path: Path) -> bool:
 
 
 def _kernel_dirs() -> list[Path]:
-    roots = [cache_dir(), _fallback_dir()]
+    roots = dict.fromkeys([cache_dir(), _fallback_dir()])  # the same one once
     return [r for r in roots if r.is_dir()]
 
 
@@ -408,66 +480,130 @@ def _outdated_files() -> list[Path]:
     return outdated
 
 
-def cache_info() -> dict:
-    """``{"path", "files", "bytes", "fallback", "folders", "stale", "stale_bytes", "outdated",
-    "outdated_bytes"}`` of the kernel cache (``folders``: one per source directory that
-    compiled kernels; ``stale``: those whose source directory is gone, what
-    :func:`prune_cache` removes; ``outdated``: the files of this install's kernels that its
-    edited sources have outdated, what :func:`prune_outdated` removes)."""
-    folders = [f for root in _kernel_dirs() for f in _kernel_folders(root)]
+def _dir_info(root: Path) -> dict:
+    """``{"path", "files", "bytes", "folders", "writable"}`` of one kernel directory."""
+    folders = _kernel_folders(root) if root.is_dir() else []
     files = [f for d in folders for f in d.rglob("*") if _kernel_file(f)]
+    return {"path": str(root), "files": len(files), "bytes": sum(f.stat().st_size for f in files),
+            "folders": len(folders), "writable": _unwritable(root) is None}
+
+
+def cache_info() -> dict:
+    """``{"path", "files", "bytes", "folders", "writable", "fallback", "stale", "stale_bytes",
+    "outdated", "outdated_bytes"}`` of the kernel cache (``folders``: one per source directory
+    that compiled kernels; ``stale``: those whose source directory is gone, what
+    :func:`prune_cache` removes; ``outdated``: the files of this install's kernels that its
+    edited sources have outdated, what :func:`prune_outdated` removes). The counts at the top
+    are the cache directory's own; ``fallback`` is the fallback's ``path``, ``files``,
+    ``bytes``, ``folders`` and ``in_use`` (the cache directory is not writable: new kernels go
+    there), or None where it is not in use and holds no kernels (walk W24b F8: the fallback's
+    files were counted as the cache directory's, and it was named while not in use)."""
+    info = _dir_info(cache_dir())
+    info["fallback"] = None
+    if _fallback_dir() != cache_dir():
+        fallback = _dir_info(_fallback_dir())
+        fallback["in_use"] = not info["writable"]
+        # kernels, not the markers and locks a process leaves while it loads them elsewhere
+        held = fallback["files"] and any(
+            any(folder.glob("*.nbi")) or any(folder.glob("*.nbc"))
+            for folder in _kernel_folders(_fallback_dir()))
+        if fallback["in_use"] or held:
+            info["fallback"] = fallback
     stale = _stale_folders()
     outdated = [f for f in _outdated_files() if _kernel_file(f)]
-    return {"path": str(cache_dir()), "files": len(files),
-            "bytes": sum(f.stat().st_size for f in files),
-            "fallback": str(_fallback_dir()) if _fallback_dir().is_dir() else None,
-            "folders": len(folders),
-            "stale": len(stale),
-            "stale_bytes": sum(f.stat().st_size for d in stale for f in d.rglob("*")
-                               if f.is_file()),
-            "outdated": len(outdated),
-            "outdated_bytes": sum(f.stat().st_size for f in outdated)}
+    info.update(stale=len(stale),
+                stale_bytes=sum(f.stat().st_size for d in stale for f in d.rglob("*")
+                                if f.is_file()),
+                outdated=len(outdated),
+                outdated_bytes=sum(f.stat().st_size for f in outdated))
+    return info
 
 
-def prune_cache() -> int:
+def _remove_folder(folder: Path) -> str | None:
+    """Remove ``folder`` whole; None if it is gone, else why not (the first error's
+    ``strerror``: "Read-only file system", "Permission denied")."""
+    errors: list[BaseException] = []
+
+    def note(function, path, exc):  # onexc gets the exception, onerror (3.11) exc_info
+        errors.append(exc if isinstance(exc, BaseException) else exc[1])
+
+    for _ in range(3):  # another process may be writing a file meanwhile
+        errors.clear()
+        if sys.version_info >= (3, 12):
+            shutil.rmtree(folder, onexc=note)
+        else:
+            shutil.rmtree(folder, onerror=note)
+        if not folder.exists():
+            return None
+        if any(isinstance(e, PermissionError) or getattr(e, "errno", None) == errno.EROFS
+               for e in errors):
+            break  # not a race: trying again changes nothing
+        time.sleep(0.1)
+    return next((e.strerror or str(e) for e in errors if isinstance(e, OSError)
+                 and not isinstance(e, FileNotFoundError)), "it stayed")
+
+
+def prune_cache() -> tuple[int, list[tuple[Path, str]]]:
     """Remove the cache folders whose source directory is gone (:func:`cache_info`'s
-    ``stale``); returns how many. Kernels of the installs that still exist stay."""
-    stale = _stale_folders()
-    for folder in stale:
-        shutil.rmtree(folder, ignore_errors=True)
-    return len(stale)
+    ``stale``); returns how many, and the (folder, why) of those that could not be removed (a
+    read-only cache: ``--prune`` said it removed them, W24b F8). Kernels of the installs that
+    still exist stay."""
+    removed, failed = 0, []
+    for folder in _stale_folders():
+        why = _remove_folder(folder)
+        if why is None:
+            removed += 1
+        else:
+            failed.append((folder, why))
+    return removed, failed
 
 
-def prune_outdated() -> tuple[int, int]:
+def prune_outdated() -> tuple[int, int, list[tuple[Path, str]]]:
     """Remove the files of this install's kernels that its edited sources have outdated
-    (:func:`cache_info`'s ``outdated``); returns (files, bytes) removed, lock files not counted.
-    Current kernels stay, and so do other installs' (their stamps cannot be computed here)."""
+    (:func:`cache_info`'s ``outdated``); returns the files and bytes removed, lock files not
+    counted, and the (file, why) of those that could not be removed. Current kernels stay,
+    and so do other installs' (their stamps cannot be computed here)."""
     files = size = 0
+    failed = []
     for path in _outdated_files():
         try:
             n = path.stat().st_size
             path.unlink()
         except FileNotFoundError:
             continue
+        except OSError as exc:
+            if path.suffix != ".lock":
+                failed.append((path, exc.strerror or str(exc)))
+            continue
         if path.suffix != ".lock":
             files += 1
             size += n
-    return files, size
+    return files, size, failed
 
 
-def clear_cache() -> int:
+def clear_cache() -> tuple[int, list[tuple[Path, int, str]]]:
     """Remove every cached kernel (the kernel folders of the cache directory and of the
     fallback; nothing else there: ``SPINSTRIKE_CACHE_DIR`` may name a shared folder, which
-    was removed whole); returns the number of files removed. The next run recompiles."""
+    was removed whole); returns the number of files removed, and for each directory where
+    some could not be removed (read-only), ``(directory, files left, why)`` (walk W24b F8: it
+    counted the files it meant to remove, and a read-only cache kept them all). The next run
+    recompiles what was removed."""
     removed = 0
+    failed = []
     for root in _kernel_dirs():
+        left, why = 0, None
         for folder in _kernel_folders(root):
-            removed += sum(1 for f in folder.rglob("*") if _kernel_file(f))
-            for _ in range(3):  # another process may be writing a file meanwhile
-                shutil.rmtree(folder, ignore_errors=True)
-                if not folder.exists():
-                    break
-                time.sleep(0.1)
-        if not os.environ.get(ENV_VAR) and root.is_dir() and not any(root.iterdir()):
-            root.rmdir()  # the default folder, emptied (a folder the user named stays)
-    return removed
+            before = sum(1 for f in folder.rglob("*") if _kernel_file(f))
+            reason = _remove_folder(folder)
+            after = (sum(1 for f in folder.rglob("*") if _kernel_file(f))
+                     if reason is not None else 0)
+            removed += before - after
+            if reason is not None:
+                left += after
+                why = why or reason
+        if why is not None:
+            failed.append((root, left, why))
+        elif not os.environ.get(ENV_VAR) and root.is_dir() and not any(root.iterdir()):
+            with contextlib.suppress(OSError):
+                root.rmdir()  # the default folder, emptied (a folder the user named stays)
+    return removed, failed
