@@ -964,8 +964,26 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
         raise
     result = TrainResult(run_dir=str(run_dir), env=env_id, timesteps=int(model.num_timesteps),
                          wall_time=wall)
-    runs = _record_segment(run_dir, int(model.num_timesteps), wall)
-    return _finish_sb3(result, runs, run_dir, algo, env_id, seed, cfg.env_kwargs, finish)
+    return _book_and_finish(result, wall, run_dir, algo, env_id, seed, cfg.env_kwargs, finish)
+
+
+def _book_and_finish(result: TrainResult, wall: float, run_dir: Path, algo: str, env_id: str,
+                     seed: int, env_kwargs: dict, finish: dict) -> TrainResult:
+    """Book a trained stretch in ``config.yml`` and finish the run (``_finish_sb3``), with
+    SIGTERM as Ctrl-C throughout: one there ended the run with no word, a finished-looking
+    folder without its summary (walk W24b F10); now it says which command writes what is
+    missing (``finish_run`` says it itself once it has begun)."""
+    from spinstrike.agents.imitate import _sigterm_exits
+
+    try:
+        with _sigterm_exits():
+            runs = _record_segment(run_dir, result["timesteps"], wall)
+            return _finish_sb3(result, runs, run_dir, algo, env_id, seed, env_kwargs, finish)
+    except (KeyboardInterrupt, SystemExit) as exc:
+        if not getattr(exc, "told", False):
+            print(f"interrupted after training: the model is saved in {run_dir}; `spinstrike "
+                  f"train --resume --out {run_dir}` writes what is missing", file=sys.stderr)
+        raise
 
 
 def _finish_sb3(result: TrainResult, runs: list[dict], run_dir: Path, algo: str, env_id: str,
@@ -1058,7 +1076,8 @@ def finish_run(result: TrainResult, policy, env_id: str, run_dir: Path, env_kwar
 
                 result["video"] = record(policy, env_id, run_dir / "rollout.mp4", episodes=3,
                                          env_kwargs=env_kwargs)["path"]
-    except (KeyboardInterrupt, SystemExit):
+    except (KeyboardInterrupt, SystemExit) as exc:
+        exc.told = True  # (said here: the caller's own handler stays quiet)
         missing = [f"spinstrike evaluate {run_dir}"] if "evaluations" not in result and \
             evaluate else []
         if video and "video" not in result:

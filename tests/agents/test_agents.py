@@ -385,6 +385,35 @@ def test_sigterm_during_training_says_resume_and_the_run_resumes(tmp_path):
         "timesteps"] >= 100000
 
 
+def test_sigterm_between_training_and_the_summary_says_resume(tmp_path):
+    """Walk W24b F10: a SIGTERM after training, before the final evaluation began (the run's
+    folder renamed, its config.yml being written), ended ``spinstrike train`` with SIGTERM's
+    default action: no message, a finished-looking run without its summary. Now: exit 143, the
+    command that writes what is missing, and that command writes it. (The signal is sent from
+    within the step that books the training, in a new process: the window is milliseconds.)"""
+    args = ["train", "--algo", "ppo", "--env", "SpinStrike/RodSpin-v0", "--timesteps", "256",
+            "--no-video", "--no-progress", "--eval-episodes", "3", "--out", str(tmp_path / "run")]
+    code = ("import os, signal, sys\n"
+            "from spinstrike.agents import train\n"
+            "real = train._record_segment\n"
+            "def booked(*a, **k):\n"
+            "    os.kill(os.getpid(), signal.SIGTERM)\n"
+            "    return real(*a, **k)\n"
+            "train._record_segment = booked\n"
+            "from spinstrike.agents.cli import main\n"
+            "sys.exit(main(sys.argv[1:]))\n")
+    cut = subprocess.run([sys.executable, "-c", code, *args], cwd=tmp_path, capture_output=True,
+                         text=True, timeout=600)
+    assert cut.returncode == 143, cut.stderr
+    assert f"train --resume --out {tmp_path / 'run'}" in cut.stderr
+    assert (tmp_path / "run" / "model.zip").exists()
+    assert not (tmp_path / "run" / "summary.md").exists()
+    done = subprocess.run([sys.executable, "-m", "spinstrike.agents.cli", *args, "--resume"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "run" / "summary.md").exists()
+
+
 def _record_cli(episodes: int) -> list[str]:
     return [sys.executable, "-m", "spinstrike.agents.cli", "record", "--random", "--env",
             "SpinStrike/RodSpinControl-v0", "--episodes", str(episodes), "--out", "v.mp4"]
