@@ -357,8 +357,8 @@ def cmd_evaluate(args) -> int:
 
             title = run_title(record) if record else header
         header = (f"{title}\n\n{'Re-evaluated' if again else 'Evaluated'} by `spinstrike "
-                  f"evaluate`: {args.episodes} episodes from seed {args.seed}."
-                  + _code_notes(env_id, record, fields))
+                  f"evaluate`: {args.episodes} episodes from seed {args.seed}"
+                  f"{_versions_note(record)}." + _code_notes(env_id, record, fields))
     text = summarise(results, out, header, fields)
     if args.json:  # stdout is the JSON alone, for a pipe
         print(json.dumps({r.policy: {"mean": r.mean, "std": r.std, "episodes": r.episodes,
@@ -370,6 +370,17 @@ def cmd_evaluate(args) -> int:
         print(f"wrote {out / 'summary.md'} and summary.json (--no-save leaves them)",
               file=sys.stderr)
     return 0
+
+
+def _versions_note(record: dict | None) -> str:
+    """What a re-written ``summary.md`` says of the code that scored it: the commit, and the
+    versions that differ from the run's record (walk W24b F5: a summary re-written at another
+    commit did not say so)."""
+    from spinstrike.agents.config import code_version, version_changes
+
+    changed = version_changes((record or {}).get("versions"))
+    return (f", at commit {code_version()['spinstrike_commit']}"
+            + (f" (the run trained with {'; '.join(changed)})" if changed else ""))
 
 
 def _code_notes(env_id: str, record: dict, fields: dict) -> str:
@@ -617,12 +628,18 @@ def _note_registration_changes(run: Path, meta: dict, env_kwargs: dict) -> None:
     matches what the run recorded (``registration_changes``): the run's arguments are used;
     one its record lacks (a run recorded before the record held them) comes from the
     registration now."""
+    from spinstrike.agents.config import version_changes
     from spinstrike.envs import (
         code_check,
         registration_changes,
         unread_scene_file,
         variant_kwargs,
     )
+
+    versions = version_changes(meta.get("versions"))
+    if versions:  # (walk W24b F5: said nowhere)
+        print(f"note: {run} was trained with other versions than these: {'; '.join(versions)}",
+              file=sys.stderr)
 
     changes = registration_changes(meta["env"], env_kwargs, meta.get("registered"))
     if changes:

@@ -191,6 +191,12 @@ def _recorded_run(work: Path, given: dict[str, Any], config, timesteps,
                                "them out: --resume --out RUN continues the run as recorded "
                                "(only --timesteps may change, to set a new budget)")
     _check_recorded_code(work, env_id, meta.get("code"))
+    from spinstrike.agents.config import version_changes
+
+    versions = version_changes(meta.get("versions"))
+    if versions:  # (the session's commit is booked in runs:, W24b F5)
+        print(f"note: resume: {work} was trained with other versions than these: "
+              f"{'; '.join(versions)}", file=sys.stderr)
     if timesteps is not None:
         if isinstance(timesteps, bool) or not isinstance(timesteps, int) or timesteps < 1:
             raise AgentConfigError(f"timesteps: must be an integer >= 1 (got {timesteps!r})")
@@ -1044,7 +1050,11 @@ def _record_segment(run_dir: Path, timesteps: int, wall: float,
     if not path.is_file():  # stopped before the run was set up
         return []
     meta = yaml.safe_load(path.read_text())
-    entry = {"timesteps": timesteps, "wall_time_s": round(wall, 2)}
+    from spinstrike.agents.config import commit
+
+    # (each session's commit: a run resumed at another commit recorded only its first's,
+    # walk W24b F5)
+    entry = {"timesteps": timesteps, "wall_time_s": round(wall, 2), "commit": commit()}
     if interrupted:
         entry["interrupted"] = True
     meta.setdefault("runs", []).append(entry)

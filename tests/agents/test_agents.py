@@ -578,7 +578,38 @@ def test_evaluate_of_a_no_eval_run_titles_the_summary_with_the_run(tmp_path, cap
     assert main(["evaluate", str(run), "--episodes", "2"]) == 0
     lines = (run / "summary.md").read_text().splitlines()
     assert lines[0].startswith("## PPO on SpinStrike/RodSpin-v0 (seed 3, 256 steps, "), lines
-    assert lines[2] == "Evaluated by `spinstrike evaluate`: 2 episodes from seed 1000."
+    from spinstrike.agents.config import commit
+
+    assert lines[2] == (f"Evaluated by `spinstrike evaluate`: 2 episodes from seed 1000, at "
+                        f"commit {commit()}.")
+
+
+def test_a_run_scored_or_resumed_with_other_versions_says_so(tmp_path, capsys):
+    """Walk W24b F5: a run evaluated, filmed or resumed at another commit or with other
+    libraries said nothing, its summary re-written with no word of the code that scored it,
+    and a resumed run kept only its first session's commit. The record is edited as a
+    teammate's older run would read."""
+    run = tmp_path / "run"
+    args = ["train", "--algo", "ppo", "--env", "SpinStrike/RodSpin-v0", "--n-envs", "2",
+            "--no-eval", "--no-video", "--no-progress", "--out", str(run)]
+    assert main([*args, "--timesteps", "128"]) == 0
+    meta = yaml.safe_load((run / "config.yml").read_text())
+    from spinstrike.agents.config import commit
+
+    assert meta["runs"][0]["commit"] == commit()
+    meta["versions"] |= {"spinstrike_commit": "0123abc", "numpy": "1.0.0"}
+    (run / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
+    capsys.readouterr()
+    assert main(["evaluate", str(run), "--episodes", "2"]) == 0
+    err = capsys.readouterr().err
+    assert "was trained with other versions than these: spinstrike_commit 0123abc (now " in err
+    assert f"numpy 1.0.0 (now {np.__version__})" in err
+    summary = (run / "summary.md").read_text()
+    assert f"at commit {commit()} (the run trained with spinstrike_commit 0123abc" in summary
+    assert main([*args, "--timesteps", "256", "--resume"]) == 0
+    assert "note: resume:" in capsys.readouterr().err
+    runs = yaml.safe_load((run / "config.yml").read_text())["runs"]
+    assert [r["commit"] for r in runs] == [commit(), commit()]
 
 
 def test_spinstrike_version_names_the_commit_of_the_code_that_runs(tmp_path):
