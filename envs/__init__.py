@@ -100,9 +100,12 @@ def base_id(env_id: str) -> str:
         try:
             importlib.import_module(module)
         except ImportError as exc:
+            # (no list of the shipped ids: the id names its module, which is what is missing,
+            # walk W24b F12)
             raise ConfigError(f"{env_id!r}: cannot import {module!r}, the module that should "
-                              f"register it ({exc}; run from its folder or install it); "
-                              f"{allowed}") from None
+                              f"register it ({exc}): run from the folder that holds "
+                              f"{module.replace('.', '/')}.py, put that folder on PYTHONPATH, "
+                              f"or install the module") from None
     spec = gym.registry.get(bare)
     if spec is None:
         raise ConfigError(f"unknown id {env_id!r}; {allowed}")

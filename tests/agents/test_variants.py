@@ -112,7 +112,12 @@ def test_subclasses_and_hyperparameter_entries(lab, tmp_path):
 def test_ids_that_are_not_spinstrike_envs_are_refused(lab, env_id, message, capsys):
     assert main(["train", "--env", env_id, "--out", str(lab / "run")]) == 2
     err = capsys.readouterr().err
-    assert message in err and "--env" in err and "module:Namespace/Name-vN" in err
+    assert message in err and "--env" in err
+    if "cannot import" in message:  # what is missing, not the shipped ids (walk W24b F12)
+        assert "put that folder on PYTHONPATH, or install the module" in err
+        assert "SpinStrike/RodSpin-v0" not in err
+    else:
+        assert "module:Namespace/Name-vN" in err
     assert not (lab / "run").exists()
     with pytest.raises(AgentConfigError, match=message):
         load_agent_config("ppo", env_id)
