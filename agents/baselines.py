@@ -138,9 +138,32 @@ def _change(key: str, then: dict, now: dict, by: str) -> str:
     return f"trained {was}, {by} {short_value(now[key]) if key in now else 'none'}"
 
 
-def _run(algo, env_id, seed, root: Path, scale: float, env_kwargs=None, tag="",
-         imitate: str | None = None, re_evaluate: bool = False,
-         reuse_only: bool = False) -> dict:
+#: the commit each result of this report was scored at (``baseline.json``'s ``evaluated_at``):
+#: a reused run scored at another commit is named under the report (walk W24b F5: "Code at
+#: commit f9f22c9" stood over runs trained and scored at f9f22c9+dirty)
+_SCORED_AT: dict[str, int] = {}
+
+
+def _run(*args, **kwargs) -> dict:
+    """:func:`_run_once`, its result's commit counted in ``_SCORED_AT``."""
+    out = _run_once(*args, **kwargs)
+    at = str(out.get("evaluated_at", "unknown (before 2026-11)"))
+    _SCORED_AT[at] = _SCORED_AT.get(at, 0) + 1
+    return out
+
+
+def _scored_elsewhere(commit: str) -> str:
+    """The report's last words on the runs scored at another commit than ``commit``."""
+    other = {at: n for at, n in _SCORED_AT.items() if at != commit}
+    if not other:
+        return ""
+    return (" Runs scored at other commits (reused; `--re-evaluate` scores them with this "
+            "code): " + ", ".join(f"{n} at {at}" for at, n in sorted(other.items())) + ".")
+
+
+def _run_once(algo, env_id, seed, root: Path, scale: float, env_kwargs=None, tag="",
+              imitate: str | None = None, re_evaluate: bool = False,
+              reuse_only: bool = False) -> dict:
     """One run of the matrix: the finished one under ``root`` if it was trained as this
     report would train it now (else trained again, or with ``reuse_only`` refused), else
     trained; scored on the evaluation episodes (again with ``re_evaluate``)."""
@@ -400,6 +423,7 @@ def main(argv: list[str] | None = None) -> int:
     doc = Path(args.doc) if args.doc else (root / "baselines.md" if args.quick
                                            else Path("docs/baselines.md"))
     started = time.time()
+    _SCORED_AT.clear()
     load0 = os.getloadavg()[0]
     # this process adds ~1 once it trains: a load already near 1 means another job is running
     shared = ": other jobs shared the cores, so wall times are upper bounds" if load0 >= 0.5 else ""
@@ -462,7 +486,7 @@ def main(argv: list[str] | None = None) -> int:
     commit = _commit()
     lines.append(f"Total wall time of this run: {time.time() - started:.0f} s (reused runs "
                  f"count as 0); load average at the end {os.getloadavg()[0]:.2f}. Code at commit "
-                 f"{commit}.")
+                 f"{commit}.{_scored_elsewhere(commit)}")
     write_doc(doc, "\n".join(lines))
     print(f"wrote {doc}")
     return 0

@@ -195,3 +195,23 @@ def test_an_edited_subclass_trains_the_run_again(user_module, ppo_yml, capsys):
     assert str(refused.value.code).startswith(
         f"{root / run}: trained with the code of {MODULE} as it was then (it changed "
         f"since)"), refused.value.code
+
+
+def test_a_report_names_the_commits_its_reused_runs_were_scored_at(tmp_path, ppo_yml,
+                                                                    monkeypatch):
+    """Walk W24b F5: a report over a teammate's runs said "Code at commit f9f22c9" while those
+    runs were scored at f9f22c9+dirty; the runs scored elsewhere are named (``baseline.json``'s
+    ``evaluated_at``, edited here as another commit's run reads), and ``--re-evaluate`` scores
+    them with this code."""
+    monkeypatch.chdir(tmp_path)
+    root, doc = tmp_path / "runs", tmp_path / "baselines.md"
+    assert _baselines("SpinStrike/RodSpin-v0", root, doc) == 0
+    assert "Runs scored at other commits" not in doc.read_text()
+    result = root / "ppo-RodSpin-v0-s0" / "baseline.json"
+    out = json.loads(result.read_text())
+    result.write_text(json.dumps({**out, "evaluated_at": "0123abc"}))
+    assert _baselines("SpinStrike/RodSpin-v0", root, doc, "--reuse-only") == 0
+    assert "Runs scored at other commits (reused; `--re-evaluate` scores them with this code): " \
+           "1 at 0123abc." in doc.read_text()
+    assert _baselines("SpinStrike/RodSpin-v0", root, doc, "--reuse-only", "--re-evaluate") == 0
+    assert "Runs scored at other commits" not in doc.read_text()
