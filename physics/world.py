@@ -923,7 +923,18 @@ class World:
             dt = self._dt
         if self.run(STEP, dt=dt) >= FALLBACK_CAPPED:
             self._report_fallback()
+        if self.walls and isinstance(self.solver, FixedSolver) and \
+                not self.__dict__.get("_warned_off_table"):
+            self._check_off_table()
         return self.last_contacts
+
+    def _check_off_table(self) -> None:
+        """Warn (once) of bodies the fixed solver left with their centre off a walled table: it
+        tunnels, and said nothing (walk W24a F2: 1e40 N put a mallet 1.7e41 m off the table)."""
+        off = (np.abs(self._state[..., X:Y + 1]) > self._half[:, None, :]).any(axis=-1)
+        found = np.argwhere(off & ~self._fixed[None, :])
+        if found.size:
+            self._warn_off_table([(int(b), int(i)) for b, i in found])
 
     def _report_fallback(self) -> None:
         """Raise or warn for the elements the last step left non-finite or capped."""
@@ -1007,19 +1018,24 @@ class World:
             RuntimeWarning, stacklevel=_caller_level())
 
     def _warn_off_table(self, off: list[tuple[int, int]]) -> None:
-        """Warn, once per world, that bodies on the pymunk backend ended a step with their
-        centre off a walled table (``off``: (element, body), found by the backend as it wrote
-        the state back): Chipmunk's discrete contacts let them through a cushion (a mallet at
-        30 m/s in ``RodSpinControl-v0`` left the table, and nothing said so)."""
+        """Warn, once per world, that bodies on the pymunk backend or the fixed solver ended a
+        step with their centre off a walled table (``off``: (element, body)): discrete contacts
+        let them through a cushion (a mallet at 30 m/s in ``RodSpinControl-v0`` left the table
+        on pymunk, and nothing said so)."""
         if self.__dict__.get("_warned_off_table"):
             return
         self.__dict__["_warned_off_table"] = True
         elements = np.unique([b for b, _ in off])
         names = sorted({self.names[i] for _, i in off})
+        on = ("on the pymunk backend" if self._backend is not None
+              else "on the fixed solver")
+        why = ("Chipmunk's discrete contacts" if self._backend is not None
+               else "its discrete contacts (a body moving more than the pair's radii in a "
+                    "substep)")
         warnings.warn(
-            f"step: on the pymunk backend, body(ies) {names} of element(s) "
+            f"step: {on}, body(ies) {names} of element(s) "
             f"{_few(elements)} ended the step with the centre off the table: "
-            f"Chipmunk's discrete contacts let them through a cushion (the exact solver cannot "
+            f"{why} let them through a cushion (the exact solver cannot "
             f"tunnel; more substeps make it rarer). Warned once per world",
             RuntimeWarning, stacklevel=_caller_level())
 
