@@ -696,7 +696,11 @@ class World:
                   omegas: Any = None, env: Any = None, body: int | str | None = None) -> None:
         """Set (part of) the state, for all elements or those in ``env``, all bodies or ``body``.
 
-        Arrays broadcast to ``[b, n, 2]`` / ``[b, n]`` for the selection. Raises
+        Arrays broadcast to ``[b, n, 2]`` / ``[b, n]`` for the selection, as numpy broadcasts:
+        a 1-D ``omegas`` of length n is per body, for every element (where b == n too: give
+        per-element values as ``[b, 1]``, or one body's with ``body=``). To move a body of
+        yours (pymunk's kinematic body), drive it: ``driven: true`` and ``set_force``, or its
+        velocity each step; positions set into contact are refused (an overlap). Raises
         :class:`SceneError` for NaN, for moving a static body or a pivot's centre, for spin
         without the ``rotation`` effect, or for a change that makes bodies overlap by more than
         the tolerance; the world is unchanged then.
