@@ -981,11 +981,14 @@ def _book_and_finish(result: TrainResult, wall: float, run_dir: Path, algo: str,
     missing (``finish_run`` says it itself once it has begun)."""
     from spinstrike.agents.imitate import _sigterm_exits
 
+    runs = None
     try:
         with _sigterm_exits():
             runs = _record_segment(run_dir, result["timesteps"], wall)
             return _finish_sb3(result, runs, run_dir, algo, env_id, seed, env_kwargs, finish)
     except (KeyboardInterrupt, SystemExit) as exc:
+        if runs is None:  # booked still (walk W25 F2: the resumed run read "0 steps, 0 s")
+            _record_segment(run_dir, result["timesteps"], wall)
         if not getattr(exc, "told", False):
             print(f"interrupted after training: the model is saved in {run_dir}; `spinstrike "
                   f"train --resume --out {run_dir}` writes what is missing", file=sys.stderr)
@@ -1058,7 +1061,11 @@ def _record_segment(run_dir: Path, timesteps: int, wall: float,
     if interrupted:
         entry["interrupted"] = True
     meta.setdefault("runs", []).append(entry)
-    path.write_text(yaml.safe_dump(meta, sort_keys=False))
+    # written whole or not at all: a signal between the open (which empties the file) and the
+    # write left an empty config.yml
+    partial = path.with_name(path.name + ".partial")
+    partial.write_text(yaml.safe_dump(meta, sort_keys=False))
+    os.replace(partial, path)
     return meta["runs"]
 
 

@@ -63,14 +63,35 @@ def _joined(values: list) -> list:
 
 
 def without_docs_and_registers(tree: ast.Module) -> ast.Module:
-    """``tree`` without docstrings and top-level ``register(...)`` / ``gym.register(...)``
-    calls (a module's code as far as a run's record does not already hold it)."""
+    """``tree`` without docstrings and top-level calls of Gymnasium's ``register``
+    (``gym.register(...)``, ``gymnasium.register(...)``,
+    ``gymnasium.envs.registration.register(...)``, or a ``register`` imported from gymnasium):
+    a module's code as far as a run's record does not already hold it. Any other
+    ``register(...)`` call counts (walk W25 F1: a reward hook set by ``HOOKS.register(...)``
+    was left out, and an edit of it went unnoticed)."""
+    gym_names = {"gymnasium", "gym"}  # what the module calls gymnasium (import ... as ...)
+    bare = set()  # names that are gymnasium's register (from gymnasium import register as r)
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.partition(".")[0] in ("gymnasium", "gym"):
+                    gym_names.add((alias.asname or alias.name).partition(".")[0])
+        elif isinstance(node, ast.ImportFrom) and (node.module or "").partition(".")[0] in (
+                "gymnasium", "gym"):
+            bare |= {alias.asname or alias.name for alias in node.names
+                     if alias.name == "register"}
+
+    def root(func) -> str | None:
+        while isinstance(func, ast.Attribute):
+            func = func.value
+        return func.id if isinstance(func, ast.Name) else None
 
     def registers(node) -> bool:
         call = node.value if isinstance(node, ast.Expr) else None
         func = call.func if isinstance(call, ast.Call) else None
-        return (isinstance(func, ast.Name) and func.id == "register") or (
-            isinstance(func, ast.Attribute) and func.attr == "register")
+        return (isinstance(func, ast.Name) and func.id in bare) or (
+            isinstance(func, ast.Attribute) and func.attr == "register"
+            and root(func) in gym_names)
 
     tree.body = [n for n in tree.body if not registers(n)]
     for node in ast.walk(tree):

@@ -141,6 +141,8 @@ class WorldEdit:
         """The edit's copy of the world's private array ``name`` over the selected rows."""
         copy = self._copies.get(name)
         if copy is None:
+            if not self._copies:  # the world as the edit's copies show it
+                self._version = self._w._version
             copy = self._copies[name] = getattr(self._w, name)[self._sel].copy()
         return copy
 
@@ -347,16 +349,23 @@ class WorldEdit:
         """Warn about changes never written: ``world.edit(env).set_body(...)`` (no ``with``,
         no ``commit()``) silently did nothing (walk W24a F4)."""
         if not self.__dict__.get("_done", True) and self.__dict__.get("_changed"):
-            fields = sorted(name.lstrip("_") for name in self._changed)
-            warnings.warn(f"world.edit(): the changes to {fields} were never written: use "
-                          f"`with world.edit(env) as e: e.set_...(...)`, or call e.commit()",
-                          RuntimeWarning, stacklevel=2)
+            # (no list of fields: the arrays a change touches are more than the user named)
+            warnings.warn("world.edit(): an edit's changes were never written: use `with "
+                          "world.edit(env) as e: e.set_...(...)`, or call e.commit() before "
+                          "the world steps", RuntimeWarning, stacklevel=2)
 
     def commit(self) -> None:
         """Check the whole change once and write it (the world is unchanged if it raises)."""
         if self._done:
             raise SceneError("this edit was committed already")
         self._done = True
+        if self._copies and self._version != self._w._version:
+            # its copies are of the world before: writing them back rewound what the world
+            # did since, bodies the edit did not name too (walk W25 F5)
+            raise SceneError("this edit's copies were taken before the world stepped or "
+                             "changed since: committing them would put that back; open the "
+                             "edit after stepping (with world.edit(env) as e: ...), nothing "
+                             "was written")
         w, sel, changed = self._w, self._sel, self._changed
         if not changed or self.n == 0:
             return
@@ -374,6 +383,7 @@ class WorldEdit:
             getattr(w, name)[sel] = value
         if params is not None:
             w._params[sel] = params
+        w._version += 1
         w._sync_backend(params=params is not None or bool(changed & {"_materials", "_half"}),
                         state="_state" in changed)
 

@@ -203,12 +203,13 @@ class Contacts:
             force, recorded once when the hold ends, its impulse the push over the time held
             (the other records are impacts; the videos mark impacts only).
 
-    Per body, ``m dv = F dt + sum(-j n)`` over its records as a (``+j n`` as b), to
-    round-off, on every solver: a disk the exact solver holds on a cushion under its force is
-    one record when the rest ends (at the step's end, or when something hits it), its impulse
-    the cushion's whole push (``docs/design.md`` §4). The exception: the exact solver's held
-    pairs (a striker left on a spinning rod) record their RATTLE substeps' impulses to ~1e-4
-    relative (``StepStats.substeps``).
+    Per body, ``m dv = F dt + sum(-(j n + jt t))`` over its records as a (``+(j n + jt t)``
+    as b), to round-off, on every solver, where no cloth friction acts on it
+    (``table_friction``: a deceleration, no record): a disk the exact solver holds on a
+    cushion under its force is one record when the rest ends (at the step's end, or when
+    something hits it), its impulse the cushion's whole push (``docs/design.md`` §4). The
+    exception: the exact solver's held pairs (a striker left on a spinning rod) record their
+    RATTLE substeps' impulses to ~1e-4 relative (``StepStats.substeps``).
     """
 
     batch: np.ndarray
@@ -373,6 +374,9 @@ class World:
         #: elements then the flags (the serial body); and the kernels' compiled entry points
         self._tail = self.flags if self._parallel else (0, B, *self.flags)
         self._entries: dict = {}
+        #: counts the changes of the world (steps, edits, restores): an edit whose copies
+        #: are older is refused (``WorldEdit.commit``)
+        self._version = 0
         self._dt = 0.0
         self._last_step: StepStats | None = None
         self._last_contacts: Contacts | None = None
@@ -576,6 +580,7 @@ class World:
 
     def __setstate__(self, d: dict) -> None:
         self.__dict__.update(d)
+        self.__dict__.setdefault("_version", 0)  # (pickled before it was kept)
         self.__dict__.update(_backend=None, _last_step=None, _last_contacts=None, _entries={})
         self._make_buffer_views()
         self._make_views()
@@ -792,6 +797,7 @@ class World:
             getattr(self, name)[rows] = value
         if with_params:
             self._params[rows] = params
+        self._version += 1
         self._sync_backend(params=with_params, state=True)
 
     def load_element(self, other: World, b: int, env: Any = None) -> None:
@@ -806,6 +812,7 @@ class World:
         self._params[rows] = self._derive_params(self._mass[rows], self._inertia[rows],
                                                  self._radius[rows], self._half_length[rows],
                                                  self._table_mu[rows])
+        self._version += 1
         self._sync_backend(params=True, state=True)
 
     def reset(self, env: Any = None) -> None:
@@ -874,6 +881,7 @@ class World:
         """
         if dt is not None and dt != self._dt:
             self._set_dt(dt)
+        self._version += 1
         if self._backend is not None:
             if kernel.stepwise is None:
                 raise SceneError(f"{kernel.name}: not available on the pymunk backend")

@@ -397,6 +397,7 @@ def test_sigterm_between_training_and_the_summary_says_resume(tmp_path):
             "from spinstrike.agents import train\n"
             "real = train._record_segment\n"
             "def booked(*a, **k):\n"
+            "    train._record_segment = real\n"
             "    os.kill(os.getpid(), signal.SIGTERM)\n"
             "    return real(*a, **k)\n"
             "train._record_segment = booked\n"
@@ -408,10 +409,15 @@ def test_sigterm_between_training_and_the_summary_says_resume(tmp_path):
     assert f"train --resume --out {tmp_path / 'run'}" in cut.stderr
     assert (tmp_path / "run" / "model.zip").exists()
     assert not (tmp_path / "run" / "summary.md").exists()
+    # the stretch trained is booked all the same (walk W25 F2: the summary read "0 steps, 0 s")
+    runs = yaml.safe_load((tmp_path / "run" / "config.yml").read_text())["runs"]
+    assert len(runs) == 1 and runs[0]["timesteps"] >= 256 and runs[0]["wall_time_s"] > 0
     done = subprocess.run([sys.executable, "-m", "spinstrike.agents.cli", *args, "--resume"],
                           cwd=tmp_path, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
-    assert (tmp_path / "run" / "summary.md").exists()
+    title = (tmp_path / "run" / "summary.md").read_text().splitlines()[0]
+    assert title.startswith(f"## PPO on SpinStrike/RodSpin-v0 (seed 0, {runs[0]['timesteps']} "
+                            f"steps, "), title
 
 
 def _record_cli(episodes: int) -> list[str]:

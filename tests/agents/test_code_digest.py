@@ -390,3 +390,26 @@ def test_baselines_reuses_a_run_whose_digest_is_of_an_older_scheme(user_module, 
     with pytest.raises(SystemExit) as refused:
         _baselines(variant, root, doc, "--reuse-only")
     assert "trained with the code of" in str(refused.value.code), refused.value.code
+
+
+@pytest.mark.parametrize("before, after, same", [
+    # Gymnasium's register: the run records its arguments, so the digest leaves it out
+    ("import gymnasium as gym\ngym.register('L/A-v0', entry_point='m:E', kwargs={'a': 1})\n",
+     "import gymnasium as gym\ngym.register('L/A-v0', entry_point='m:E', kwargs={'a': 2})\n",
+     True),
+    ("from gymnasium import register as reg\nreg('L/A-v0', entry_point='m:E')\n",
+     "from gymnasium import register as reg\nreg('L/A-v0', entry_point='m:F')\n", True),
+    ("import gymnasium.envs.registration\ngymnasium.envs.registration.register('L/A-v0')\n",
+     "import gymnasium.envs.registration\ngymnasium.envs.registration.register('L/B-v0')\n",
+     True),
+    # any other register call is the user's code (walk W25 F1: a reward hook went unnoticed)
+    ("HOOKS.register(lambda r: r * 1.0)\n", "HOOKS.register(lambda r: r * 100.0 + 7)\n", False),
+    ("def register(f):\n    return f\nregister(1)\n", "def register(f):\n    return f\n"
+     "register(2)\n", False),
+    ("import atexit\natexit.register(print, 1)\n", "import atexit\natexit.register(print, 2)\n",
+     False),
+])
+def test_only_gymnasiums_register_is_left_out_of_the_digest(before, after, same):
+    from spinstrike.envs._digest import digest
+
+    assert (digest(ast.parse(before)) == digest(ast.parse(after))) is same

@@ -121,3 +121,25 @@ def test_the_fixed_solver_says_when_it_lets_a_body_off_the_table():
         for _ in range(5):
             exact.step(0.02)
     assert (np.abs(exact.state.positions[0, 0]) <= [0.6 - 0.04 + 1e-9, 0.4 - 0.04 + 1e-9]).all()
+
+
+def test_an_edit_opened_before_a_step_is_refused_not_rewinding():
+    """Walk W25 F5: an edit kept open while the world stepped, then committed, wrote its old
+    copies back: bodies it did not name were rewound (a rod from x 0.0475 back to 0). Its
+    commit is refused, naming why, and nothing is written; an edit opened after the steps
+    works."""
+    world = physics.World(SCENE)
+    e = world.edit()
+    e.set_body("puck", mass=0.07)  # copies the parameters now
+    e.set_state(body="puck", velocities=[1.0, -0.2])  # and the state
+    for _ in range(40):
+        world.step(0.01)
+    moved = world.get_state()["state"]
+    with pytest.raises(physics.SceneError, match="before the world stepped or changed since"):
+        e.commit()
+    np.testing.assert_array_equal(world.get_state()["state"], moved)
+    assert world.mass[0, 1] == 0.05
+    with world.edit() as e:
+        e.set_body("puck", mass=0.07)
+    assert world.mass[0, 1] == 0.07
+    np.testing.assert_array_equal(world.get_state()["state"], moved)
