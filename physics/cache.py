@@ -57,6 +57,7 @@ import importlib.util
 import os
 import pickle
 import shutil
+import stat
 import sys
 import tempfile
 import time
@@ -220,6 +221,37 @@ def _unwritable(path: Path) -> Path | None:
 
 class _FallbackLocator(_KernelLocator):
     _root = _fallback_dir()
+
+    def ensure_cache_path(self):
+        """Usable if the fallback folder, in the temporary directory every user shares, is
+        this user's own: made here with mode 0o700, or one that is a real directory owned by
+        this user that no one else can write. One made beforehand by another user (its name
+        is predictable), or writable by all, was used: numba unpickles the kernels it loads,
+        so files planted there ran in this process (walk W25 F6). Refused, the kernels
+        compile uncached (``physics.jit`` says so)."""
+        root = Path(self._root)
+        try:
+            root.mkdir(mode=0o700, parents=True, exist_ok=True)
+            st = os.lstat(root)
+        except OSError as exc:
+            raise OSError(f"{root}: {exc}") from None
+        uid = os.getuid() if hasattr(os, "getuid") else None
+        if not stat.S_ISDIR(st.st_mode) or (uid is not None and st.st_uid != uid) or (
+                st.st_mode & 0o022):
+            why = (f"{root} is not this user's own folder (owner {st.st_uid}, mode "
+                   f"{oct(st.st_mode & 0o777)}), so kernels are neither loaded from it nor saved "
+                   f"there")
+            global _refusal_noticed
+            if not _refusal_noticed:
+                _refusal_noticed = True
+                print(f"spinstrike: {why}: remove it, or set {ENV_VAR} to a folder of yours",
+                      file=sys.stderr, flush=True)
+            raise OSError(why)
+        super().ensure_cache_path()
+
+
+#: the fallback's refusal is said once per process
+_refusal_noticed = False
 
 
 class _KernelCacheImpl(CompileResultCacheImpl):

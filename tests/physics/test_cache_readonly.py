@@ -191,3 +191,36 @@ def test_clear_and_prune_on_a_read_only_mount_say_what_stays(tmp_path):
     fallback_files = 3  # slide's index, data and the folder's SOURCE marker
     assert cleared.startswith(f"removed {fallback_files} cached kernel files"), out.stdout
     assert _files(cache) == before
+
+
+@pytest.mark.parametrize("made_by", ["another user", "anyone may write"])
+def test_a_fallback_made_by_someone_else_is_not_used(tmp_path, made_by):
+    """Walk W25 F6: the fallback's name in the shared temporary directory is predictable
+    (``spinstrike-kernels-<uid>``); one made beforehand by another user, or writable by all, was
+    used without a word, and numba unpickles the kernels it loads: files planted there ran in
+    this process. Such a folder is refused, said once on stderr, and nothing is written to or
+    loaded from it (the kernels compile uncached)."""
+    cache = _shared_cache(tmp_path)
+    fallback = tmp_path / "tmp" / f"spinstrike-kernels-{os.getuid()}"
+    (tmp_path / "tmp").mkdir(exist_ok=True)
+    fallback.mkdir()
+    if made_by == "another user":
+        if os.getuid() != 0:
+            pytest.skip("needs root to give the folder to another user")
+        os.chown(fallback, 65534, 65534)
+    else:
+        fallback.chmod(0o777)
+    out = _run(PROBE, tmp_path, cache, read_only=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stderr.count(f"spinstrike: {fallback} is not this user's own folder") == 1, \
+        out.stderr
+    assert "kernels are not cached" in out.stderr
+    assert list(fallback.iterdir()) == []
+
+
+def test_the_fallback_is_made_private(tmp_path):
+    """A fallback this process makes is its user's alone (mode 0o700), not the umask's."""
+    cache = _shared_cache(tmp_path)
+    _probe(tmp_path, cache, read_only=True)
+    fallback = tmp_path / "tmp" / f"spinstrike-kernels-{os.getuid()}"
+    assert fallback.stat().st_mode & 0o777 == 0o700
