@@ -574,7 +574,8 @@ def cmd_cache(args) -> int:
     if args.clear:
         removed, failed = clear_cache()
         print(f"removed {removed} cached kernel files"
-              + ("; the next run recompiles (about half a minute)" if removed else ""))
+              + ("; the next run recompiles (about half a minute)" if removed and not failed
+                 else ""))  # (a read-only folder's kernels still load, walk W25 F11)
         return _not_removed(failed, "kernel files")
     if args.prune:
         folders, failed_folders = prune_cache()

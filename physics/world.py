@@ -578,6 +578,13 @@ class World:
                                                    "_entries"}
         return {k: v for k, v in self.__dict__.items() if k not in drop}
 
+    def __copy__(self) -> World:
+        """A deep copy: a shallow one shared the state buffers, so stepping the copy moved the
+        original (walk W25 F8)."""
+        import copy
+
+        return copy.deepcopy(self)
+
     def __setstate__(self, d: dict) -> None:
         self.__dict__.update(d)
         self.__dict__.setdefault("_version", 0)  # (pickled before it was kept)

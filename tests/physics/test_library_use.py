@@ -143,3 +143,19 @@ def test_an_edit_opened_before_a_step_is_refused_not_rewinding():
         e.set_body("puck", mass=0.07)
     assert world.mass[0, 1] == 0.07
     np.testing.assert_array_equal(world.get_state()["state"], moved)
+
+
+def test_a_shallow_copy_of_a_world_is_its_own():
+    """Walk W25 F8: ``copy.copy(world)`` shared the state, so stepping the copy moved the
+    original."""
+    import copy
+
+    world = physics.World(SCENE)
+    before = world.get_state()["state"]
+    twin = copy.copy(world)
+    for _ in range(10):
+        twin.step(0.01)
+    np.testing.assert_array_equal(world.get_state()["state"], before)
+    for _ in range(10):
+        world.step(0.01)
+    np.testing.assert_array_equal(world.get_state()["state"], twin.get_state()["state"])
