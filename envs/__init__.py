@@ -108,6 +108,13 @@ def base_id(env_id: str) -> str:
                               f"or install the module") from None
     spec = gym.registry.get(bare)
     if spec is None:
+        import sys
+
+        top = module.partition(".")[0]
+        if top in sys.stdlib_module_names:  # (walk W25 F12: said "unknown id" alone)
+            raise ConfigError(f"unknown id {env_id!r}: {top!r} is also a module of Python's "
+                              f"standard library, which is what `import {module}` found; "
+                              f"rename your module (e.g. {top}_lab.py) and the id's prefix")
         raise ConfigError(f"unknown id {env_id!r}; {allowed}")
     try:
         cls = _entry_class(spec.entry_point)

@@ -108,6 +108,8 @@ def test_subclasses_and_hyperparameter_entries(lab, tmp_path):
     (f"{MODULE}:TestLab/Cart-v0", "not a SpinStrike env class"),
     (f"{MODULE}:TestLab/Nope-v0", "unknown id"),
     ("no_such_lab_module:TestLab/X-v0", "cannot import 'no_such_lab_module'"),
+    # a user's sched.py: `import sched` finds the standard library's (walk W25 F12)
+    ("sched:TestLab/X-v0", "'sched' is also a module of Python's standard library"),
 ])
 def test_ids_that_are_not_spinstrike_envs_are_refused(lab, env_id, message, capsys):
     assert main(["train", "--env", env_id, "--out", str(lab / "run")]) == 2
@@ -116,6 +118,8 @@ def test_ids_that_are_not_spinstrike_envs_are_refused(lab, env_id, message, caps
     if "cannot import" in message:  # what is missing, not the shipped ids (walk W24b F12)
         assert "put that folder on PYTHONPATH, or install the module" in err
         assert "SpinStrike/RodSpin-v0" not in err
+    elif "standard library" in message:
+        assert "rename your module" in err
     else:
         assert "module:Namespace/Name-vN" in err
     assert not (lab / "run").exists()
