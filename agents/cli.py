@@ -378,8 +378,9 @@ def _versions_note(record: dict | None) -> str:
     commit did not say so)."""
     from spinstrike.agents.config import code_version, version_changes
 
-    changed = version_changes((record or {}).get("versions"))
-    return (f", at commit {code_version()['spinstrike_commit']}"
+    now = code_version()
+    changed = version_changes((record or {}).get("versions"), now)
+    return (f", at commit {now['spinstrike_commit']}"
             + (f" (the run trained with {'; '.join(changed)})" if changed else ""))
 
 

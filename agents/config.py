@@ -661,15 +661,17 @@ def _read_git_head(dotgit: Path) -> str | None:
     return sha[:7] if re.fullmatch(r"[0-9a-f]{40}([0-9a-f]{24})?", sha) else None
 
 
-def version_changes(recorded: dict | None) -> list[str]:
+def version_changes(recorded: dict | None, now: dict | None = None) -> list[str]:
     """The entries of a run's ``versions`` record (SpinStrike's version and commit, Python's,
     the libraries') that differ from what runs now, each ``"numpy 2.4.6 (now 2.5.5)"``; a
-    library not installed now is left out. A run evaluated, filmed or resumed at another
-    commit or with other libraries said nothing of it (walk W24b F5)."""
+    library not installed now is left out. ``now``: :func:`code_version`'s, where the caller
+    has it (it asks git three times). A run evaluated, filmed or resumed at another commit or
+    with other libraries said nothing of it (walk W24b F5)."""
     import platform
     from importlib.metadata import PackageNotFoundError, version
 
-    now = code_version() if recorded else {}
+    if now is None:
+        now = code_version() if recorded else {}
     out = []
     for key, then in (recorded or {}).items():
         if key in now:

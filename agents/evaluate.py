@@ -247,10 +247,9 @@ def oracle_caveat(env_id: str) -> str | None:
     its env class is a user's subclass paying in its own ``step``, the oracle (its what-if
     strikes, the control envs' chase-and-hit) aims at the task's reward, not at what that step
     pays (the oracle row sat below an agent's, walk W21b F9)."""
-    from gymnasium.envs.registration import load_env_creator
+    from spinstrike.envs import _entry_class
 
-    entry = gym.spec(env_id.rpartition(":")[2]).entry_point
-    cls = load_env_creator(entry) if isinstance(entry, str) else entry
+    cls = _entry_class(gym.spec(env_id.rpartition(":")[2]).entry_point)
     if not getattr(getattr(cls, "step", None), "_shows_what_it_pays", False):
         return None
     return (f"{env_id}'s {cls.__name__} pays in its own step: the oracle aims at its task's "

@@ -371,10 +371,10 @@ class PymunkBackend:
 
         return post_solve
 
-    def step(self, dt: float) -> list[tuple[int, int]]:
-        """Advance every element by ``dt`` s in ``substeps`` pymunk steps; write the results.
-        Returns the (element, body) whose centre ended off a walled table (through a cushion:
-        Chipmunk's contacts are discrete), found while the positions are written back."""
+    def step(self, dt: float) -> None:
+        """Advance every element by ``dt`` s in ``substeps`` pymunk steps; write the results
+        (the world checks for bodies Chipmunk let through a cushion, ``World._check_off_table``).
+        """
         w = self.world
         n = int(w.solver.substeps)
         h = dt / n
@@ -384,7 +384,6 @@ class PymunkBackend:
         pivot = w.pivot
         forces = w._forces
         ctx = self._ctx
-        off = []
         for b, el in enumerate(self._elements):
             ctx[0] = b
             ctx[2] = 0
@@ -398,7 +397,6 @@ class PymunkBackend:
                         body.force = f
                     sp.step(h)
             row = state[b]
-            hx, hy = float(w._half[b, 0]), float(w._half[b, 1])  # inf without cushions
             for i, body in enumerate(bodies):
                 if w.static[i]:
                     continue
@@ -413,14 +411,11 @@ class PymunkBackend:
                 r[Y] = y
                 r[VX] = vx
                 r[VY] = vy
-                if abs(x) > hx or abs(y) > hy:
-                    off.append((b, i))
             stats[b, STAT_CONTACTS] = ctx[2]
             if dt > 0.0:
                 stats[b, STAT_SUBSTEPS] = n
                 stats[b, STAT_ITERATIONS] = n * sp.iterations
         self._written[:] = state
-        return off
 
 
 def _materials_callback(cell: list[float], held: list[float]):

@@ -948,8 +948,9 @@ class World:
         return self.last_contacts
 
     def _check_off_table(self) -> None:
-        """Warn (once) of bodies the fixed solver left with their centre off a walled table: it
-        tunnels, and said nothing (walk W24a F2: 1e40 N put a mallet 1.7e41 m off the table)."""
+        """Warn (once) of bodies the fixed solver or the pymunk backend left with their centre
+        off a walled table: their contacts are discrete (the fixed solver's said nothing, walk
+        W24a F2: 1e60 N put a mallet 1.7e41 m off the table)."""
         off = (np.abs(self._state[..., X:Y + 1]) > self._half[:, None, :]).any(axis=-1)
         found = np.argwhere(off & ~self._fixed[None, :])
         if found.size:
@@ -999,12 +1000,12 @@ class World:
         # elements no force works on cannot gain kinetic energy (checked until it is warned)
         unforced = None if self.__dict__.get("_warned_gain") else ~self._forces.any(axis=(1, 2))
         before = self.kinetic_energy() if unforced is not None and unforced.any() else None
-        off = self._backend.step(self.dt)
+        self._backend.step(self.dt)
         self._time += self.dt
         finite = np.isfinite(self._state).all(axis=(1, 2))
         if finite.all():
-            if off:
-                self._warn_off_table(off)
+            if self.walls and not self.__dict__.get("_warned_off_table"):
+                self._check_off_table()
             if before is not None:
                 self._warn_gain(before, unforced)
             return FALLBACK_NONE
@@ -1038,9 +1039,9 @@ class World:
 
     def _warn_off_table(self, off: list[tuple[int, int]]) -> None:
         """Warn, once per world, that bodies on the pymunk backend or the fixed solver ended a
-        step with their centre off a walled table (``off``: (element, body)): discrete contacts
-        let them through a cushion (a mallet at 30 m/s in ``RodSpinControl-v0`` left the table
-        on pymunk, and nothing said so)."""
+        step with their centre off a walled table (``off``: (element, body), found by
+        :meth:`_check_off_table`): discrete contacts let them through a cushion (a mallet at
+        30 m/s in ``RodSpinControl-v0`` left the table on pymunk, and nothing said so)."""
         if self.__dict__.get("_warned_off_table"):
             return
         self.__dict__["_warned_off_table"] = True
