@@ -32,7 +32,7 @@ from spinstrike.envs.core import (
 from spinstrike.envs.fast import CONTROL_STEP, limit_force
 from spinstrike.envs.layout import SPEED_SCALE, SPIN_SCALE, control_layout, layout_table
 from spinstrike.envs.rendering import BodyDraw, Frame, Gauge, Marker, body_draws, body_points
-from spinstrike.physics.layout import FORCE
+from spinstrike.physics.layout import FALLBACK_NONFINITE, FORCE
 
 __all__ = ["PuckSpeedControlEnv", "PuckSpeedControlTask", "PuckSpeedControlVectorEnv",
            "RodSpinControlEnv", "RodSpinControlTask", "RodSpinControlVectorEnv", "limit_force"]
@@ -230,8 +230,11 @@ class _ControlTask(Task):
         if a.shape != self.action_shape or a.dtype.kind not in "iuf":
             check_actions(a, self.action_shape)  # raises the error that names the problem
         self._actions[...] = a  # checked for NaN and clipped by the compiled step
-        if not self.world.run(CONTROL_STEP, self.tbuf, self.kcfg, dt=self.cfg.dt):
+        worst = self.world.run(CONTROL_STEP, self.tbuf, self.kcfg, dt=self.cfg.dt)
+        if worst < 0:
             raise ValueError(action_error(actions))
+        if worst >= FALLBACK_NONFINITE:  # a state float64 cannot carry or place: raised
+            self.world.check_fallback()
         self._observed = self.world.revision  # the step observed every element
         t = self.tbuf
         reward = t[:, fast.T_REWARD].copy()

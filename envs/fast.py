@@ -238,37 +238,40 @@ def _finite_actions(tbuf, start, stop):
 
 @jit
 def control_body(fbuf, ibuf, tbuf, kcfg, start, stop, fixed, rotation, cf, tf, jam, flat):
-    """One control step of elements ``start..stop-1``; False (and nothing done) if one of their
-    actions is not finite. The last five arguments are the world's compile-time flags
-    (``kernels.FLAGS``)."""
+    """One control step of elements ``start..stop-1``: the worst ``fallback`` statistic among
+    them (``layout.FALLBACK``), or -1 (and nothing done) if one of their actions is not finite.
+    The last five arguments are the world's compile-time flags (``kernels.FLAGS``)."""
     literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam),
     literally(flat)
     if not _finite_actions(tbuf, start, stop):
-        return False
+        return -1
     v = unpack(fbuf, ibuf)
     n_stored = ibuf[H_M]
     dt = v.fcfg[CF_DT]
     off = untraced(v.S.shape[1])
+    worst = 0
     for b in range(start, stop):
         _pre(b, v.S, v.Pm, v.F, dt, tbuf, kcfg)
-        step_element(v, b, dt, fixed, rotation, cf, tf, jam, flat, off)
+        worst = max(worst, step_element(v, b, dt, fixed, rotation, cf, tf, jam, flat, off))
         _post(b, v.S, v.HW, v.crec, v.stats, n_stored, tbuf, kcfg)
-    return True
+    return worst
 
 
 @jit_parallel
 def control_step_parallel(fbuf, ibuf, tbuf, kcfg, fixed, rotation, cf, tf, jam, flat):
     """:func:`control_body` over the whole batch in parallel threads (blocks of ``BLOCK``
-    elements); nothing is done if any action is not finite."""
+    elements); nothing is done (-1) if any action is not finite."""
     literally(fixed), literally(rotation), literally(cf), literally(tf), literally(jam),
     literally(flat)
     n = ibuf[H_B]
     if not _finite_actions(tbuf, 0, n):
-        return False
+        return -1
+    worst = 0
     for k in numba.prange(n_blocks(n)):
-        control_body(fbuf, ibuf, tbuf, kcfg, k * BLOCK, min(n, (k + 1) * BLOCK), fixed,
-                     rotation, cf, tf, jam, flat)
-    return True
+        worst = max(worst, control_body(fbuf, ibuf, tbuf, kcfg, k * BLOCK,
+                                        min(n, (k + 1) * BLOCK), fixed, rotation, cf, tf, jam,
+                                        flat))
+    return worst
 
 
 @jit
@@ -298,18 +301,20 @@ def control_observe(fbuf, ibuf, tbuf, kcfg, env):
         _observe(v.S[b], v.HW[b], tbuf[b], kcfg)
 
 
-def _control_stepwise(world, tbuf, kcfg) -> bool:
-    """The control step for a world on the pymunk backend: compiled stages around its step."""
+def _control_stepwise(world, tbuf, kcfg) -> int:
+    """The control step for a world on the pymunk backend: compiled stages around its step
+    (which raises for a state no longer finite)."""
     buf = world.buffers
     if not control_pre(buf.fbuf, buf.ibuf, tbuf, kcfg):
-        return False
+        return -1
     world.step(world.dt)
     control_post(buf.fbuf, buf.ibuf, tbuf, kcfg)
-    return True
+    return 0  # world.step raised for a state no longer finite
 
 
 #: one control step of every element: ``world.run(CONTROL_STEP, tbuf, kcfg, dt=dt)`` returns
-#: False, having done nothing, if an action is not finite
+#: the worst ``fallback`` statistic of the step's elements, or -1, having done nothing, if an
+#: action is not finite
 CONTROL_STEP = BatchKernel("control step", control_body, control_step_parallel,
                            _control_stepwise)
 
@@ -322,7 +327,8 @@ CONTROL_STEP = BatchKernel("control step", control_body, control_step_parallel,
 
 #: a strike ``sbuf [B, .]``: in, the striker's launch (start, m, and velocity, m/s); out, the
 #: contacts and their total impulse (N s), the first contact's time (s, -1: none), impulse and
-#: point (m), whether the solver settled, the simulated time (s), the target's velocity (m/s)
+#: point (m), the worst ``fallback`` statistic of its chunks (``layout.FALLBACK``; 0: none), the
+#: simulated time (s), the target's velocity (m/s)
 #: and spin (rad/s) and the striker's velocity after the last contact, whether the strike is
 #: over, and the contact pair a refused launch would overlap (-1: none; -2: not finite)
 STRIKE_ROW = Table("strike row", "launch_x", "launch_y", "launch_vx", "launch_vy", "contacts",
@@ -434,8 +440,8 @@ def _strike_post(b, k, S, Pm, cpair, crec, stats, n_stored, sbuf, scfg):
             row[S_FIRST_J] = crec[b, q, REC_J]
             row[S_FIRST_PX] = crec[b, q, REC_PX]
             row[S_FIRST_PY] = crec[b, q, REC_PY]
-    if stats[b, STAT_FALLBACK] != 0:
-        row[S_FALLBACK] = 1.0
+    if stats[b, STAT_FALLBACK] > row[S_FALLBACK]:  # the worst, by layout.FALLBACK's order
+        row[S_FALLBACK] = stats[b, STAT_FALLBACK]
     it = int(scfg[SC_TARGET])
     js = int(scfg[SC_STRIKER])
     if not (_finished(S[b], Pm[b], it, js, scfg[SC_FREE] != 0.0)

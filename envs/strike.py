@@ -40,7 +40,7 @@ from spinstrike.envs.rendering import (
     view_need,
 )
 from spinstrike.physics import SceneError
-from spinstrike.physics.layout import STATE_COLUMNS, X, Y
+from spinstrike.physics.layout import FALLBACK_NONFINITE, STATE_COLUMNS, X, Y
 from spinstrike.physics.solvers import TRACE_DROPPED, TRACE_ENTRIES
 
 __all__ = ["PuckSpeedEnv", "PuckSpeedTask", "PuckSpeedV1Env", "PuckSpeedV1VectorEnv",
@@ -345,6 +345,11 @@ class _StrikeTask(Task):
                 f"strike: launching the striker in element {b} would make "
                 f"{w.names[w.pair_a[p]]!r} and {w.names[w.pair_b[p]]!r} overlap by "
                 f"{-sb[b, fast.S_OVERLAP_GAP]:.3g} m")
+        if (sb[:, fast.S_FALLBACK] >= FALLBACK_NONFINITE).any():
+            # a strike float64 cannot carry or place (walk W24a F2: a launch at 1e12 m/s on a
+            # walled table was never stepped, and the env reported the target untouched)
+            w.check_fallback(sb[:, fast.S_FALLBACK].astype(np.int64),
+                               float(self._scfg[fast.SC_CHUNK]))
         self.result_v[:] = sb[:, fast.S_TARGET_VX:fast.S_TARGET_VY + 1]
         self.result_w[:] = sb[:, fast.S_TARGET_W]
         self.result_vs[:] = sb[:, fast.S_STRIKER_VX:fast.S_STRIKER_VY + 1]

@@ -57,8 +57,11 @@ from spinstrike.physics.layout import (
     F_TIME,
     F_TOI,
     FALLBACK_NONFINITE,
+    FALLBACK_UNRESOLVED,
     FCFG_SIZE,
     FORCE_COLUMNS,
+    FX,
+    FY,
     H_B,
     H_FLOAT,
     H_INT,
@@ -67,6 +70,7 @@ from spinstrike.physics.layout import (
     H_P,
     HALF_COLUMNS,
     HALF_H,
+    HALF_LENGTH,
     HALF_W,
     I_CHANGED,
     I_CPAIR,
@@ -76,8 +80,10 @@ from spinstrike.physics.layout import (
     I_PAIR_B,
     I_STATS,
     ICFG_SIZE,
+    INV_MASS,
     LEVEL_MANY_BODIES,
     MATERIAL_COLUMNS,
+    OMEGA,
     PARAM_COLUMNS,
     REC_COLUMNS,
     REC_J,
@@ -88,6 +94,8 @@ from spinstrike.physics.layout import (
     STAT_FALLBACK,
     STAT_WATCH,
     STATE_COLUMNS,
+    VX,
+    VY,
 )
 from spinstrike.physics.solvers import (
     exact_element,
@@ -97,8 +105,8 @@ from spinstrike.physics.solvers import (
     untraced,
 )
 
-__all__ = ["BLOCK", "FLAGS", "Flags", "STEP", "BatchKernel", "Views", "element_overlap", "n_blocks",
-           "step_element", "unpack"]
+__all__ = ["BLOCK", "FLAGS", "Flags", "STEP", "TRAVEL_LIMIT", "BatchKernel", "Views",
+           "element_overlap", "n_blocks", "step_element", "travel", "unpack"]
 
 #: elements per block of the parallel kernels (each block unpacks the buffers once)
 BLOCK = 64
@@ -235,6 +243,39 @@ def _scan(S, Pm, F, hw, PA, PB, MAT, dt, tol, max_events, max_iterations, zeno_s
 _exact_unless = static_if(_scan, negate=True)
 
 
+#: the longest travel of a body in one step on a walled table, in units of the table's smaller
+#: half size, that a step takes (walk W24a F2): a body travelling ``D`` metres is folded back
+#: onto the table with a round-off of ``D * 2**-52``, 2**-20 (1e-6) of the half size at this
+#: bound; ~2**52 half sizes beyond it, the cushions' correction cancelled to round-off and put
+#: bodies at the table's centre or off it, with no word from the fixed solver. No scene near
+#: physical speeds comes close: a 0.6 m x 0.4 m table's bound in a 20 ms step is 4e11 m/s.
+TRAVEL_LIMIT = 2.0 ** 32
+
+
+@jit_inline
+def travel(S, Pm, F, i, dt):
+    """An upper bound on body i's travel in a step of ``dt`` seconds under its own motion and
+    force, m: its centre's speed plus its spin times its half-length (a rod's tip), times
+    ``dt``, plus what its force adds, ``|F| dt^2 / (2 m)``. (A collision can only pass on
+    speeds of this order, a light body's up to twice a heavy one's.)"""
+    speed = math.hypot(S[i, VX], S[i, VY]) + abs(S[i, OMEGA]) * Pm[i, HALF_LENGTH]
+    push = math.hypot(F[i, FX], F[i, FY]) * Pm[i, INV_MASS]
+    return speed * dt + 0.5 * push * dt * dt
+
+
+@jit_inline
+def _unresolved(S, Pm, F, hw, dt):
+    """True if a body of the element would travel beyond :data:`TRAVEL_LIMIT` half sizes of
+    its walled table in this step (never on an unbounded table, whose half sizes are inf)."""
+    limit = TRAVEL_LIMIT * min(hw[HALF_W], hw[HALF_H])
+    if not math.isfinite(limit):
+        return False
+    for i in range(S.shape[0]):
+        if travel(S, Pm, F, i, dt) > limit:
+            return True
+    return False
+
+
 @jit
 def step_element(v, b, dt, fixed, rotation, contact_friction, table_friction, jam, flat,
                  trace=None):
@@ -244,7 +285,9 @@ def step_element(v, b, dt, fixed, rotation, contact_friction, table_friction, ja
     passed through (``solvers.untraced``: nothing recorded, the same compiled solver; None:
     nothing recorded, the hook compiled away in a solver of its own). Returns the element's
     ``fallback`` statistic (``layout.FALLBACK``), checked last for a state that is no longer
-    finite (``FALLBACK_NONFINITE``: inputs beyond what float64 carries, e.g. 1e160 m/s)."""
+    finite (``FALLBACK_NONFINITE``: inputs beyond what float64 carries, e.g. 1e160 m/s) or,
+    before the step, ``FALLBACK_UNRESOLVED`` (a body's travel beyond :data:`TRAVEL_LIMIT` half
+    sizes of a walled table: the element is not stepped, its state and clock unchanged)."""
     for k in range(STAT_COLUMNS):  # the watched pair stays
         if k != STAT_WATCH:
             v.stats[b, k] = 0
@@ -252,6 +295,9 @@ def step_element(v, b, dt, fixed, rotation, contact_friction, table_friction, ja
     v.crec[b, m, REC_J] = 0.0
     v.crec[b, m, REC_JT] = 0.0
     v.crec[b, m, REC_WATCHED_J] = 0.0
+    if _unresolved(v.S[b], v.Pm[b], v.F[b], v.HW[b], dt):
+        v.stats[b, STAT_FALLBACK] = FALLBACK_UNRESOLVED
+        return FALLBACK_UNRESOLVED
     v.clock[b] += dt
     _fixed_if(fixed, v, b, dt, rotation, flat, contact_friction, table_friction, jam, trace)
     _exact_unless(fixed, v.S[b], v.Pm[b], v.F[b], v.HW[b], v.PA, v.PB, v.MAT[b], dt,

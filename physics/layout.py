@@ -144,10 +144,13 @@ STAT_COLUMNS = len(STATS)
 #: which has no friction, took pairs with contact friction (their friction after it is lost);
 #: the exact solver settled the rest of the step with fixed substeps; it did, but needed more
 #: than its cap of substeps, so the no-tunnelling bound did not hold; the state is no longer
-#: finite (checked after every step: ``World.step`` raises ``SimulationError``)
-FALLBACK = Table("fallback", "none", "jammed", "settled", "capped", "nonfinite",
+#: finite (checked after every step: ``World.step`` raises ``SimulationError``); the element
+#: was not stepped, its travel in the step beyond what float64 resolves on its walled table
+#: (``kernels.TRAVEL_LIMIT``: ``World.step`` raises ``SimulationError`` too)
+FALLBACK = Table("fallback", "none", "jammed", "settled", "capped", "nonfinite", "unresolved",
                  prefix="FALLBACK_")
-FALLBACK_NONE, FALLBACK_JAMMED, FALLBACK_SETTLED, FALLBACK_CAPPED, FALLBACK_NONFINITE = FALLBACK
+(FALLBACK_NONE, FALLBACK_JAMMED, FALLBACK_SETTLED, FALLBACK_CAPPED, FALLBACK_NONFINITE,
+ FALLBACK_UNRESOLVED) = FALLBACK
 
 #: outcome of a time-of-impact search (values, not columns)
 SEARCH = Table("search outcome", "none", "contact", "checkpoint")

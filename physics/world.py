@@ -40,7 +40,7 @@ from spinstrike.physics.edit import (
 )
 from spinstrike.physics.events import pair_bodies, pair_geometry
 from spinstrike.physics.jit import jit
-from spinstrike.physics.kernels import STEP, BatchKernel, Flags
+from spinstrike.physics.kernels import STEP, TRAVEL_LIMIT, BatchKernel, Flags
 from spinstrike.physics.layout import (
     ANGLE,
     CALENDAR_BODIES,
@@ -63,9 +63,12 @@ from spinstrike.physics.layout import (
     FALLBACK_NONE,
     FALLBACK_NONFINITE,
     FALLBACK_SETTLED,
+    FALLBACK_UNRESOLVED,
     FLOAT_FIELDS,
     FRICTION,
     FRICTION_DECEL,
+    FX,
+    FY,
     H_B,
     H_CALENDAR,
     H_FLOAT,
@@ -269,8 +272,11 @@ class StepStats:
 
 class SimulationError(SceneError):
     """A step left a world's state no longer finite (NaN or infinite): inputs beyond what
-    float64 carries, such as a speed of 1e160 m/s or a force of 1e200 N. ``elements``: the batch
-    elements concerned. The world keeps that state; ``restore`` a snapshot or ``reset``."""
+    float64 carries, such as a speed of 1e160 m/s or a force of 1e200 N; the world keeps that
+    state (``restore`` a snapshot or ``reset``). Or, on a walled table, a body would have
+    travelled so far in the step that float64 cannot place it on the table (a puck at 1e12 m/s
+    in a 20 ms step on a 0.8 m table): those elements were not stepped. ``elements``: the batch
+    elements concerned."""
 
     def __init__(self, message: str, elements: np.ndarray) -> None:
         super().__init__(message)
@@ -934,14 +940,17 @@ class World:
         """Advance every element by ``dt`` seconds; return the contacts resolved.
 
         Raises :class:`SimulationError` if an element's state is no longer finite after the
-        step; warns (``RuntimeWarning``) if the exact solver's settling hit its cap of substeps
+        step, or if a body of an element on a walled table would travel so far in it that
+        float64 cannot place it on the table (beyond ``kernels.TRAVEL_LIMIT``, 2**32, times
+        the table's smaller half size: that element is not stepped, the others are); warns
+        (``RuntimeWarning``) if the exact solver's settling hit its cap of substeps
         (``last_step.capped``).
         """
         if type(dt) is not float:  # checked here: run() reads None as "the last dt", and
             self._set_dt(dt)       # True == 1.0 would pass as an unchanged 1 s step
             dt = self._dt
         if self.run(STEP, dt=dt) >= FALLBACK_CAPPED:
-            self._report_fallback()
+            self.check_fallback()
         if self.walls and isinstance(self.solver, FixedSolver) and \
                 not self.__dict__.get("_warned_off_table"):
             self._check_off_table()
@@ -950,15 +959,22 @@ class World:
     def _check_off_table(self) -> None:
         """Warn (once) of bodies the fixed solver or the pymunk backend left with their centre
         off a walled table: their contacts are discrete (the fixed solver's said nothing, walk
-        W24a F2: 1e60 N put a mallet 1.7e41 m off the table)."""
+        W24a F2: 1e60 N put a mallet 1.7e41 m off the table; such a step is now refused by the
+        travel bound, ``kernels.TRAVEL_LIMIT``, and this stays a guard)."""
         off = (np.abs(self._state[..., X:Y + 1]) > self._half[:, None, :]).any(axis=-1)
         found = np.argwhere(off & ~self._fixed[None, :])
         if found.size:
             self._warn_off_table([(int(b), int(i)) for b, i in found])
 
-    def _report_fallback(self) -> None:
-        """Raise or warn for the elements the last step left non-finite or capped."""
-        code = self._stats[:, STAT_FALLBACK]
+    def check_fallback(self, code: np.ndarray | None = None, dt: float | None = None) -> None:
+        """What ``step`` does after its kernel, for a kernel run with :meth:`run` (the envs'):
+        raise :class:`SimulationError` for the elements the last step left no longer finite
+        or did not step (their travel beyond the table's resolution), else warn for those
+        whose settling was capped. ``code``: each element's ``fallback`` statistic
+        (``layout.FALLBACK``), the last step's by default (an env's strike passes the worst of
+        its chunks, and ``dt``, their length)."""
+        if code is None:
+            code = self._stats[:, STAT_FALLBACK]
         bad = np.flatnonzero(code == FALLBACK_NONFINITE)
         if bad.size:
             rows = np.isfinite(self._state[bad]).all(axis=2)  # [elements, bodies]
@@ -968,6 +984,9 @@ class World:
                 f"{bodies}): a speed, spin or force too large for float64 (it or its product "
                 f"with the step overflowed). The world keeps that state: "
                 f"restore a snapshot or reset it", bad)
+        far = np.flatnonzero(code == FALLBACK_UNRESOLVED)
+        if far.size:
+            raise self._unresolved(far, self.dt if dt is None else dt)
         capped = np.flatnonzero(code == FALLBACK_CAPPED)
         # the fastest point of a body's core, as the bound sees it: a light pivoted rod spun
         # to 9e4 rad/s has a centre at rest and tips at 1e4 m/s
@@ -983,6 +1002,29 @@ class World:
             f"bodies' sizes (now up to {speeds.max():.3g} m/s, body {fastest!r}, its centre's "
             f"speed and its spin times its half-length; forces set up to {force:.3g} N) need a "
             f"shorter step ({self.dt:g} s now)", RuntimeWarning, stacklevel=_caller_level())
+
+    def _unresolved(self, far: np.ndarray, dt: float) -> SimulationError:
+        """The error for elements ``far`` a step of ``dt`` seconds left alone: a body's travel
+        in it (``kernels.travel``, here in numpy) beyond ``TRAVEL_LIMIT`` half sizes of the
+        table."""
+        state, params, forces = self._state[far], self._params[far], self._forces[far]
+        speed = (np.hypot(state[..., VX], state[..., VY])
+                 + np.abs(state[..., OMEGA]) * params[..., HALF_LENGTH])
+        push = np.hypot(forces[..., FX], forces[..., FY]) * params[..., INV_MASS]
+        with np.errstate(over="ignore", invalid="ignore"):
+            reach = speed * dt + 0.5 * push * dt ** 2  # [elements, bodies]
+        e, i = np.unravel_index(np.nanargmax(np.where(np.isnan(reach), -1.0, reach)),
+                                reach.shape)
+        half = self._half[far[e]]
+        return SimulationError(
+            f"step: element(s) {_few(far)} not stepped: body {self.names[i]!r} would travel "
+            f"up to {reach[e, i]:.3g} m in this {dt:g} s step (speed "
+            f"{speed[e, i]:.3g} m/s, its spin times its half-length included; force "
+            f"{np.hypot(*forces[e, i]):.3g} N), more than 2**32 ({TRAVEL_LIMIT:.2g}) times the "
+            f"walled table's half size ({min(half):g} m), beyond what float64 resolves there "
+            f"(its cushions would put it anywhere). Those elements keep their state and "
+            f"clock; the others stepped. Lower the speed or force, or shorten the step",
+            far)
 
     @property
     def backend(self):

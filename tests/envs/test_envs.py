@@ -15,7 +15,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 import spinstrike.envs.strike  # noqa: F401  (envs.strike below)
 from spinstrike import envs
 from spinstrike.envs import ConfigError
-from spinstrike.physics import SceneError, World
+from spinstrike.physics import SceneError, SimulationError, World
 
 ENV_IDS = list(envs.ENV_IDS)
 STRIKE_IDS = ["SpinStrike/RodSpin-v0", "SpinStrike/PuckSpeed-v0", "SpinStrike/PuckSpeed-v1"]
@@ -963,6 +963,37 @@ def test_a_huge_force_on_the_mallet_is_limited_not_zeroed(kwargs):
     info = env.step(np.array([1.0, 0.0], np.float32))[-1]
     np.testing.assert_allclose(info["force"], [3.0 * m / 0.02, 0.0], rtol=1e-12)
     assert info["mallet_speed"] == pytest.approx(3.0, rel=1e-12)
+
+
+@pytest.mark.parametrize("vector", [False, True])
+def test_a_control_step_float64_cannot_place_on_the_table_raises(vector):
+    """Walk W24a F2 through the env: max_force and max_speed of 1e40 let a 20 ms step push the
+    mallet 7e36 m, ~1e37 table sizes; the cushions' correction cancelled to round-off and the
+    env went on with the mallet at the table's centre and a reward of 1e29, ``fallback`` its
+    only sign. The step raises ``physics.SimulationError`` naming the element and the mallet
+    (the element is not stepped); an ordinary config steps as before."""
+    kwargs = {"max_force": 1e40, "max_speed": 1e40}
+    env = (gym.make_vec("SpinStrike/RodSpinControl-v0", num_envs=2,
+                        vectorization_mode="vector_entry_point", **kwargs) if vector
+           else gym.make("SpinStrike/RodSpinControl-v0", **kwargs))
+    env.reset(seed=0)
+    action = np.array([[0.0, 0.0], [1.0, 0.3]] if vector else [1.0, 0.3], np.float32)
+    with pytest.raises(SimulationError, match=r"element\(s\) \[[01]\] not stepped: body "
+                                              r"'mallet' would travel up to 6.67e\+36 m"):
+        env.step(action)
+    env.close()
+
+
+def test_a_strike_whose_state_overflows_raises_not_reports():
+    """A strike launched at 1.5e308 m/s overflows float64 (the rod's speed after the hit): the
+    strike env reported it as an ordinary strike, with an infinite or NaN spin; it raises
+    ``physics.SimulationError``, as ``world.step`` does."""
+    env = gym.make("SpinStrike/RodSpin-v0", speed_range=(1.5e308, 1.7e308))
+    env.reset(seed=0)
+    with pytest.raises(SimulationError, match="no longer finite"), \
+            warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # numpy's overflow in the launch
+        env.step(np.full(3, 0.5, np.float32))
 
 
 def _pin_rod_against_the_right_cushion(env):

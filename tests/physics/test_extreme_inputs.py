@@ -26,10 +26,21 @@ def _walled(restitution, bodies):
             "materials": {"restitution": restitution, "friction": 0.0}, "bodies": bodies}
 
 
+def _unbounded(scene="rod_control"):
+    """A shipped scene without its cushions (the ``walls`` effect): an unbounded table."""
+    spec = physics.load_scene(scene).model_dump()
+    spec["effects"] = [e for e in spec["effects"] if e != "walls"]
+    spec["table"].pop("size")
+    spec["materials"]["pairs"] = [p for p in spec["materials"].get("pairs", [])
+                                  if "walls" not in p["bodies"]]
+    return spec
+
+
 @pytest.mark.parametrize("batch", [4, PARALLEL_BATCH])  # the serial and the parallel kernel
 @pytest.mark.parametrize("solver", [None, {"mode": "fixed", "substeps": 4}])
 def test_a_state_that_overflows_raises_naming_element_and_body(batch, solver):
-    world = physics.World("rod_control", batch_size=batch, solver=solver)
+    """(On an unbounded table: on a walled one the travel bound refuses the step first.)"""
+    world = physics.World(_unbounded(), batch_size=batch, solver=solver)
     velocities = np.zeros((batch, 2, 2))
     velocities[2, 0] = [1e160, 0.0]  # element 2's rod
     world.set_state(velocities=velocities)
@@ -42,15 +53,81 @@ def test_a_state_that_overflows_raises_naming_element_and_body(batch, solver):
     assert np.isfinite(np.delete(world.state.positions, 2, axis=0)).all()
 
 
-def test_a_large_but_finite_speed_steps_without_error():
-    """1e100 m/s squares to 1e200: finite, so the step runs (the rod rattles between the
-    cushions and loses its speed to their restitution of 0.9)."""
-    world = physics.World("rod_control")
+def test_a_large_but_finite_speed_steps_without_error_on_an_unbounded_table():
+    """1e100 m/s squares to 1e200: finite, so the step runs and the rod flies 2e98 m."""
+    world = physics.World(_unbounded())
     world.set_state(velocities=[[[1e100, 0.0], [0.0, 0.0]]])
     for _ in range(3):
         world.step(0.02)
     assert np.isfinite(world.state.velocities).all()
-    assert abs(world.state.velocities[0, 0, 0]) < 1e3
+    assert world.state.positions[0, 0, 0] == pytest.approx(6e98)
+
+
+def _mallet_alone(solver=None, batch=1):
+    scene = {"table": {"size": [1.2, 0.8]}, "effects": ["rotation", "walls"],
+             "bodies": [{"name": "mallet", "shape": "disk", "radius": 0.04, "mass": 0.3,
+                         "driven": True, "position": [-0.4, 0.0]}]}
+    return physics.World(scene, solver=solver, batch_size=batch)
+
+
+@pytest.mark.parametrize("batch", [3, PARALLEL_BATCH])  # the serial and the parallel kernel
+@pytest.mark.parametrize("solver", [None, {"mode": "fixed", "substeps": 10}])
+@pytest.mark.parametrize("push", ["speed", "force"])
+def test_a_travel_float64_cannot_place_on_a_walled_table_is_refused(solver, push, batch):
+    """Walk W24a F2: a step whose travel float64 cannot resolve on a walled table (1e12 m/s or
+    1e20 N on a 0.3 kg mallet in 20 ms; ~1e15 table sizes and beyond, the cushions' correction
+    cancelled to round-off) put the mallet at meaningless places: the table's centre, or the
+    fixed solver's (0.5, 0.3125) at rest, 6 cm from the corner the force pressed it into, and
+    nothing said so. Such an element is not stepped, and the step raises, naming it and the
+    body; the other elements step."""
+    world = _mallet_alone(solver, batch)
+    velocities = np.zeros((batch, 1, 2))
+    velocities[:, 0] = [1.0, 0.0]  # the others move
+    if push == "speed":
+        velocities[1, 0] = [1e12, 3e11]
+    world.set_state(velocities=velocities)
+    if push == "force":
+        forces = np.zeros((batch, 1, 2))
+        forces[1, 0] = [1e20, 3e19]
+        world.set_force("mallet", forces[:, 0])
+    positions = world.state.positions.copy()
+    with pytest.raises(physics.SimulationError,
+                       match=r"element\(s\) \[1\] not stepped: body 'mallet' would travel up to "
+                             r"\S+ m in this 0.02 s step .* more than 2\*\*32 \(4.3e\+09\) times "
+                             r"the walled table's half size \(0.4 m\)") as err:
+        world.step(0.02)
+    assert err.value.elements.tolist() == [1]
+    assert isinstance(err.value, physics.SceneError)
+    assert np.array_equal(world.state.positions[1], positions[1])
+    assert np.array_equal(world.state.velocities[1], velocities[1])
+    assert world.time[1] == 0.0 and world.time[0] == pytest.approx(0.02)
+    assert world.state.positions[0, 0, 0] == pytest.approx(-0.4 + 0.02)
+    assert world.last_step.contacts[1] == 0
+
+
+@pytest.mark.parametrize("solver", [None, {"mode": "fixed", "substeps": 1}])
+def test_the_travel_bound_is_where_float64_still_places_a_body_to_1e_6_of_the_table(solver):
+    """Just under the bound (2**32 half sizes of travel, 1.7e9 m on a 0.8 m table: 8.5e10 m/s
+    in 20 ms) the step is taken and the mallet ends on the table; just over, refused. The
+    bound is the travel a step would take from the state and force, not the speed."""
+    limit = 2.0 ** 32 * 0.4 / 0.02  # m/s
+    for factor, refused in [(0.99, False), (1.01, True)]:
+        world = _mallet_alone(solver)
+        world.set_state(velocities=[[[limit * factor, 0.0]]])
+        if refused:
+            with pytest.raises(physics.SimulationError, match="not stepped"):
+                world.step(0.02)
+            continue
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", "step: element", RuntimeWarning)  # exact: capped
+            world.step(0.02)
+        x, y = world.state.positions[0, 0]
+        assert abs(x) <= 0.56 + 1e-3 and abs(y) <= 0.36 + 1e-3
+        assert np.isfinite(world.state.velocities).all()
+    world = _mallet_alone(solver)  # a force that adds the travel: 0.5 F/m dt^2
+    world.set_force("mallet", [2.0 * 1.01 * 2.0 ** 32 * 0.4 * 0.3 / 0.02 ** 2, 0.0])
+    with pytest.raises(physics.SimulationError, match=r"speed 0 m/s.*force 2\.6e\+12 N"):
+        world.step(0.02)
 
 
 def test_a_restored_snapshot_recovers_from_the_error():
@@ -65,13 +142,14 @@ def test_a_restored_snapshot_recovers_from_the_error():
 
 
 def test_a_force_beyond_what_the_step_resolves_warns_and_flags_the_element():
-    """1e15 N on the 0.3 kg mallet, the rod between it and the cushion: the settling needs
-    ~1e13 substeps and takes 1e6; the mallet ends up past the rod (a tunnel), and the step says
+    """1e12 N on the 0.3 kg mallet, the rod between it and the cushion (1e15 N before the
+    travel bound refused it): the settling needs ~5e7 substeps and takes 1e6; the mallet ends
+    up past the rod (a tunnel), and the step says
     so. An ordinary step leaves the flag off."""
     world = physics.World("rod_control", batch_size=2)
     world.step(0.02)
     assert not world.last_step.capped.any()
-    world.set_force("mallet", [[1e15, 0.0], [1.0, 0.0]])
+    world.set_force("mallet", [[1e12, 0.0], [1.0, 0.0]])
     with pytest.warns(RuntimeWarning, match=r"element\(s\) \[0\]: .* cap of 1,000,000 "
                       r"substeps") as warned:
         world.step(0.02)
