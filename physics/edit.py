@@ -141,9 +141,10 @@ class WorldEdit:
         """The edit's copy of the world's private array ``name`` over the selected rows."""
         copy = self._copies.get(name)
         if copy is None:
-            if not self._copies:  # the world as the edit's copies show it
-                self._version = self._w._version
-            copy = self._copies[name] = getattr(self._w, name)[self._sel].copy()
+            with self._w._lock:  # of one step (the world's kernels run without the GIL)
+                if not self._copies:  # the world as the edit's copies show it
+                    self._version = self._w._version
+                copy = self._copies[name] = getattr(self._w, name)[self._sel].copy()
         return copy
 
     def _rows_of(self, name: str) -> np.ndarray:
@@ -337,13 +338,21 @@ class WorldEdit:
 
     # -- validation and commit ----------------------------------------------------------------
     def __enter__(self) -> WorldEdit:
+        """The world is the block's until it ends: another thread's step or edit waits, so the
+        block's copies stay those of the world it commits to (walk W26b F1)."""
+        self._w._lock.acquire()
+        self._held = True
         return self
 
     def __exit__(self, kind, value, traceback) -> None:
-        if kind is None:
-            self.commit()
-        else:  # the block raised: nothing is written, on purpose
-            self._done = True
+        try:
+            if kind is None:
+                self.commit()
+            else:  # the block raised: nothing is written, on purpose
+                self._done = True
+        finally:
+            if self.__dict__.pop("_held", False):
+                self._w._lock.release()
 
     def __del__(self) -> None:
         """Warn about changes never written: ``world.edit(env).set_body(...)`` (no ``with``,
@@ -356,6 +365,10 @@ class WorldEdit:
 
     def commit(self) -> None:
         """Check the whole change once and write it (the world is unchanged if it raises)."""
+        with self._w._lock:  # the check against the world's version, then the write
+            self._commit()
+
+    def _commit(self) -> None:
         if self._done:
             raise SceneError("this edit was committed already")
         self._done = True

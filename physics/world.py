@@ -306,6 +306,7 @@ class World:
 
     def __init__(self, scene: Any, batch_size: int = 1, solver: Any = None,
                  max_contacts: int = 64) -> None:
+        self._lock = threading.RLock()
         self.scene: Scene = load_scene(scene)
         for name, value in (("batch_size", batch_size), ("max_contacts", max_contacts)):
             if (isinstance(value, bool) or not isinstance(value, (int, np.integer))
@@ -581,7 +582,7 @@ class World:
     def __getstate__(self) -> dict:
         fields = {"_" + n for n in (*FLOAT_FIELDS.names, *INT_FIELDS.names)}
         drop = fields | set(self._PUBLIC_VIEWS) | {"_backend", "_last_step", "_last_contacts",
-                                                   "_entries"}
+                                                   "_entries", "_lock"}
         return {k: v for k, v in self.__dict__.items() if k not in drop}
 
     def __copy__(self) -> World:
@@ -594,7 +595,8 @@ class World:
     def __setstate__(self, d: dict) -> None:
         self.__dict__.update(d)
         self.__dict__.setdefault("_version", 0)  # (pickled before it was kept)
-        self.__dict__.update(_backend=None, _last_step=None, _last_contacts=None, _entries={})
+        self.__dict__.update(_backend=None, _last_step=None, _last_contacts=None, _entries={},
+                             _lock=threading.RLock())
         self._make_buffer_views()
         self._make_views()
         if isinstance(self.solver, PymunkSolver):
@@ -745,10 +747,11 @@ class World:
         ``parameters=True`` adds the per-element parameters an edit changes (masses, moments,
         sizes, materials, the table's friction and size), so that ``restore`` also undoes an
         edit: what a snapshot of a randomised episode needs (an env's ``get_physics_state``)."""
-        snap = {"state": self._state.copy(), "forces": self._forces.copy(),
-                "time": self._time.copy(), "bodies": np.array(self.names)}
-        if parameters:
-            snap |= {key: getattr(self, name).copy() for key, name in _PARAMETER_ARRAYS}
+        with self._lock:  # of one step, whatever other threads do (walk W26b F3)
+            snap = {"state": self._state.copy(), "forces": self._forces.copy(),
+                    "time": self._time.copy(), "bodies": np.array(self.names)}
+            if parameters:
+                snap |= {key: getattr(self, name).copy() for key, name in _PARAMETER_ARRAYS}
         return snap
 
     def restore(self, snapshot: dict[str, np.ndarray], env: Any = None) -> None:
@@ -757,6 +760,10 @@ class World:
         (its rows ``env`` are put back) or has one row per selected element (a B = 1 world's
         snapshot into element ``env=[i]``, walk W24a F9); ``load_element`` copies an element
         of a live world."""
+        with self._lock:
+            self._restore(snapshot, env)
+
+    def _restore(self, snapshot: dict[str, np.ndarray], env: Any) -> None:
         rows = batch_rows(env, self.batch_size)
         names = [("state", "_state"), ("forces", "_forces"), ("time", "_time")]
         missing = [key for key, _ in names if key not in snapshot]
@@ -820,13 +827,18 @@ class World:
         if other.names != self.names or other.shapes != self.shapes:
             raise SceneError("load_element: the worlds' bodies differ")
         rows = batch_rows(env, self.batch_size)
-        for name in [name for _, name in _PARAMETER_ARRAYS] + ["_state", "_forces", "_time"]:
-            getattr(self, name)[rows] = getattr(other, name)[b]
-        self._params[rows] = self._derive_params(self._mass[rows], self._inertia[rows],
-                                                 self._radius[rows], self._half_length[rows],
-                                                 self._table_mu[rows])
-        self._version += 1
-        self._sync_backend(params=True, state=True)
+        names = [name for _, name in _PARAMETER_ARRAYS] + ["_state", "_forces", "_time"]
+        with other._lock:  # copied first: never both locks at once (two threads loading
+            element = {name: getattr(other, name)[b].copy() for name in names}  # crosswise)
+        with self._lock:
+            for name in names:
+                getattr(self, name)[rows] = element[name]
+            self._params[rows] = self._derive_params(self._mass[rows], self._inertia[rows],
+                                                     self._radius[rows],
+                                                     self._half_length[rows],
+                                                     self._table_mu[rows])
+            self._version += 1
+            self._sync_backend(params=True, state=True)
 
     def reset(self, env: Any = None) -> None:
         """Put the selected elements back in the scene's initial state (parameters are kept)."""
@@ -846,6 +858,16 @@ class World:
     def forces(self) -> np.ndarray:
         """Read-only [B, N, 2] applied forces, N."""
         return _read_only(self._forces)
+
+    @property
+    def lock(self) -> threading.RLock:
+        """The world's lock (re-entrant): every step, edit, snapshot (``get_state``,
+        ``restore``, ``load_element``) and ``last_step``/``last_contacts`` holds it, so threads
+        sharing a world take turns, step by step (its kernels run without the GIL: steps were
+        lost or mixed up, walk W26b). Hold it to read several things of one step from a
+        thread while another steps: ``with world.lock: x = world.state.positions.copy()``.
+        Not pickled: a copy has its own."""
+        return self._lock
 
     @property
     def revision(self) -> int:
@@ -892,6 +914,14 @@ class World:
         pymunk backend, then books the step (``last_step``, ``last_contacts``). Returns what
         the kernel returns.
         """
+        lock = self._lock  # (acquire/release: half the cost of a with block, on every step)
+        lock.acquire()
+        try:
+            return self._run(kernel, args, dt)
+        finally:
+            lock.release()
+
+    def _run(self, kernel: BatchKernel, args: tuple, dt: float | None) -> Any:
         if dt is not None and dt != self._dt:
             self._set_dt(dt)
         self._version += 1
@@ -946,15 +976,20 @@ class World:
         (``RuntimeWarning``) if the exact solver's settling hit its cap of substeps
         (``last_step.capped``).
         """
-        if type(dt) is not float:  # checked here: run() reads None as "the last dt", and
-            self._set_dt(dt)       # True == 1.0 would pass as an unchanged 1 s step
-            dt = self._dt
-        if self.run(STEP, dt=dt) >= FALLBACK_CAPPED:
-            self.check_fallback()
-        if self.walls and isinstance(self.solver, FixedSolver) and \
-                not self.__dict__.get("_warned_off_table"):
-            self._check_off_table()
-        return self.last_contacts
+        lock = self._lock  # the step, its report and its contacts (walk W26b)
+        lock.acquire()
+        try:
+            if type(dt) is not float:  # checked here: run() reads None as "the last dt", and
+                self._set_dt(dt)       # True == 1.0 would pass as an unchanged 1 s step
+                dt = self._dt
+            if self._run(STEP, (), dt) >= FALLBACK_CAPPED:
+                self.check_fallback()
+            if self.walls and isinstance(self.solver, FixedSolver) and \
+                    not self.__dict__.get("_warned_off_table"):
+                self._check_off_table()
+            return self._step_contacts()
+        finally:
+            lock.release()
 
     def _check_off_table(self) -> None:
         """Warn (once) of bodies the fixed solver or the pymunk backend left with their centre
@@ -1104,6 +1139,10 @@ class World:
     @property
     def last_step(self) -> StepStats:
         """Cost accounting of the last step, per element (see :class:`StepStats`)."""
+        with self._lock:
+            return self._step_stats()
+
+    def _step_stats(self) -> StepStats:
         if self._last_step is None:
             st = self._stats.copy()
             code = st[:, STAT_FALLBACK]
@@ -1121,6 +1160,10 @@ class World:
     @property
     def last_contacts(self) -> Contacts:
         """The contacts the last step resolved (what ``step`` returned)."""
+        with self._lock:
+            return self._step_contacts()
+
+    def _step_contacts(self) -> Contacts:
         if self._last_contacts is None:
             self.__dict__["_last_contacts"] = self._collect()
         return self._last_contacts
