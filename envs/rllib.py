@@ -132,8 +132,9 @@ def resolve(env_id: str, env_config: Any = None) -> tuple[str, dict]:
     variant's module, which they could not import (Ray starts them bare).
 
     Raises:
-        ConfigError: an unknown id or one that is not a SpinStrike env (``envs.base_id``), or a
-            subclass of a shipped env: its class lives in the user's module.
+        ConfigError: an unknown id or one that is not a SpinStrike env (``envs.base_id``), a
+            subclass of a shipped env (its class lives in the user's module), or a variant
+            registered with Gymnasium's ``additional_wrappers`` (the runners would not wrap).
     """
     from spinstrike.envs import _entry_class, base_id, flat_kwargs, variant_kwargs
 
@@ -158,6 +159,14 @@ def resolve(env_id: str, env_config: Any = None) -> tuple[str, dict]:
                           "them without it. Register the variant with the shipped env's "
                           f"classes and keyword arguments (entry_point={shipped.entry_point!r}, "
                           "kwargs={...}), or train it with the SB3 backend")
+    wrappers = [w.name for w in spec.additional_wrappers or ()]
+    if wrappers:  # (walk W26a F6: the runners trained it unwrapped; evaluate scored it wrapped)
+        raise ConfigError(f"env: {env_id!r} is registered with additional_wrappers {wrappers}, "
+                          f"which gym.make applies and RLlib's runners, which build {base} "
+                          f"with the variant's arguments, would not: RLlib trains variants of "
+                          f"the shipped classes and arguments only; for a changed reward or "
+                          f"observation, register a subclass of the env and of its vector env "
+                          f"and train it with the SB3 backend (README, 'mylab.py')")
     # gym.register(..., kwargs={"config": {...}}), the env's own config form, comes flat, as
     # env_config is (it was refused as an unknown key 'config'); so does one in env_config
     return base, {**variant_kwargs(env_id), **flat_kwargs(config)}

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+import pytest
 
 from spinstrike.agents.cli import main
 
@@ -210,6 +211,23 @@ def test_train_refuses_a_variant_its_vector_env_would_not_be(user_module, capsys
         err = capsys.readouterr().err
         assert words in " ".join(err.split()), (env_id, err)
         assert not out.exists() and not out.with_name(out.name + ".partial").exists()
+
+
+def test_rllib_refuses_a_variant_its_runners_would_not_wrap(user_module):
+    """Walk W26a F6: a variant registered with ``additional_wrappers`` trained under RLlib on
+    the unwrapped env (the runners build the shipped id with the variant's arguments) and was
+    scored wrapped (a reward clipped at 0.5: oracle 0.5000, exit 0, no wrapper in the record).
+    ``configure`` (so the CLI's ``--backend rllib``) refuses it, naming the wrappers, before
+    Ray is imported."""
+    from spinstrike.envs import ConfigError
+    from spinstrike.envs.rllib import configure
+
+    user_module(MODULE, LAB)
+    for env_id in (f"{MODULE}:ExtLab/Wrapped-v0", "ExtLab/Wrapped-v0"):
+        with pytest.raises(ConfigError, match=r"registered with additional_wrappers "
+                                              r"\['SpeedBonus'\], which gym.make applies and "
+                                              r"RLlib's runners"):
+            configure(object(), env_id)
 
 
 def test_a_subclass_s_own_compute_reward_is_the_one_her_calls(user_module):
