@@ -177,8 +177,13 @@ def _policy(args):
 def _train_defaults(args) -> None:
     """Fill in ``--algo``, ``--env`` and ``--seed`` left out. Resuming, those left out are the
     run's (its config.yml); only the default ``--out`` is named from the defaults."""
-    if args.resume and args.backend == "sb3":
-        if args.out is None:
+    if args.resume:
+        if args.out is None and args.backend == "rllib":
+            from spinstrike.agents.config import env_file_name
+
+            args.out = str(Path("runs") / f"ppo-rllib-{env_file_name(args.env or DEFAULT_ENV)}"
+                                          f"-s{args.seed or 0}")
+        elif args.out is None:
             from spinstrike.agents.train import default_run_dir
 
             args.out = str(default_run_dir(args.algo or "ppo", args.env or DEFAULT_ENV,
@@ -205,9 +210,29 @@ def _run_record(path: str | None, full: bool = False) -> dict:
     return {k: data[k] for k in ("algo", "env") if isinstance(data.get(k), str)}
 
 
+def _train_backend(args) -> None:
+    """``--backend`` left out: ``sb3``, or, resuming (``--resume --out RUN``), the backend the
+    run's config.yml records (an RLlib run's resume looked for SB3's checkpoints and said the run
+    had none, walk W26a F2)."""
+    if args.backend is not None:
+        return
+    args.backend = "sb3"
+    if args.resume and args.out is not None:
+        from spinstrike.agents.config import run_record
+
+        run = Path(args.out)
+        partial = run.with_name(run.name + ".partial") if run.name else run
+        for folder in (run, partial):
+            if folder.is_dir():
+                if run_record(folder / "config.yml").get("backend") == "rllib":
+                    args.backend = "rllib"
+                break
+
+
 def cmd_train(args) -> int:
     from spinstrike.agents.train import train
 
+    _train_backend(args)
     _train_defaults(args)
     if args.env is not None:
         _check_env_id(args.env)
@@ -221,7 +246,15 @@ def cmd_train(args) -> int:
     _require_extra("train", {**TRAIN_MODULES, **({"ray": "rllib"} if args.backend == "rllib"
                                                   else {})})
     if args.backend == "rllib":
-        result = _train_rllib(args)
+        from spinstrike.agents.rllib_train import RunnersLost
+
+        try:
+            result = _train_rllib(args)
+        except KeyboardInterrupt:  # Ctrl-C: train_rllib said how to go on; no traceback
+            return 128 + 2  # SIGINT
+        except RunnersLost as exc:  # stopped short of the budget, the run kept: not an exit 0
+            print("error: " + " ".join(str(exc).split()), file=sys.stderr)
+            return 1
     else:
         try:
             result = train(args.algo, args.env, config=args.config, seed=args.seed,
@@ -312,12 +345,10 @@ def _train_rllib(args) -> dict:
     """``spinstrike train --backend rllib``: PPO with Ray RLlib (``agents.rllib_train``)."""
     from spinstrike.agents.config import AgentConfigError
 
-    if args.algo != "ppo":
+    if args.algo not in (None, "ppo"):
         raise AgentConfigError(f"--algo: --backend rllib trains ppo only (got {args.algo!r})")
-    if args.resume:
-        raise AgentConfigError("--resume: not supported with --backend rllib")
-    runners = 2 if args.num_env_runners is None else args.num_env_runners
-    if runners < 0:
+    runners = args.num_env_runners  # (None: 2, or resuming, the run's)
+    if runners is not None and runners < 0:
         raise AgentConfigError(f"--num-env-runners: must be >= 0 (got {runners})")
     for flag, value, default in (("--device", args.device, "cpu"),
                                  ("--torch-threads", args.torch_threads, 1)):
@@ -325,14 +356,15 @@ def _train_rllib(args) -> dict:
             raise AgentConfigError(f"{flag}: the SB3 backend's; --backend rllib trains on the "
                                    f"CPU with RLlib's own settings (got {value!r})")
     from spinstrike.agents.rllib_train import train_rllib
-    from spinstrike.agents.train import FINISH
 
     return train_rllib(args.env, config=args.config, seed=args.seed, timesteps=args.timesteps,
                        out=args.out, n_envs=args.n_envs, num_env_runners=runners,
-                       address=args.address, force=args.force, evaluate=not args.no_eval,
-                       eval_episodes=FINISH["eval_episodes"] if args.eval_episodes is None
-                       else args.eval_episodes,
-                       video=not args.no_video, env_kwargs=_kwargs(args.env_kwargs),
+                       address=args.address, force=args.force, resume=args.resume,
+                       # a flag left out: the default, or a resumed run's record
+                       evaluate=False if args.no_eval else None,
+                       eval_episodes=args.eval_episodes,
+                       video=False if args.no_video else None,
+                       env_kwargs=_kwargs(args.env_kwargs),
                        command="spinstrike " + shlex.join(args.argv))
 
 
@@ -804,11 +836,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="DAgger rounds (default 20; round 0 is the teacher's)")
     t.add_argument("--imitate-episodes", type=int, default=None,
                    help="episodes per DAgger round (default 16)")
-    t.add_argument("--backend", choices=("sb3", "rllib"), default="sb3",
-                   help="sb3 (default) or rllib: PPO with Ray RLlib (the rllib extra; "
-                        "docs/rllib.md)")
+    t.add_argument("--backend", choices=("sb3", "rllib"), default=None,
+                   help="sb3 (default; resuming: the run's) or rllib: PPO with Ray RLlib (the "
+                        "rllib extra; docs/rllib.md)")
     t.add_argument("--num-env-runners", type=int, default=None,
-                   help="rllib: env runner processes (default 2)")
+                   help="rllib: env runner processes (default 2; resuming: the run's)")
     t.add_argument("--address", help="rllib: a running Ray cluster's address (default: a "
                                      "local Ray)")
     t.set_defaults(func=cmd_train)

@@ -19,8 +19,11 @@ trained RLModule's deterministic action. Needs the ``rllib`` extra.
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import json
 import math
+import os
 import shlex
 import shutil
 import sys
@@ -50,7 +53,8 @@ from spinstrike.agents.train import (
 )
 from spinstrike.envs import as_registered
 
-__all__ = ["load_rllib_policy", "module_policy", "ppo_config", "train_rllib"]
+__all__ = ["RunnersLost", "load_rllib_policy", "module_policy", "ppo_config",
+           "train_rllib"]
 
 
 #: the rl-zoo3 PPO keys ppo_config translates (of policy_kwargs: net_arch only)
@@ -257,23 +261,170 @@ def _steps(result: dict) -> int:
     return int(runners.get("num_env_steps_sampled_lifetime", 0))
 
 
-def train_rllib(env_id: str, *, config: str | Path | None = None, seed: int = 0,
-                timesteps: int | None = None, out: str | Path | None = None,
-                n_envs: int | None = None, num_env_runners: int = 2,
-                address: str | None = None, force: bool = False, evaluate: bool = True,
-                eval_episodes: int = 50, video: bool = True, env_kwargs: dict | None = None,
-                eval_every: int | None = None, eval_episodes_during: int = 10,
-                command: str | None = None) -> TrainResult:
+class RunnersLost(RuntimeError):
+    """Training stopped short of its budget: its iterations sampled no env steps (the env runners
+    were lost: killed by Ray's memory monitor, a node gone). The run's folder is kept, with its
+    checkpoint, for ``--resume``; ``spinstrike train`` exits 1."""
+
+
+#: a run stops (:class:`RunnersLost`) after this many training iterations in a row that sampled
+#: no env steps, once as many seconds have passed without one (a killed runner is restarted by
+#: Ray, RLlib's default, and samples again: a new runner process imports Ray, RLlib and torch,
+#: which took over 2 minutes on a loaded 2-core machine)
+STALL_ITERATIONS = 5
+STALL_SECONDS = 300.0
+
+#: an RLlib run's checkpoint: ``checkpoint/`` (the newest), written as ``checkpoint.new/`` and
+#: renamed over the old one (kept as ``checkpoint.old/`` while it is replaced), so a signal never
+#: leaves a half-written checkpoint under the real name
+CHECKPOINT, STEPS_FILE = "checkpoint", "spinstrike_steps.json"
+
+
+def train_rllib(env_id: str | None, *, config: str | Path | None = None,
+                seed: int | None = None, timesteps: int | None = None,
+                out: str | Path | None = None, n_envs: int | None = None,
+                num_env_runners: int | None = None, address: str | None = None,
+                force: bool = False, resume: bool = False, evaluate: bool | None = None,
+                eval_episodes: int | None = None, video: bool | None = None,
+                env_kwargs: dict | None = None, eval_every: int | None = None,
+                eval_episodes_during: int = 10, command: str | None = None) -> TrainResult:
     """Train PPO on ``env_id`` with RLlib; return the run directory and what was measured.
 
     Args:
-        num_env_runners: RLlib env runner processes (each one native vector env).
+        num_env_runners: RLlib env runner processes (each one native vector env; default 2).
         address: a running Ray cluster (``ray start --head`` prints it; ``"auto"``); default
             a local Ray started (and stopped) here, or the one already initialised.
         eval_every: training iterations between the learning curve's evaluations (default:
             about 10 over the run).
+        resume: continue ``out`` (or ``out.partial``) from its RLlib checkpoint
+            (``checkpoint/``, saved after every training iteration), as its ``config.yml``
+            records it: ``env_id``, ``seed``, ``n_envs``, ``num_env_runners``, ``env_kwargs``,
+            ``evaluate``, ``eval_episodes``, ``video`` may be None (or repeat the record),
+            ``timesteps`` sets a new budget; the new stretch is booked in ``runs:``.
         The rest as :func:`spinstrike.agents.train.train`.
+
+    Interrupted by Ctrl-C, or SIGTERM (``SystemExit(143)``, in place of Ray's handler, which
+    aborted the process), it keeps the work folder (``<out>.partial`` for a new run) with its
+    last checkpoint, books the stretch as interrupted, says how to go on, and re-raises. Env
+    runners lost for good (:data:`STALL_ITERATIONS`, :data:`STALL_SECONDS`) raise
+    :class:`RunnersLost`, the folder kept the same way.
     """
+    from spinstrike.agents.train import FINISH, _record_segment
+
+    given_finish = {"evaluate": evaluate, "eval_episodes": eval_episodes, "video": video}
+    if resume:
+        run_dir, work, cfg, seed, num_env_runners, recorded, done = _resumed_run(
+            env_id, out=out, config=config, seed=seed, timesteps=timesteps, n_envs=n_envs,
+            num_env_runners=num_env_runners, env_kwargs=env_kwargs, finish=given_finish)
+        env_id = cfg.env_id
+    else:
+        recorded, done = {}, 0
+        run_dir, cfg, seed, num_env_runners = _new_run(
+            env_id, out=out, config=config, seed=seed, timesteps=timesteps, n_envs=n_envs,
+            num_env_runners=num_env_runners, env_kwargs=env_kwargs)
+    finish = {key: value if value is not None else recorded.get(key, FINISH[key])
+              for key, value in given_finish.items()}
+    if not isinstance(num_env_runners, int) or num_env_runners < 0:
+        raise AgentConfigError(f"num_env_runners: must be an integer >= 0 "
+                               f"(got {num_env_runners!r})")
+    if resume and work == run_dir and done >= cfg.n_timesteps:
+        return _complete_run(run_dir, env_id, done, cfg.env_kwargs, finish)
+    try:
+        import ray
+    except ImportError:
+        raise AgentConfigError("backend: rllib needs Ray RLlib: pip install "
+                               "'spinstrike[rllib]'") from None
+    if address is not None and not ray.is_initialized():
+        _probe(address)
+    # the env's config is checked here, before Ray starts or the disk is touched; the env is
+    # built once (as the SB3 backend does: its errors come before the run folder's)
+    algo_config = ppo_config(cfg, seed, num_env_runners)
+    _compile_kernels(env_id, cfg.env_kwargs)
+    if not resume:
+        work = _new_work_dir(run_dir, force)
+    started = _init_ray(ray, address)
+    start = time.time()
+    # SIGTERM (a scheduler's kill) as Ctrl-C, in place of the handler ray.init installs (Ray's
+    # aborted the driver, exit -6, and the run folder was lost): the checkpoint and the logs
+    # are kept and the message below says how to go on
+    with _sigterm_exits() as signals:
+        try:
+            _check_cpus(ray, num_env_runners)
+            policy, steps, wall = _learn(algo_config, cfg, work, seed=seed, address=address,
+                                         num_env_runners=num_env_runners,
+                                         eval_every=eval_every,
+                                         eval_episodes_during=eval_episodes_during,
+                                         command=command, resume=resume, finish=finish,
+                                         run_dir=run_dir)
+            if work != run_dir:
+                if run_dir.exists():
+                    shutil.rmtree(run_dir)
+                work.rename(run_dir)
+                work = run_dir
+            runs = _record_segment(run_dir, steps, wall)
+        except RunnersLost:
+            _record_segment(work, _checkpoint_steps(work), time.time() - start,
+                            interrupted=True)
+            raise
+        except (KeyboardInterrupt, SystemExit):
+            _interrupted(work, run_dir, cfg.n_timesteps, time.time() - start)
+            if signals:  # Ray's wait turns the SystemExit(143) raised in it into SystemExit(1)
+                raise SystemExit(128 + signals[0]) from None
+            raise
+        except BaseException:
+            if not resume:
+                shutil.rmtree(work, ignore_errors=True)
+            raise
+        finally:
+            if started:
+                ray.shutdown()
+    result = TrainResult(run_dir=str(run_dir), env=env_id, timesteps=steps, wall_time=wall,
+                         sessions=len(runs),
+                         total_wall_time=sum(r["wall_time_s"] for r in runs))
+    return finish_run(result, policy, env_id, run_dir, cfg.env_kwargs,
+                      run_title(run_record(run_dir / "config.yml")),
+                      evaluate=finish["evaluate"], eval_episodes=finish["eval_episodes"],
+                      video=finish["video"])
+
+
+def _resumed_run(env_id, *, out, config, seed, timesteps, n_envs, num_env_runners, env_kwargs,
+                 finish):
+    """The run ``--resume --out out`` continues, as its config.yml records it: (run dir, work
+    folder, cfg, seed, env runners, the record's finish, steps of its checkpoint); the command
+    line's contradictions are refused, as the SB3 backend's (``train._recorded_run``)."""
+    from spinstrike.agents.train import _recorded_run
+
+    if out is None:
+        if env_id is None:
+            raise AgentConfigError("out: give the run directory to resume")
+        out = Path("runs") / f"ppo-rllib-{env_file_name(env_id)}-s{seed or 0}"
+    run_dir = Path(out)
+    work = _resume_dir(run_dir)
+    given = {"--algo": None, "--env": env_id, "--seed": seed, "--n-envs": n_envs,
+             "--env-kwargs": env_kwargs, "--imitate": None}
+    _, cfg, seed, recorded = _recorded_run(work, given, config, timesteps, finish)
+    meta = run_record(work / "config.yml")
+    runners = meta.get("num_env_runners", 2)
+    if num_env_runners is not None and num_env_runners != runners:
+        raise AgentConfigError(
+            f"resume: {work} records --num-env-runners {runners}; the command line "
+            f"contradicts it (got {num_env_runners}). Leave it out: --resume --out RUN "
+            f"continues the run as recorded (only --timesteps may change)")
+    done = _checkpoint_steps(work, meta)
+    budget = int(meta["hyperparameters"][cfg.env_id]["n_timesteps"])
+    if timesteps is not None and timesteps <= done and timesteps != budget:
+        raise AgentConfigError(f"timesteps: {work} has trained {done} steps; a new budget "
+                               f"must exceed them (got {timesteps}; the recorded budget, "
+                               f"{budget}, continues the run as recorded)")
+    return run_dir, work, cfg, seed, runners, recorded, done
+
+
+def _new_run(env_id, *, out, config, seed, timesteps, n_envs, num_env_runners, env_kwargs):
+    """A new run's (run dir, cfg, seed, env runners), checked before Ray starts."""
+    if env_id is None:
+        raise AgentConfigError("env: a new run needs one")
+    seed = 0 if seed is None else seed
+    num_env_runners = 2 if num_env_runners is None else num_env_runners
     overrides: dict[str, Any] = {}
     if timesteps is not None:
         overrides["n_timesteps"] = timesteps
@@ -286,61 +437,156 @@ def train_rllib(env_id: str, *, config: str | Path | None = None, seed: int = 0,
     cfg.env_kwargs = as_registered(env_id, cfg.env_kwargs)
     if cfg.normalize:
         raise AgentConfigError("normalize: not supported with --backend rllib")
-    # as the SB3 backend: a bad argument, max_episode_steps < 1 or a control env with no step
-    # limit (whose learning-curve and final evaluations in this process never ended: W17, a
-    # silent hang with both cores busy) is refused here, naming it
+    # as the SB3 backend: a bad argument, max_episode_steps < 1 or a control env with no
+    # step limit (whose learning-curve and final evaluations in this process never ended:
+    # W17, a silent hang with both cores busy) is refused here, naming it
     _check_entry_env_kwargs(env_id, cfg, env_kwargs)
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
         raise AgentConfigError(f"seed: must be an integer from 0 to 2**32 - 1, as the SB3 "
                                f"backend's (got {seed!r})")
-    if not isinstance(num_env_runners, int) or num_env_runners < 0:
-        raise AgentConfigError(f"num_env_runners: must be an integer >= 0 "
-                               f"(got {num_env_runners!r})")
-    try:
-        import ray
-    except ImportError:
-        raise AgentConfigError("backend: rllib needs Ray RLlib: pip install "
-                               "'spinstrike[rllib]'") from None
-    if address is not None and not ray.is_initialized():
-        _probe(address)
-    # the env's config is checked here, before Ray starts or the disk is touched; the env is
-    # built once (as the SB3 backend does: its errors come before the run folder's)
-    algo_config = ppo_config(cfg, seed, num_env_runners)
-    _compile_kernels(env_id, cfg.env_kwargs)
     name = f"ppo-rllib-{env_file_name(env_id)}-s{seed}"
     run_dir = Path(out) if out is not None else Path("runs") / name
-    work = _work_dir(run_dir, False, force)
-    started = False
-    if not ray.is_initialized():
-        # address None: a new local Ray, as documented (Ray itself would join any cluster
-        # running on this machine, e.g. another job's)
-        try:
-            ray.init(address=address or "local", include_dashboard=False, log_to_driver=False)
-        except ConnectionError as exc:  # (was Ray's traceback, exit 1)
-            raise AgentConfigError(
-                f"--address {address}: no Ray cluster to join ({str(exc).splitlines()[0]}); "
-                "start one with `ray start --head` (see docs/rllib.md), or leave --address out "
-                "to train on a new local Ray") from None
-        started = True
+    return run_dir, cfg, seed, num_env_runners
+
+
+def _init_ray(ray, address: str | None) -> bool:
+    """Start a local Ray or join ``address``'s unless Ray runs here already; True if started."""
+    if ray.is_initialized():
+        return False
+    # address None: a new local Ray, as documented (Ray itself would join any cluster
+    # running on this machine, e.g. another job's)
     try:
-        _check_cpus(ray, num_env_runners)
-        policy, steps, wall = _learn(algo_config, cfg, work, seed=seed, address=address,
-                                     num_env_runners=num_env_runners, eval_every=eval_every,
-                                     eval_episodes_during=eval_episodes_during,
-                                     command=command)
-        if run_dir.exists():
-            shutil.rmtree(run_dir)
-        work.rename(run_dir)
-    except BaseException:
-        shutil.rmtree(work, ignore_errors=True)
-        raise
+        ray.init(address=address or "local", include_dashboard=False, log_to_driver=False)
+    except ConnectionError as exc:  # (was Ray's traceback, exit 1)
+        raise AgentConfigError(
+            f"--address {address}: no Ray cluster to join ({str(exc).splitlines()[0]}); "
+            "start one with `ray start --head` (see docs/rllib.md), or leave --address out "
+            "to train on a new local Ray") from None
+    return True
+
+
+def _interrupted(work: Path, run_dir: Path, budget: int, wall: float) -> None:
+    """Book the stretch that a signal stopped (to its checkpoint) and say how to go on."""
+    from spinstrike.agents.train import _record_segment
+
+    if _checkpoint(work) is not None:
+        trained = _checkpoint_steps(work)
+        _record_segment(work, trained, wall, interrupted=True)
+        print(f"interrupted at {trained} of the budget's {budget} steps ({work} keeps the run "
+              f"and its RLlib checkpoint): continue with spinstrike train --resume --out "
+              f"{run_dir}", file=sys.stderr)
+    else:
+        print(f"interrupted before the first training iteration ended: nothing to resume "
+              f"({work} keeps what was written); run the same command again to start over",
+              file=sys.stderr)
+
+
+@contextlib.contextmanager
+def _sigterm_exits():
+    """Within: SIGTERM raises ``SystemExit(143)`` in the main thread, as Ctrl-C raises
+    ``KeyboardInterrupt``; yields the signals received (Ray's ``wait`` turns a SystemExit raised
+    while it waits into its own ``SystemExit(1)``: the caller exits with the signal's code)."""
+    import signal
+    import threading
+
+    received: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield received  # signal handlers can only be set from the main thread
+        return
+
+    def _exit(signum, frame):
+        received.append(signum)
+        raise SystemExit(128 + signum)
+
+    previous = signal.signal(signal.SIGTERM, _exit)
+    try:
+        yield received
     finally:
-        if started:
-            ray.shutdown()
-    result = TrainResult(run_dir=str(run_dir), timesteps=steps, wall_time=wall)
-    return finish_run(result, policy, env_id, run_dir, cfg.env_kwargs,
-                      run_title(run_record(run_dir / "config.yml")),
-                      evaluate=evaluate, eval_episodes=eval_episodes, video=video)
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _checkpoint(work: Path) -> Path | None:
+    """``work``'s RLlib checkpoint (``checkpoint/``; ``checkpoint.old/`` put back where a signal
+    came between the renames that replace it), or None."""
+    path, old = work / CHECKPOINT, work / f"{CHECKPOINT}.old"
+    if not path.is_dir() and old.is_dir():
+        old.rename(path)
+    return path if (path / "rllib_checkpoint.json").is_file() else None
+
+
+def _checkpoint_steps(work: Path, meta: dict | None = None) -> int:
+    """The env steps ``work``'s checkpoint was saved at (0: none); a run written before the
+    checkpoint recorded them: its last stretch's (``config.yml``)."""
+    ckpt = _checkpoint(work)
+    if ckpt is None:
+        return 0
+    try:
+        return int(json.loads((ckpt / STEPS_FILE).read_text())["timesteps"])
+    except (OSError, ValueError, KeyError, TypeError):
+        runs = (meta if meta is not None else run_record(work / "config.yml")).get("runs")
+        return int(runs[-1]["timesteps"]) if runs else 0
+
+
+def _save_checkpoint(algo, work: Path, steps: int, iteration: int) -> None:
+    """RLlib's checkpoint (``Algorithm.save_to_path``) of ``algo`` at ``steps``, replacing the
+    last one whole (:data:`CHECKPOINT`)."""
+    new, path, old = (work / f"{CHECKPOINT}.new", work / CHECKPOINT,
+                      work / f"{CHECKPOINT}.old")
+    shutil.rmtree(new, ignore_errors=True)
+    algo.save_to_path(str(new.resolve()))
+    (new / STEPS_FILE).write_text(json.dumps({"timesteps": steps, "iteration": iteration}))
+    if path.exists():
+        shutil.rmtree(old, ignore_errors=True)
+        path.rename(old)
+    new.rename(path)
+    shutil.rmtree(old, ignore_errors=True)
+
+
+def _resume_dir(run_dir: Path) -> Path:
+    """The folder ``--resume --out run_dir`` continues (the run, or its ``.partial``), checked:
+    an RLlib run's record with an RLlib checkpoint."""
+    partial = run_dir.with_name(run_dir.name + ".partial")
+    work = run_dir if run_dir.exists() else partial
+    if not (work / "config.yml").is_file():
+        raise AgentConfigError(f"resume: {run_dir} is not a run directory")
+    meta = run_record(work / "config.yml")
+    if meta.get("backend") != "rllib":
+        raise AgentConfigError(f"resume: {work} is not an RLlib run (its config.yml records no "
+                               f"backend: rllib): resume it without --backend rllib")
+    if _checkpoint(work) is None:
+        raise AgentConfigError(f"resume: {work} has no RLlib checkpoint ({CHECKPOINT}/) to "
+                               f"resume from: it stopped before its first training iteration "
+                               f"ended; run its command again (without --resume) to start over")
+    return work
+
+
+def _new_work_dir(run_dir: Path, force: bool) -> Path:
+    """``_work_dir`` for a new run, which also keeps an interrupted RLlib run's ``.partial``
+    (its checkpoint is not SB3's, which ``_work_dir`` looks for): refused unless ``force``."""
+    partial = run_dir.with_name(run_dir.name + ".partial")
+    if not force and partial.is_dir() and _checkpoint(partial) is not None:
+        raise AgentConfigError(f"out: {partial} holds an interrupted run (RLlib checkpoint at "
+                               f"{_checkpoint_steps(partial)} steps); pass --resume to continue "
+                               f"it or --force to start over")
+    return _work_dir(run_dir, False, force)
+
+
+def _complete_run(run_dir: Path, env_id: str, steps: int, env_kwargs: dict,
+                  finish: dict) -> TrainResult:
+    """``--resume`` of an RLlib run that has trained its budget: it trains nothing, and writes
+    only what its finish asks and it lacks (stopped in its final evaluation or video)."""
+    meta = run_record(run_dir / "config.yml")
+    runs = meta.get("runs") or []
+    missing = {"evaluate": finish["evaluate"] and not (run_dir / "summary.md").is_file(),
+               "video": finish["video"] and not (run_dir / "rollout.mp4").is_file()}
+    result = TrainResult(run_dir=str(run_dir), env=env_id, timesteps=steps, wall_time=0.0,
+                         complete=[key for key, value in missing.items() if value],
+                         sessions=len(runs),
+                         total_wall_time=sum(r["wall_time_s"] for r in runs))
+    policy = load_rllib_policy(run_dir)[0] if any(missing.values()) else None
+    return finish_run(result, policy, env_id, run_dir, env_kwargs, run_title(meta),
+                      evaluate=missing["evaluate"], eval_episodes=finish["eval_episodes"],
+                      video=missing["video"])
 
 
 def _check_cpus(ray, num_env_runners: int) -> None:
@@ -397,53 +643,145 @@ def _probe(address: str) -> None:
 
 
 def _learn(algo_config, cfg: RunConfig, work: Path, *, seed, address, num_env_runners,
-           eval_every, eval_episodes_during, command):
-    """Build the algorithm, train to the budget with periodic evaluations; save into ``work``.
-    Returns (policy, env steps, wall time)."""
+           eval_every, eval_episodes_during, command, resume, finish, run_dir):
+    """Build the algorithm (a resumed run: restored from its checkpoint), train to the budget
+    with periodic evaluations and a checkpoint after every iteration, in ``work``. Returns
+    (policy, env steps, wall time). Raises :class:`RunnersLost` where iterations stop sampling."""
     from spinstrike.agents.evaluate import run_episodes
 
     algo = algo_config.build_algo()
-    work.mkdir(parents=True, exist_ok=True)
-    meta = {"algo": "ppo", "backend": "rllib", "env": cfg.env_id, "seed": seed,
-            "source": cfg.source, "num_env_runners": num_env_runners,
-            "num_envs_per_env_runner": algo_config.num_envs_per_env_runner,
-            "address": address, "versions": _versions(),
-            "hyperparameters": cfg.as_yaml_dict(), **_registered(cfg.env_id)}
-    (work / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
-    (work / "command.txt").write_text((command or shlex.join(sys.argv)) + "\n")
-    per_iter = algo_config.train_batch_size_per_learner
-    iterations = max(1, math.ceil(cfg.n_timesteps / per_iter))
-    every = eval_every or max(1, iterations // 10)
-    evals_t, evals_r, evals_l = [], [], []
-    start = time.time()
-    steps = 0
     try:
-        with open(work / "progress.csv", "w", newline="") as f:
+        if resume:
+            ckpt = _checkpoint(work)
+            done = _checkpoint_steps(work)
+            algo.restore_from_path(str(ckpt.resolve()))
+            # the run's history up to the checkpoint: rows and evaluations after it go
+            _truncate_history(work, algo.iteration, done)
+            meta = yaml.safe_load((work / "config.yml").read_text())
+            meta["hyperparameters"] = cfg.as_yaml_dict()  # the budget, if --timesteps changed
+            _write_yaml(work / "config.yml", meta)
+            with (work / "command.txt").open("a") as f:  # the commands that made the run
+                f.write((command or shlex.join(sys.argv)) + "\n")
+        else:
+            done = 0
+            work.mkdir(parents=True, exist_ok=True)
+            meta = {"algo": "ppo", "backend": "rllib", "env": cfg.env_id, "seed": seed,
+                    "source": cfg.source, "num_env_runners": num_env_runners,
+                    "num_envs_per_env_runner": algo_config.num_envs_per_env_runner,
+                    "address": address, "versions": _versions(),
+                    "hyperparameters": cfg.as_yaml_dict(), "finish": finish,
+                    **_registered(cfg.env_id)}
+            _write_yaml(work / "config.yml", meta)
+            (work / "command.txt").write_text((command or shlex.join(sys.argv)) + "\n")
+            with open(work / "progress.csv", "w", newline="") as f:
+                csv.writer(f).writerow(["iteration", "timesteps", "episode_return_mean",
+                                        "time_s"])
+        per_iter = algo_config.train_batch_size_per_learner
+        iterations = max(1, math.ceil(cfg.n_timesteps / per_iter))
+        every = (eval_every or max(1, iterations // 10)) * per_iter  # in env steps
+        evals = _read_evaluations(work)
+        start = time.time()
+        steps, last, stalled = done, time.time(), 0
+        next_eval = (steps // every + 1) * every
+        with open(work / "progress.csv", "a", newline="") as f:
             log = csv.writer(f)
-            log.writerow(["iteration", "timesteps", "episode_return_mean", "time_s"])
-            for it in range(1, iterations + 1):
+            # the budget in env steps actually sampled: an iteration whose runners were lost
+            # samples nothing (it was counted as training, and the run booked as finished
+            # short of its budget, exit 0: walk W26a F3)
+            while steps < cfg.n_timesteps:
                 result = algo.train()
-                steps = _steps(result)
+                sampled = _steps(result)
+                if sampled <= steps:
+                    stalled += 1
+                    healthy = _healthy_runners(algo)
+                    if stalled == 1:
+                        print(f"warning: training iteration {algo.iteration} sampled no env "
+                              f"steps ({healthy} of {num_env_runners} env runners healthy); "
+                              f"waiting up to {STALL_SECONDS:g} s for Ray to restore them",
+                              file=sys.stderr)
+                    if stalled >= STALL_ITERATIONS and time.time() - last >= STALL_SECONDS:
+                        raise RunnersLost(
+                            f"training stopped at {steps} of the budget's {cfg.n_timesteps} "
+                            f"steps: the last {stalled} training iterations "
+                            f"({time.time() - last:.0f} s) sampled no env steps, {healthy} of "
+                            f"{num_env_runners} env runners healthy (lost: killed, e.g. by "
+                            f"Ray's memory monitor, or their node gone; Ray's logs, "
+                            f"/tmp/ray/session_latest/logs, say why). {work} keeps the run "
+                            f"with its RLlib checkpoint at {steps} steps, booked as "
+                            f"interrupted; continue it with spinstrike train --resume --out "
+                            f"{run_dir} once the cluster has the CPUs and memory for its "
+                            f"runners")
+                    time.sleep(1.0)
+                    continue
+                steps, last, stalled = sampled, time.time(), 0
                 ret = result.get("env_runners", {}).get("episode_return_mean", float("nan"))
-                log.writerow([it, steps, ret, round(time.time() - start, 3)])
+                log.writerow([algo.iteration, steps, ret, round(time.time() - start, 3)])
                 f.flush()
-                if it % every == 0 or it == iterations:
+                if steps >= next_eval or steps >= cfg.n_timesteps:
+                    next_eval = (steps // every + 1) * every
                     # the SB3 backend's episodes (EVAL_SEED), the same for every seed: they
                     # were seed + 10,000's, so two seeds' curves scored other tasks (W17)
                     ev = run_episodes(module_policy(algo.get_module()), cfg.env_id,
                                       eval_episodes_during, seed=EVAL_SEED,
                                       env_kwargs=cfg.env_kwargs)
-                    evals_t.append(steps)
-                    evals_r.append(ev.returns)
-                    evals_l.append([ev.mean_length] * len(ev.returns))
-                    np.savez(work / "evaluations.npz", timesteps=np.array(evals_t),
-                             results=np.array(evals_r), ep_lengths=np.array(evals_l))
+                    evals["timesteps"].append(steps)
+                    evals["results"].append(list(ev.returns))
+                    evals["ep_lengths"].append([ev.mean_length] * len(ev.returns))
+                    _write_evaluations(work, evals)
+                # every iteration (milliseconds for these networks): a Ctrl-C or a scheduler's
+                # SIGTERM loses at most the iteration it came in
+                _save_checkpoint(algo, work, steps, algo.iteration)
         wall = time.time() - start
-        algo.save_to_path(str((work / "checkpoint").resolve()))
         policy = module_policy(algo.get_module())
     finally:
         algo.stop()
     plot_learning_curve(work, f"PPO (RLlib) on {cfg.env_id}")
-    meta["runs"] = [{"timesteps": steps, "wall_time_s": round(wall, 2)}]
-    (work / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
     return policy, steps, wall
+
+
+def _healthy_runners(algo) -> int:
+    group = getattr(algo, "env_runner_group", None)
+    try:
+        return int(group.num_healthy_remote_env_runners()) if group is not None else 0
+    except Exception:  # noqa: BLE001  (a message's number only)
+        return 0
+
+
+def _write_yaml(path: Path, data: dict) -> None:
+    """``path`` written whole or not at all (a signal during the write left it empty)."""
+    tmp = path.with_name(path.name + ".partial")
+    tmp.write_text(yaml.safe_dump(data, sort_keys=False))
+    os.replace(tmp, path)
+
+
+def _read_evaluations(work: Path) -> dict[str, list]:
+    path = work / "evaluations.npz"
+    if not path.is_file():
+        return {"timesteps": [], "results": [], "ep_lengths": []}
+    with np.load(path) as data:
+        return {key: data[key].tolist() for key in ("timesteps", "results", "ep_lengths")}
+
+
+def _write_evaluations(work: Path, evals: dict[str, list]) -> None:
+    tmp = work / "evaluations.partial.npz"  # (np.savez adds .npz to a name without it)
+    np.savez(tmp, **{key: np.array(value) for key, value in evals.items()})
+    os.replace(tmp, work / "evaluations.npz")
+
+
+def _truncate_history(work: Path, iteration: int, steps: int) -> None:
+    """Drop ``progress.csv``'s rows after ``iteration`` and the evaluations after ``steps``:
+    what a stretch logged after its last checkpoint, which the resumed run does again."""
+    path = work / "progress.csv"
+    if path.is_file():
+        with open(path, newline="") as f:
+            rows = list(csv.reader(f))
+        kept = rows[:1] + [r for r in rows[1:] if r and int(r[0]) <= iteration]
+        tmp = path.with_name(path.name + ".partial")
+        with open(tmp, "w", newline="") as f:
+            csv.writer(f).writerows(kept)
+        os.replace(tmp, path)
+    evals = _read_evaluations(work)
+    keep = [i for i, t in enumerate(evals["timesteps"]) if t <= steps]
+    if len(keep) < len(evals["timesteps"]):
+        _write_evaluations(work, {key: [value[i] for i in keep]
+                                  for key, value in evals.items()})

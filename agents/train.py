@@ -900,6 +900,7 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
         if hyperparameters:
             raise AgentConfigError(f"hyperparameters: a resumed run trains as its config.yml "
                                    f"records it (got {sorted(hyperparameters)})")
+        _refuse_rllib_run(run_dir)
         work = _work_dir(run_dir, resume, force)
         given = {"--algo": algo, "--env": env_id, "--seed": seed, "--n-envs": n_envs,
                  "--env-kwargs": env_kwargs, "--imitate": imitate}
@@ -971,6 +972,19 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
     result = TrainResult(run_dir=str(run_dir), env=env_id, timesteps=int(model.num_timesteps),
                          wall_time=wall)
     return _book_and_finish(result, wall, run_dir, algo, env_id, seed, cfg.env_kwargs, finish)
+
+
+def _refuse_rllib_run(run_dir: Path) -> None:
+    """``resume`` of an RLlib run (``backend: rllib`` in its config.yml) is not this function's:
+    it said the run "has no checkpoint to resume from", looking for SB3's (walk W26a F2)."""
+    partial = run_dir.with_name(run_dir.name + ".partial") if run_dir.name else run_dir
+    work = run_dir if run_dir.exists() else partial
+    if run_record(work / "config.yml").get("backend") == "rllib":
+        raise AgentConfigError(
+            f"resume: {work} is an RLlib run (its config.yml records backend: rllib), not an "
+            f"SB3 one: `spinstrike train --resume --out {run_dir}` continues it (leave out "
+            f"--backend, or give --backend rllib), or from Python "
+            f"spinstrike.agents.rllib_train.train_rllib(None, out=..., resume=True)")
 
 
 def _book_and_finish(result: TrainResult, wall: float, run_dir: Path, algo: str, env_id: str,
