@@ -211,12 +211,16 @@ def _run_record(path: str | None, full: bool = False) -> dict:
 
 
 def _train_backend(args) -> None:
-    """``--backend`` left out: ``sb3``, or, resuming (``--resume --out RUN``), the backend the
-    run's config.yml records (an RLlib run's resume looked for SB3's checkpoints and said the run
-    had none, walk W26a F2)."""
+    """``--backend`` left out: ``sb3``, or the backend the run's config.yml records, resuming
+    (``--resume --out RUN``: an RLlib run's resume looked for SB3's checkpoints and said the run
+    had none, walk W26a F2) or training a record again (``--config RUN/config.yml``)."""
     if args.backend is not None:
         return
     args.backend = "sb3"
+    if not args.resume and _run_record(args.config, full=True).get("backend") == "rllib":
+        # `train --config RLLIB_RUN/config.yml` trains the record again: with RLlib, not
+        # silently with SB3's PPO (walk W26a F4)
+        args.backend = "rllib"
     if args.resume and args.out is not None:
         from spinstrike.agents.config import run_record
 

@@ -645,3 +645,42 @@ def test_spinstrike_version_names_the_commit_of_the_code_that_runs(tmp_path):
         assert out.stdout.startswith(f"spinstrike {version('spinstrike')} (commit ")
         assert "(commit unknown)" not in out.stdout, "unknown says why (walk W24b F9)"
 
+
+
+def test_training_an_rllib_record_again_trains_with_rllib(tmp_path, monkeypatch):
+    """Walk W26a F4: ``spinstrike train --config RLLIB_RUN/config.yml`` (the README's way to
+    train a run again) trained SB3's PPO, silently, the record's ``backend: rllib`` unread. The
+    record's backend is the one left out on the command line; an SB3 record and a
+    hyperparameter file stay SB3's. (RLlib itself is stubbed: the backend chosen is the test.)"""
+    import spinstrike.agents.cli as cli
+
+    chosen = []
+
+    class Chosen(Exception):
+        pass
+
+    def stub(args):
+        chosen.append(args.backend)
+        raise Chosen
+
+    monkeypatch.setattr(cli, "_require_extra", lambda *a, **k: None)
+    monkeypatch.setattr(cli, "_train_rllib", stub)
+    record = {"algo": "ppo", "env": "SpinStrike/RodSpin-v0", "backend": "rllib", "seed": 3,
+              "hyperparameters": {"n_steps": 64}}
+    path = tmp_path / "config.yml"
+    path.write_text(yaml.safe_dump(record))
+    with pytest.raises(Chosen):
+        main(["train", "--config", str(path), "--out", str(tmp_path / "again")])
+    assert chosen == ["rllib"]
+    path.write_text(yaml.safe_dump({**record, "backend": "sb3"}))
+    monkeypatch.setattr(cli, "_train_rllib", None)  # (never called)
+    import spinstrike.agents.train as train_module
+
+    def sb3(*args, **kwargs):
+        chosen.append("sb3")
+        raise Chosen
+
+    monkeypatch.setattr(train_module, "train", sb3)
+    with pytest.raises(Chosen):
+        main(["train", "--config", str(path), "--out", str(tmp_path / "again2")])
+    assert chosen == ["rllib", "sb3"]
