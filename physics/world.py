@@ -583,7 +583,10 @@ class World:
         fields = {"_" + n for n in (*FLOAT_FIELDS.names, *INT_FIELDS.names)}
         drop = fields | set(self._PUBLIC_VIEWS) | {"_backend", "_last_step", "_last_contacts",
                                                    "_entries", "_lock"}
-        return {k: v for k, v in self.__dict__.items() if k not in drop}
+        with self._lock:  # the buffers as one step left them (pickled after this returns:
+            # a copy or pickle made while another thread stepped was torn, walk W26b F3)
+            return {k: v.copy() if isinstance(v, np.ndarray) else v
+                    for k, v in self.__dict__.items() if k not in drop}
 
     def __copy__(self) -> World:
         """A deep copy: a shallow one shared the state buffers, so stepping the copy moved the
