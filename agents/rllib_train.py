@@ -245,12 +245,15 @@ def load_algorithm_policy(path: str | Path):
 
 def _versions() -> dict[str, str]:
     import gymnasium
+    import numba
     import ray
     import torch
 
+    # numba too, the physics' compiler, as the SB3 backend's record (walk W26a F8: an upgrade
+    # went unnoted when an rllib run was evaluated)
     versions = {"python": sys.version.split()[0], "numpy": np.__version__,
-                "ray": ray.__version__, "gymnasium": gymnasium.__version__,
-                "torch": torch.__version__}
+                "numba": numba.__version__, "ray": ray.__version__,
+                "gymnasium": gymnasium.__version__, "torch": torch.__version__}
     from spinstrike.agents.config import code_version
 
     return {**code_version(), **{k: str(v) for k, v in versions.items()}}

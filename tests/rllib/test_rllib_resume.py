@@ -159,6 +159,9 @@ def test_resume_of_an_interrupted_rllib_run_trains_on_to_the_budget(tmp_path, ca
     assert [(r["timesteps"], r.get("interrupted", False)) for r in meta["runs"]] == \
         [(512, True), (1280, False)]
     assert all("commit" in r for r in meta["runs"])
+    import numba  # (walk W26a F8: the record left out the physics' compiler)
+
+    assert meta["versions"]["numba"] == numba.__version__
     rows = _rows(run / "progress.csv")
     assert [int(r[0]) for r in rows] == [1, 2, 3, 4, 5]
     assert [int(r[1]) for r in rows] == [256, 512, 768, 1024, 1280]
