@@ -346,10 +346,11 @@ class _StrikeTask(Task):
                 f"{w.names[w.pair_a[p]]!r} and {w.names[w.pair_b[p]]!r} overlap by "
                 f"{-sb[b, fast.S_OVERLAP_GAP]:.3g} m")
         if (sb[:, fast.S_FALLBACK] >= FALLBACK_NONFINITE).any():
-            # a strike float64 cannot carry or place (walk W24a F2: a launch at 1e12 m/s on a
-            # walled table was never stepped, and the env reported the target untouched)
+            # a strike float64 cannot carry (a launch at 1.5e308 m/s: the rod's speed
+            # overflowed, and the env reported an ordinary strike with a NaN spin), or one the
+            # travel bound left unstepped: raised, as world.step raises
             w.check_fallback(sb[:, fast.S_FALLBACK].astype(np.int64),
-                               float(self._scfg[fast.SC_CHUNK]))
+                             float(self._scfg[fast.SC_CHUNK]))
         self.result_v[:] = sb[:, fast.S_TARGET_VX:fast.S_TARGET_VY + 1]
         self.result_w[:] = sb[:, fast.S_TARGET_W]
         self.result_vs[:] = sb[:, fast.S_STRIKER_VX:fast.S_STRIKER_VY + 1]
