@@ -79,6 +79,7 @@ def make_env(env_id: str, env_config: Any = None) -> gym.Env | gym.vector.Vector
     (the runners get a shipped id: a variant is resolved in the driver)."""
     import spinstrike.envs  # noqa: F401  (a runner process: registers the ids there)
 
+    worker = getattr(env_config, "worker_index", None)  # RLlib's EnvContext has it
     env_id, env_config = resolve(env_id, env_config)
     cfg, args = _split(env_config)
     num_envs = args.pop("num_envs", None)
@@ -86,7 +87,8 @@ def make_env(env_id: str, env_config: Any = None) -> gym.Env | gym.vector.Vector
         return gym.make(env_id, config=cfg, **args)
     return RunnerSeeds(gym.make_vec(env_id, num_envs=int(num_envs),
                                     vectorization_mode="vector_entry_point",
-                                    autoreset_mode=AutoresetMode.NEXT_STEP, config=cfg, **args))
+                                    autoreset_mode=AutoresetMode.NEXT_STEP, config=cfg, **args),
+                       worker)
 
 
 class RunnerSeeds(gym.vector.VectorWrapper):
@@ -95,13 +97,25 @@ class RunnerSeeds(gym.vector.VectorWrapper):
     RLlib resets runner ``w``'s env with ``seed + w``, and a Gymnasium vector env seeds element
     ``i`` with ``seed + i``: runner ``w``'s element ``i + 1`` drew the tasks of runner
     ``w + 1``'s element ``i`` (with 2 runners of 8 envs, 7 of 8 task streams twice in every
-    batch). Here ``reset(seed=s)`` seeds element ``i`` with ``s * num_envs + i``: no two
-    elements of a run share a stream. A list of seeds passes through. Other attributes are
+    batch). Here ``reset(seed=s)`` seeds element ``i`` of runner ``w`` (``worker``, the
+    ``worker_index`` of RLlib's ``EnvContext``) from ``numpy.random.SeedSequence([s, w, i])``:
+    no two elements of a run share a stream, nor of two runs of other seeds (``s * num_envs
+    + i`` kept runs apart within, not across: ``--seed 0``'s runner 2 was ``--seed 1``'s
+    runner 1, walk W26a F11). Without a worker index (``make_env`` called directly) element
+    ``i`` is seeded ``s * num_envs + i``. A list of seeds passes through. Other attributes are
     the vector env's."""
+
+    def __init__(self, env: gym.vector.VectorEnv, worker: int | None = None) -> None:
+        super().__init__(env)
+        self.worker = worker
 
     def reset(self, *, seed=None, options=None):
         if isinstance(seed, numbers.Integral) and not isinstance(seed, bool):
-            seed = [int(seed) * self.num_envs + i for i in range(self.num_envs)]
+            if self.worker is None:
+                seed = [int(seed) * self.num_envs + i for i in range(self.num_envs)]
+            else:
+                seed = [int(np.random.SeedSequence([int(seed), int(self.worker), i])
+                            .generate_state(1)[0]) for i in range(self.num_envs)]
         return self.env.reset(seed=seed, options=options)
 
     def __getattr__(self, name: str):
