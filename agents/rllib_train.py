@@ -62,6 +62,15 @@ _TRANSLATED = {"n_steps", "batch_size", "n_epochs", "learning_rate", "gamma", "g
                "clip_range", "ent_coef", "vf_coef", "policy_kwargs"}
 
 
+def not_used(cfg: RunConfig) -> list[str]:
+    """The hyperparameters of ``cfg`` that RLlib's PPO does not take (RLlib's defaults apply):
+    config.yml records them as resolved and lists them under ``not_used`` (walk W26a F10:
+    ``log_std_init: -1.0`` read as the run's, RLlib's initial log std being ~0)."""
+    h = dict(cfg.model_kwargs)
+    return sorted(set(h) - _TRANSLATED) + [
+        f"policy_kwargs.{k}" for k in sorted(set(h.get("policy_kwargs") or {}) - {"net_arch"})]
+
+
 def ppo_config(cfg: RunConfig, seed: int, num_env_runners: int):
     """RLlib's ``PPOConfig`` for an rl-zoo3 PPO entry, on the native vector env."""
     from ray.rllib.algorithms.ppo import PPOConfig
@@ -70,9 +79,8 @@ def ppo_config(cfg: RunConfig, seed: int, num_env_runners: int):
     from spinstrike.envs.rllib import configure
 
     h = dict(cfg.model_kwargs)
-    unused = sorted(set(h) - _TRANSLATED) + [
-        f"policy_kwargs.{k}" for k in sorted(set(h.get("policy_kwargs") or {}) - {"net_arch"})]
-    if unused:  # said, not silently dropped (config.yml still records them)
+    unused = not_used(cfg)
+    if unused:  # said, not silently dropped (config.yml records them, and lists them)
         print(f"warning: --backend rllib does not use {', '.join(unused)} (RLlib's defaults "
               "apply)", file=sys.stderr)
     lr = h.get("learning_rate", 3e-4)
@@ -674,6 +682,8 @@ def _learn(algo_config, cfg: RunConfig, work: Path, *, seed, address, num_env_ru
                     "address": address, "versions": _versions(),
                     "hyperparameters": cfg.as_yaml_dict(), "finish": finish,
                     **_registered(cfg.env_id)}
+            if not_used(cfg):
+                meta["not_used"] = not_used(cfg)
             _write_yaml(work / "config.yml", meta)
             (work / "command.txt").write_text((command or shlex.join(sys.argv)) + "\n")
             with open(work / "progress.csv", "w", newline="") as f:

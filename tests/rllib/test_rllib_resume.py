@@ -162,6 +162,8 @@ def test_resume_of_an_interrupted_rllib_run_trains_on_to_the_budget(tmp_path, ca
     import numba  # (walk W26a F8: the record left out the physics' compiler)
 
     assert meta["versions"]["numba"] == numba.__version__
+    # what RLlib's PPO does not take is listed as such (walk W26a F10)
+    assert meta["not_used"] == ["policy_kwargs.log_std_init"]
     rows = _rows(run / "progress.csv")
     assert [int(r[0]) for r in rows] == [1, 2, 3, 4, 5]
     assert [int(r[1]) for r in rows] == [256, 512, 768, 1024, 1280]
