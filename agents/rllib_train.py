@@ -358,6 +358,7 @@ def train_rllib(env_id: str | None, *, config: str | Path | None = None,
     # SIGTERM (a scheduler's kill) as Ctrl-C, in place of the handler ray.init installs (Ray's
     # aborted the driver, exit -6, and the run folder was lost): the checkpoint and the logs
     # are kept and the message below says how to go on
+    finished = None  # the run's folder once its stretch is trained and booked
     with _sigterm_exits() as signals:
         try:
             _check_cpus(ray, num_env_runners)
@@ -373,6 +374,7 @@ def train_rllib(env_id: str | None, *, config: str | Path | None = None,
                 work.rename(run_dir)
                 work = run_dir
             runs = _record_segment(run_dir, steps, wall)
+            finished = run_dir
         except RunnersLost:
             _record_segment(work, _checkpoint_steps(work), time.time() - start,
                             interrupted=True)
@@ -388,7 +390,7 @@ def train_rllib(env_id: str | None, *, config: str | Path | None = None,
             raise
         finally:
             if started:
-                ray.shutdown()
+                _shutdown(ray, finished)
     result = TrainResult(run_dir=str(run_dir), env=env_id, timesteps=steps, wall_time=wall,
                          sessions=len(runs),
                          total_wall_time=sum(r["wall_time_s"] for r in runs))
@@ -474,6 +476,20 @@ def _init_ray(ray, address: str | None) -> bool:
             "start one with `ray start --head` (see docs/rllib.md), or leave --address out "
             "to train on a new local Ray") from None
     return True
+
+
+def _shutdown(ray, trained: Path | None) -> None:
+    """``ray.shutdown()``; a Ctrl-C or SIGTERM in it after the run trained its budget
+    (``trained``: the run's folder, in place) says how the run is finished, which it said
+    nothing of (walk W26a F7: no summary, no video, no word)."""
+    try:
+        ray.shutdown()
+    except (KeyboardInterrupt, SystemExit):
+        if trained is not None:
+            print(f"interrupted after training: the run and its RLlib checkpoint are saved in "
+                  f"{trained}; `spinstrike train --resume --out {trained}` writes what is "
+                  f"missing (its summary and video)", file=sys.stderr)
+        raise
 
 
 def _interrupted(work: Path, run_dir: Path, budget: int, wall: float) -> None:

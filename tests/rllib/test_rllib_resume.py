@@ -189,3 +189,33 @@ def test_sb3_resume_of_an_rllib_run_names_the_backend(tmp_path):
     with pytest.raises(AgentConfigError,
                        match="is an RLlib run .*`spinstrike train --resume --out "):
         train(None, None, out=run, resume=True)
+
+
+def test_ctrl_c_while_ray_shuts_down_after_training_says_how_to_finish(tmp_path, capsys,
+                                                                       monkeypatch):
+    """Walk W26a F7: a Ctrl-C while Ray shut down after the run had trained its budget left the
+    run without its summary and video, and nothing said so. It says the run is saved and which
+    command writes what is missing; that command (``--resume`` of a run that trained its
+    budget) writes the summary."""
+    from spinstrike.agents.cli import main
+
+    if ray.is_initialized():
+        ray.shutdown()
+    monkeypatch.chdir(tmp_path)
+    real = ray.shutdown
+
+    def interrupted(*args, **kwargs):
+        real(*args, **kwargs)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(ray, "shutdown", interrupted)
+    args = ["--env", STRIKE, "--num-env-runners", "0", "--n-envs", "4", "--timesteps", "512",
+            "--no-video", "--eval-episodes", "2", "--out", "run"]
+    assert main(["train", "--backend", "rllib", *args]) == 130
+    err = " ".join(capsys.readouterr().err.split())
+    assert "interrupted after training: the run and its RLlib checkpoint are saved in run; " \
+           "`spinstrike train --resume --out run` writes what is missing" in err, err
+    monkeypatch.setattr(ray, "shutdown", real)
+    assert not (tmp_path / "run" / "summary.md").exists()
+    assert main(["train", "--resume", "--out", "run"]) == 0, capsys.readouterr().err[-2000:]
+    assert (tmp_path / "run" / "summary.md").is_file()
