@@ -25,6 +25,7 @@ import os
 import sys
 import threading
 import warnings
+import weakref
 from dataclasses import dataclass
 from typing import Any
 
@@ -145,9 +146,17 @@ _parallel_ran = False
 _forked_after_parallel = False
 
 
+#: every live world, so that a forked child gets each its own lock
+_WORLDS: weakref.WeakSet = weakref.WeakSet()
+
+
 def _after_fork_in_child() -> None:
     global _forked_after_parallel
     _forked_after_parallel = _forked_after_parallel or _parallel_ran
+    # a world another thread was stepping or editing at the fork: its lock came over held, by
+    # a thread the child does not have, and the child's first step of its copy waited for ever
+    for world in list(_WORLDS):
+        world.__dict__["_lock"] = threading.RLock()
 
 
 if hasattr(os, "register_at_fork"):
@@ -307,6 +316,7 @@ class World:
     def __init__(self, scene: Any, batch_size: int = 1, solver: Any = None,
                  max_contacts: int = 64) -> None:
         self._lock = threading.RLock()
+        _WORLDS.add(self)
         self.scene: Scene = load_scene(scene)
         for name, value in (("batch_size", batch_size), ("max_contacts", max_contacts)):
             if (isinstance(value, bool) or not isinstance(value, (int, np.integer))
@@ -600,6 +610,7 @@ class World:
         self.__dict__.setdefault("_version", 0)  # (pickled before it was kept)
         self.__dict__.update(_backend=None, _last_step=None, _last_contacts=None, _entries={},
                              _lock=threading.RLock())
+        _WORLDS.add(self)
         self._make_buffer_views()
         self._make_views()
         if isinstance(self.solver, PymunkSolver):

@@ -147,3 +147,41 @@ def test_the_lock_is_not_pickled_and_copies_have_their_own():
         with world.lock:  # held here: the twin steps on its own lock
             twin.step(DT)
         assert twin.time[0] == pytest.approx(DT) and world.time[0] == 0.0
+
+
+def test_a_child_forked_while_another_thread_holds_the_world_steps_its_copy():
+    """The world's lock, held by a thread stepping or editing at a fork (multiprocessing's
+    default on Linux), came over to the child held by a thread the child does not have: the
+    child's first step of its copy of the world waited for ever. A forked child gets each world
+    a lock of its own."""
+    import multiprocessing
+
+    world, y0 = _flying()
+    held, release = threading.Event(), threading.Event()
+
+    def hold():
+        with world.lock:
+            held.set()
+            release.wait(60)
+
+    def child(pipe):  # the forked copy of this world, not a pickle of it
+        world.step(DT)
+        pipe.send(float(_lag(world, y0)[0]))
+
+    thread = threading.Thread(target=hold)
+    thread.start()
+    assert held.wait(10)
+    ours, theirs = multiprocessing.get_context("fork").Pipe()
+    process = multiprocessing.get_context("fork").Process(target=child, args=(theirs,))
+    try:
+        process.start()
+        got = ours.poll(30)
+        lag = ours.recv() if got else None
+    finally:
+        release.set()
+        thread.join()
+        process.join(5)
+        if process.is_alive():
+            process.kill()
+    assert got, "the forked child's step hung on the world's lock"
+    assert abs(lag) < 1e-6
