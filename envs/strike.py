@@ -347,7 +347,7 @@ class _StrikeTask(Task):
                 f"{-sb[b, fast.S_OVERLAP_GAP]:.3g} m")
         if (sb[:, fast.S_FALLBACK] >= FALLBACK_NONFINITE).any():
             # a strike float64 cannot carry (a launch at 1.5e308 m/s: the rod's speed
-            # overflowed, and the env reported an ordinary strike with a NaN spin), or one the
+            # overflowed, and the env returned it as an ordinary strike), or one the
             # travel bound left unstepped: raised, as world.step raises
             w.check_fallback(sb[:, fast.S_FALLBACK].astype(np.int64),
                              float(self._scfg[fast.SC_CHUNK]))
