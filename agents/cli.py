@@ -223,14 +223,10 @@ def _train_backend(args) -> None:
         args.backend = "rllib"
     if args.resume and args.out is not None:
         from spinstrike.agents.config import run_record
+        from spinstrike.agents.train import resume_folder
 
-        run = Path(args.out)
-        partial = run.with_name(run.name + ".partial") if run.name else run
-        for folder in (run, partial):
-            if folder.is_dir():
-                if run_record(folder / "config.yml").get("backend") == "rllib":
-                    args.backend = "rllib"
-                break
+        if run_record(resume_folder(Path(args.out)) / "config.yml").get("backend") == "rllib":
+            args.backend = "rllib"
 
 
 def cmd_train(args) -> int:

@@ -153,20 +153,24 @@ def _sigterm_exits():
     """Within: SIGTERM raises ``SystemExit(143)`` in the main thread, as Ctrl-C raises
     ``KeyboardInterrupt``, so that the worker pool's ``with`` block terminates its workers on
     the way out (by default SIGTERM ends the process at once and leaves the spawned workers to
-    finish the round they are running)."""
+    finish the round they are running). Yields the list of the signals received (an RLlib run
+    exits with the signal's code: Ray's ``wait`` turns a ``SystemExit`` raised while it waits
+    into its own ``SystemExit(1)``)."""
     import signal
     import threading
 
+    received: list[int] = []
     if threading.current_thread() is not threading.main_thread():
-        yield  # signal handlers can only be set from the main thread
+        yield received  # signal handlers can only be set from the main thread
         return
 
     def _exit(signum, frame):
+        received.append(signum)
         raise SystemExit(128 + signum)
 
     previous = signal.signal(signal.SIGTERM, _exit)
     try:
-        yield
+        yield received
     finally:
         signal.signal(signal.SIGTERM, previous)
 

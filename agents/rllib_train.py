@@ -19,7 +19,6 @@ trained RLModule's deterministic action. Needs the ``rllib`` extra.
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import json
 import math
@@ -320,6 +319,7 @@ def train_rllib(env_id: str | None, *, config: str | Path | None = None,
     runners lost for good (:data:`STALL_ITERATIONS`, :data:`STALL_SECONDS`) raise
     :class:`RunnersLost`, the folder kept the same way.
     """
+    from spinstrike.agents.imitate import _sigterm_exits
     from spinstrike.agents.train import FINISH, _record_segment
 
     given_finish = {"evaluate": evaluate, "eval_episodes": eval_episodes, "video": video}
@@ -508,30 +508,6 @@ def _interrupted(work: Path, run_dir: Path, budget: int, wall: float) -> None:
               file=sys.stderr)
 
 
-@contextlib.contextmanager
-def _sigterm_exits():
-    """Within: SIGTERM raises ``SystemExit(143)`` in the main thread, as Ctrl-C raises
-    ``KeyboardInterrupt``; yields the signals received (Ray's ``wait`` turns a SystemExit raised
-    while it waits into its own ``SystemExit(1)``: the caller exits with the signal's code)."""
-    import signal
-    import threading
-
-    received: list[int] = []
-    if threading.current_thread() is not threading.main_thread():
-        yield received  # signal handlers can only be set from the main thread
-        return
-
-    def _exit(signum, frame):
-        received.append(signum)
-        raise SystemExit(128 + signum)
-
-    previous = signal.signal(signal.SIGTERM, _exit)
-    try:
-        yield received
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
 def _checkpoint(work: Path) -> Path | None:
     """``work``'s RLlib checkpoint (``checkpoint/``; ``checkpoint.old/`` put back where a signal
     came between the renames that replace it), or None."""
@@ -572,8 +548,9 @@ def _save_checkpoint(algo, work: Path, steps: int, iteration: int) -> None:
 def _resume_dir(run_dir: Path) -> Path:
     """The folder ``--resume --out run_dir`` continues (the run, or its ``.partial``), checked:
     an RLlib run's record with an RLlib checkpoint."""
-    partial = run_dir.with_name(run_dir.name + ".partial")
-    work = run_dir if run_dir.exists() else partial
+    from spinstrike.agents.train import resume_folder
+
+    work = resume_folder(run_dir)
     if not (work / "config.yml").is_file():
         raise AgentConfigError(f"resume: {run_dir} is not a run directory")
     meta = run_record(work / "config.yml")

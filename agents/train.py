@@ -312,6 +312,14 @@ def plot_learning_curve(run_dir: Path, title: str) -> Path | None:
     return out
 
 
+def resume_folder(run_dir: Path) -> Path:
+    """The folder a resume of ``run_dir`` continues: the run itself, or, if it does not exist
+    (interrupted before it finished), the ``.partial`` beside it."""
+    if run_dir.exists() or not run_dir.name:
+        return run_dir
+    return run_dir.with_name(run_dir.name + ".partial")
+
+
 def _work_dir(run_dir: Path, resume: bool, force: bool) -> Path:
     """Where this invocation writes: the run itself (resume) or a fresh ``.partial`` beside it.
 
@@ -337,7 +345,7 @@ def _work_dir(run_dir: Path, resume: bool, force: bool) -> Path:
         raise AgentConfigError(f"out: {run_dir} holds the working folder; --force would delete "
                                "the folder you are in: choose another --out")
     if resume:
-        work = run_dir if run_dir.exists() else partial
+        work = resume_folder(run_dir)
         if not (work / "config.yml").exists():
             raise AgentConfigError(f"resume: {run_dir} is not a run directory")
         if _latest_checkpoint(work) is None:
@@ -977,8 +985,7 @@ def train(algo: str | None, env_id: str | None, *, config: str | Path | None = N
 def _refuse_rllib_run(run_dir: Path) -> None:
     """``resume`` of an RLlib run (``backend: rllib`` in its config.yml) is not this function's:
     it said the run "has no checkpoint to resume from", looking for SB3's (walk W26a F2)."""
-    partial = run_dir.with_name(run_dir.name + ".partial") if run_dir.name else run_dir
-    work = run_dir if run_dir.exists() else partial
+    work = resume_folder(run_dir)
     if run_record(work / "config.yml").get("backend") == "rllib":
         raise AgentConfigError(
             f"resume: {work} is an RLlib run (its config.yml records backend: rllib), not an "
