@@ -1037,11 +1037,7 @@ class World:
         if far.size:
             raise self._unresolved(far, self.dt if dt is None else dt)
         capped = np.flatnonzero(code == FALLBACK_CAPPED)
-        # the fastest point of a body's core, as the bound sees it: a light pivoted rod spun
-        # to 9e4 rad/s has a centre at rest and tips at 1e4 m/s
-        state = self._state[capped]
-        speeds = (np.hypot(state[..., VX], state[..., VY])
-                  + np.abs(state[..., OMEGA]) * self._half_length[capped])
+        speeds = self._core_speeds(capped)
         fastest = self.names[int(np.argmax(speeds.max(axis=0)))]
         force = np.hypot(self._forces[capped, :, 0], self._forces[capped, :, 1]).max()
         warnings.warn(
@@ -1052,13 +1048,20 @@ class World:
             f"speed and its spin times its half-length; forces set up to {force:.3g} N) need a "
             f"shorter step ({self.dt:g} s now)", RuntimeWarning, stacklevel=_caller_level())
 
+    def _core_speeds(self, rows: np.ndarray) -> np.ndarray:
+        """[rows, N] speed of the fastest point of each body's core in elements ``rows``, as
+        the solvers' bounds see it: its centre's speed plus its spin times its half-length (a
+        light pivoted rod spun to 9e4 rad/s has a centre at rest and tips at 1e4 m/s)."""
+        state = self._state[rows]
+        return (np.hypot(state[..., VX], state[..., VY])
+                + np.abs(state[..., OMEGA]) * self._half_length[rows])
+
     def _unresolved(self, far: np.ndarray, dt: float) -> SimulationError:
         """The error for elements ``far`` a step of ``dt`` seconds left alone: a body's travel
         in it (``kernels.travel``, here in numpy) beyond ``TRAVEL_LIMIT`` half sizes of the
         table."""
-        state, params, forces = self._state[far], self._params[far], self._forces[far]
-        speed = (np.hypot(state[..., VX], state[..., VY])
-                 + np.abs(state[..., OMEGA]) * params[..., HALF_LENGTH])
+        params, forces = self._params[far], self._forces[far]
+        speed = self._core_speeds(far)
         push = np.hypot(forces[..., FX], forces[..., FY]) * params[..., INV_MASS]
         with np.errstate(over="ignore", invalid="ignore"):
             reach = speed * dt + 0.5 * push * dt ** 2  # [elements, bodies]
@@ -1069,7 +1072,8 @@ class World:
             f"step: element(s) {_few(far)} not stepped: body {self.names[i]!r} would travel "
             f"up to {reach[e, i]:.3g} m in this {dt:g} s step (speed "
             f"{speed[e, i]:.3g} m/s, its spin times its half-length included; force "
-            f"{np.hypot(*forces[e, i]):.3g} N), more than 2**32 ({TRAVEL_LIMIT:.2g}) times the "
+            f"{np.hypot(*forces[e, i]):.3g} N), more than 2**{math.log2(TRAVEL_LIMIT):.0f} "
+            f"({TRAVEL_LIMIT:.2g}) times the "
             f"walled table's half size ({min(half):g} m), beyond what float64 resolves there "
             f"(its cushions would put it anywhere). Those elements keep their state and "
             f"clock; the others stepped. Lower the speed or force, or shorten the step",
