@@ -5,6 +5,7 @@ training has passed a given step (the tests of ``--resume`` and of checkpoints).
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
 import subprocess
 import sys
@@ -19,8 +20,11 @@ def signal_after_checkpoint(args: list[str], cwd: Path, signum: int, run: Path) 
     # SIGINT ignored, and the child inherited it: it trained on through the Ctrl-C sent below.
     # The child gets SIGINT's default (Python then turns it into KeyboardInterrupt), as a
     # terminal's Ctrl-C reaches a foreground command.
+    # PYTHONFAULTHANDLER: a child that does not exit is sent SIGABRT below, and prints where
+    # each of its threads was (once in CI, under Ray's venv, the child said nothing for 60 s)
     proc = subprocess.Popen([sys.executable, "-m", "spinstrike.agents.cli", *args],
                             cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            env={**os.environ, "PYTHONFAULTHANDLER": "1"},
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     checkpoints = run.with_name(run.name + ".partial") / "checkpoints"
     try:
@@ -33,9 +37,13 @@ def signal_after_checkpoint(args: list[str], cwd: Path, signum: int, run: Path) 
         try:
             code = proc.wait(timeout=60)
         except subprocess.TimeoutExpired:
-            proc.kill()
-            raise AssertionError("no exit 60 s after the signal; stderr:\n"
-                                 + proc.stderr.read().decode()) from None
+            proc.send_signal(signal.SIGABRT)  # faulthandler's dump of every thread's stack
+            try:
+                proc.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+            raise AssertionError("no exit 60 s after the signal; stderr (with the stacks at "
+                                 "SIGABRT):\n" + proc.stderr.read().decode()) from None
         assert code == 128 + signum, proc.stderr.read().decode()
     finally:
         if proc.poll() is None:
