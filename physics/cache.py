@@ -60,6 +60,7 @@ import shutil
 import stat
 import sys
 import tempfile
+import threading
 import time
 import warnings
 from functools import cache
@@ -84,6 +85,44 @@ __all__ = ["LOCK_TIMEOUT", "KernelCache", "cache_dir", "cache_info", "clear_cach
 ENV_VAR = "SPINSTRIKE_CACHE_DIR"
 #: the file in each cache folder naming the source directory its kernels were compiled from
 SOURCE_MARKER = "SOURCE"
+
+
+# A fork while another thread loads or compiles a kernel (the first World of a scene family or
+# solver in a process, a first call of a jitted helper) gave the child numba's compiler lock,
+# and LLVM's, held by a thread the child does not have: the child's first kernel load waited for
+# ever (walk W26b F4; a fork-started multiprocessing Pool then waited for that worker). The fork
+# waits for the load to finish instead, holding both locks across it; parent and child release
+# them. Registered after filelock's own fork hooks (imported above): before-hooks run in the
+# reverse order, so this one runs first and filelock's sees no lock being taken (the other
+# order deadlocked the parent: a loading thread held the compiler lock and waited at filelock's
+# closed fork gate).
+def _llvm_lock() -> Any:
+    from llvmlite.binding import ffi
+
+    return getattr(getattr(getattr(ffi, "lib", None), "_lock", None), "_lock", None)
+
+
+_FORK_LOCKS = tuple(lock for lock in (getattr(global_compiler_lock, "_lock", None), _llvm_lock())
+                    if lock is not None)
+_fork_held = threading.local()  # the locks the forking thread took (a hook that failed: none)
+
+
+def _before_fork() -> None:
+    _fork_held.locks = []
+    for lock in _FORK_LOCKS:  # numba's order: the compiler lock, then LLVM's
+        lock.acquire()
+        _fork_held.locks.append(lock)
+
+
+def _after_fork() -> None:
+    for lock in reversed(getattr(_fork_held, "locks", ())):
+        lock.release()
+    _fork_held.locks = []
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(before=_before_fork, after_in_parent=_after_fork,
+                        after_in_child=_after_fork)
 def cache_dir() -> Path:
     """The directory holding SpinStrike's compiled kernels (see the module docstring)."""
     override = os.environ.get(ENV_VAR)

@@ -202,3 +202,56 @@ def test_a_child_forked_while_another_thread_holds_the_world_steps_its_copy():
             process.kill()
     assert got, "the forked child's step hung on the world's lock"
     assert abs(lag) < 1e-6
+
+
+FORK_WHILE_LOADING = """
+import multiprocessing, threading, time
+from spinstrike import physics
+from spinstrike.physics import cache
+
+real, loading = cache.KernelCache.load_overload, threading.Event()
+
+def slow_load(self, sig, target_context):  # a load as long as a cold compile's, for the fork
+    loading.set()
+    time.sleep(1.0)
+    return real(self, sig, target_context)
+
+cache.KernelCache.load_overload = slow_load
+
+def child(pipe):
+    world = physics.World("rod_control")  # loads the exact solver's kernels
+    world.step(1e-3)
+    pipe.send(float(world.time[0]))
+
+loader = threading.Thread(target=physics.World, args=("rod_control",),
+                          kwargs={"solver": {"mode": "fixed"}})
+loader.start()
+assert loading.wait(120)
+ours, theirs = multiprocessing.get_context("fork").Pipe()
+process = multiprocessing.get_context("fork").Process(target=child, args=(theirs,))
+process.start()
+got = ours.poll(60)
+if not got:
+    process.kill()
+print("child", ours.recv() if got else "hung")
+process.join()
+loader.join()
+"""
+
+
+def test_a_child_forked_while_another_thread_loads_a_kernel_loads_its_own():
+    """Walk W26b F4: a fork (multiprocessing's default on Linux) while another thread built a
+    first World, i.e. loaded a kernel holding numba's compiler lock, gave the child that lock
+    held by a thread it does not have: the child's own first World waited for ever (5 of 5). The
+    fork now waits for the load to end (here stretched to a second, so that the fork falls
+    inside one), in a fresh process where no kernel is loaded yet."""
+    import os
+    import subprocess
+    import sys
+
+    if not hasattr(os, "fork"):
+        pytest.skip("needs fork")
+    done = subprocess.run([sys.executable, "-c", FORK_WHILE_LOADING], capture_output=True,
+                          text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["child", "0.001"], done.stdout + done.stderr
