@@ -352,7 +352,7 @@ def train_rllib(env_id: str | None, *, config: str | Path | None = None,
     algo_config = ppo_config(cfg, seed, num_env_runners)
     _compile_kernels(env_id, cfg.env_kwargs)
     if not resume:
-        work = _new_work_dir(run_dir, force)
+        work = _work_dir(run_dir, False, force)
     started = _init_ray(ray, address)
     start = time.time()
     # SIGTERM (a scheduler's kill) as Ctrl-C, in place of the handler ray.init installs (Ray's
@@ -562,17 +562,6 @@ def _resume_dir(run_dir: Path) -> Path:
                                f"resume from: it stopped before its first training iteration "
                                f"ended; run its command again (without --resume) to start over")
     return work
-
-
-def _new_work_dir(run_dir: Path, force: bool) -> Path:
-    """``_work_dir`` for a new run, which also keeps an interrupted RLlib run's ``.partial``
-    (its checkpoint is not SB3's, which ``_work_dir`` looks for): refused unless ``force``."""
-    partial = run_dir.with_name(run_dir.name + ".partial")
-    if not force and partial.is_dir() and _checkpoint(partial) is not None:
-        raise AgentConfigError(f"out: {partial} holds an interrupted run (RLlib checkpoint at "
-                               f"{_checkpoint_steps(partial)} steps); pass --resume to continue "
-                               f"it or --force to start over")
-    return _work_dir(run_dir, False, force)
 
 
 def _complete_run(run_dir: Path, env_id: str, steps: int, env_kwargs: dict,

@@ -358,11 +358,8 @@ def _work_dir(run_dir: Path, resume: bool, force: bool) -> Path:
                                    "another --out")
         raise AgentConfigError(f"out: {run_dir} exists; pass --force to replace it or "
                                "--resume to continue it")
-    ckpt = _latest_checkpoint(partial) if partial.exists() else None
-    if ckpt is not None and not force:  # an interrupted run: its checkpoints are not ours to drop
-        raise AgentConfigError(f"out: {partial} holds an interrupted run (checkpoint at "
-                               f"{_checkpoint_steps(ckpt)} steps); pass --resume to continue it "
-                               "or --force to start over")
+    if not force:
+        _keep_interrupted(partial, run_dir)
     if partial.exists() and any(partial.iterdir()) and not _is_run(partial) \
             and not (partial / "command.txt").is_file():
         # a run's own .partial holds its command (written first) or its record; any other
@@ -372,6 +369,26 @@ def _work_dir(run_dir: Path, resume: bool, force: bool) -> Path:
     if partial.exists():
         shutil.rmtree(partial)
     return partial
+
+
+def _keep_interrupted(partial: Path, run_dir: Path) -> None:
+    """Refuse a new run into ``run_dir`` whose ``.partial`` holds an interrupted run, SB3's or
+    RLlib's (its checkpoints are not ours to drop; an SB3 run deleted an RLlib one's, looking
+    for SB3's checkpoints only: walk W26a)."""
+    if not partial.is_dir():
+        return
+    from spinstrike.agents import rllib_train
+
+    ckpt = _latest_checkpoint(partial)
+    if ckpt is not None:
+        what, steps = "an interrupted run", _checkpoint_steps(ckpt)
+    elif rllib_train._checkpoint(partial) is not None:
+        what, steps = "an interrupted RLlib run", rllib_train._checkpoint_steps(partial)
+    else:
+        return
+    raise AgentConfigError(f"out: {partial} holds {what} (checkpoint at {steps} steps); pass "
+                           f"--resume to continue it (`spinstrike train --resume --out "
+                           f"{run_dir}`) or --force to start over")
 
 
 def _is_run(folder: Path) -> bool:

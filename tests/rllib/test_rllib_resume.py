@@ -150,6 +150,14 @@ def test_resume_of_an_interrupted_rllib_run_trains_on_to_the_budget(tmp_path, ca
     assert main(["train", "--backend", "rllib", *args]) == 130
     assert "continue with spinstrike train --resume --out run" in capsys.readouterr().err
     monkeypatch.setattr(evaluate, "run_episodes", original)
+    # a new run into the same --out, SB3's or RLlib's, keeps the interrupted one (an SB3 run
+    # deleted its .partial, looking for SB3's checkpoints only: walk W26a)
+    sb3 = ["--algo", "ppo", "--env", STRIKE, "--timesteps", "1280", "--out", "run"]
+    for command in (sb3, ["--backend", "rllib", *args]):
+        assert main(["train", *command]) == 2
+        assert "run.partial holds an interrupted RLlib run (checkpoint at 512 steps); pass " \
+               "--resume" in capsys.readouterr().err
+        assert (tmp_path / "run.partial" / "checkpoint" / "rllib_checkpoint.json").is_file()
     assert main(["train", "--resume", "--out", "run"]) == 0, capsys.readouterr().err[-3000:]
     out = capsys.readouterr().out
     assert "run: run  (1280 steps" in out and "in 2 sessions" in out, out
