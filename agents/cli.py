@@ -126,6 +126,22 @@ def _run_policy(run: Path):
     return policy, meta["env"], env_kwargs, "agent"
 
 
+def _run_of_checkpoint(path: Path) -> Path:
+    """The run ``path`` is the RLlib checkpoint of (``RUN/checkpoint``, which loads as an
+    ``algo.save()`` folder too), else ``path``: evaluated or filmed as the run, its summary and
+    video in the run's folder under the run's title (walk W26a: they were written inside
+    ``checkpoint/``, titled by the env id alone)."""
+    from spinstrike.agents.rllib_train import CHECKPOINT
+
+    run = path.parent
+    if path.name != CHECKPOINT or \
+            _run_record(str(run / "config.yml"), full=True).get("backend") != "rllib":
+        return path
+    print(f"note: {path} is the RLlib checkpoint of the run {run}: the run is evaluated or "
+          f"filmed (what is written goes there)", file=sys.stderr)
+    return run
+
+
 def _policy(args):
     from spinstrike import envs
     from spinstrike.agents.config import AgentConfigError
@@ -145,6 +161,7 @@ def _policy(args):
                                f"{' and '.join(given)} {'go' if len(given) > 1 else 'goes'} "
                                f"without a run directory")
     if args.run_dir:
+        args.run_dir = str(_run_of_checkpoint(Path(args.run_dir)))
         return _run_policy(Path(args.run_dir))
     if not args.env:
         for flag in ("oracle", "random", "planner"):

@@ -178,6 +178,15 @@ def test_resume_of_an_interrupted_rllib_run_trains_on_to_the_budget(tmp_path, ca
     assert (run / "summary.md").is_file()
     assert (run / "command.txt").read_text().splitlines()[-1] == \
         "spinstrike train --resume --out run"
+    # its checkpoint folder given to evaluate is the run (walk W26a: a summary titled by the
+    # env id alone was written inside checkpoint/)
+    title = (run / "summary.md").read_text().splitlines()[0]
+    assert main(["evaluate", "run/checkpoint", "--episodes", "2"]) == 0
+    assert "note: run/checkpoint is the RLlib checkpoint of the run run" in capsys.readouterr().err
+    assert not (run / "checkpoint" / "summary.md").exists()
+    summary = (run / "summary.md").read_text()
+    assert summary.startswith(title + "\n") and "Re-evaluated by `spinstrike evaluate`: 2 " \
+        "episodes" in summary
     # resumed again with its budget trained: nothing to do; a contradiction is refused
     assert main(["train", "--resume", "--out", "run"]) == 0
     assert "has trained its budget (1280 steps): nothing to do" in capsys.readouterr().out
