@@ -123,6 +123,8 @@ def _after_fork() -> None:
 if hasattr(os, "register_at_fork"):
     os.register_at_fork(before=_before_fork, after_in_parent=_after_fork,
                         after_in_child=_after_fork)
+
+
 def cache_dir() -> Path:
     """The directory holding SpinStrike's compiled kernels (see the module docstring)."""
     override = os.environ.get(ENV_VAR)
