@@ -195,16 +195,11 @@ def _train_defaults(args) -> None:
     """Fill in ``--algo``, ``--env`` and ``--seed`` left out. Resuming, those left out are the
     run's (its config.yml); only the default ``--out`` is named from the defaults."""
     if args.resume:
-        if args.out is None and args.backend == "rllib":
-            from spinstrike.agents.config import env_file_name
-
-            args.out = str(Path("runs") / f"ppo-rllib-{env_file_name(args.env or DEFAULT_ENV)}"
-                                          f"-s{args.seed or 0}")
-        elif args.out is None:
+        if args.out is None:
             from spinstrike.agents.train import default_run_dir
 
-            args.out = str(default_run_dir(args.algo or "ppo", args.env or DEFAULT_ENV,
-                                           args.seed or 0))
+            algo = "ppo-rllib" if args.backend == "rllib" else args.algo or "ppo"
+            args.out = str(default_run_dir(algo, args.env or DEFAULT_ENV, args.seed or 0))
         return
     record = _run_record(args.config)  # `--config RUN/config.yml`: the run's algo and env
     args.algo = args.algo or record.get("algo") or "ppo"

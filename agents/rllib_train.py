@@ -36,7 +36,6 @@ import yaml
 from spinstrike.agents.config import (
     AgentConfigError,
     RunConfig,
-    env_file_name,
     load_agent_config,
     run_record,
 )
@@ -46,6 +45,7 @@ from spinstrike.agents.train import (
     _check_entry_env_kwargs,
     _registered,
     _work_dir,
+    default_run_dir,
     finish_run,
     plot_learning_curve,
     run_title,
@@ -410,7 +410,7 @@ def _resumed_run(env_id, *, out, config, seed, timesteps, n_envs, num_env_runner
     if out is None:
         if env_id is None:
             raise AgentConfigError("out: give the run directory to resume")
-        out = Path("runs") / f"ppo-rllib-{env_file_name(env_id)}-s{seed or 0}"
+        out = default_run_dir("ppo-rllib", env_id, seed or 0)
     run_dir = Path(out)
     work = _resume_dir(run_dir)
     given = {"--algo": None, "--env": env_id, "--seed": seed, "--n-envs": n_envs,
@@ -457,8 +457,7 @@ def _new_run(env_id, *, out, config, seed, timesteps, n_envs, num_env_runners, e
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
         raise AgentConfigError(f"seed: must be an integer from 0 to 2**32 - 1, as the SB3 "
                                f"backend's (got {seed!r})")
-    name = f"ppo-rllib-{env_file_name(env_id)}-s{seed}"
-    run_dir = Path(out) if out is not None else Path("runs") / name
+    run_dir = Path(out) if out is not None else default_run_dir("ppo-rllib", env_id, seed)
     return run_dir, cfg, seed, num_env_runners
 
 

@@ -118,9 +118,10 @@ def _model_kwargs(cfg: RunConfig, env) -> dict[str, Any]:
 
 
 def default_run_dir(algo: str, env_id: str, seed: int) -> Path:
-    """``runs/<algo>-<env>-s<seed>``: where a run goes without ``out`` (a variant's name keeps
-    its namespace, :func:`env_file_name`: ``MyLab/RodSpin-v0`` trained into the shipped
-    ``RodSpin-v0``'s folder, which ``--force`` would have replaced)."""
+    """``runs/<algo>-<env>-s<seed>`` (``algo`` ``ppo-rllib`` for the RLlib backend's): where a
+    run goes without ``out`` (a variant's name keeps its namespace, :func:`env_file_name`:
+    ``MyLab/RodSpin-v0`` trained into the shipped ``RodSpin-v0``'s folder, which ``--force``
+    would have replaced)."""
     return Path("runs") / f"{algo}-{env_file_name(env_id)}-s{seed}"
 
 
