@@ -31,7 +31,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from spinstrike.agents.config import (
     AgentConfigError,
@@ -45,10 +44,12 @@ from spinstrike.agents.train import (
     _check_entry_env_kwargs,
     _registered,
     _work_dir,
+    book_resume,
     default_run_dir,
     finish_run,
     plot_learning_curve,
     run_title,
+    write_yaml,
 )
 from spinstrike.envs import as_registered
 
@@ -649,11 +650,7 @@ def _learn(algo_config, cfg: RunConfig, work: Path, *, seed, address, num_env_ru
             algo.restore_from_path(str(ckpt.resolve()))
             # the run's history up to the checkpoint: rows and evaluations after it go
             _truncate_history(work, algo.iteration, done)
-            meta = yaml.safe_load((work / "config.yml").read_text())
-            meta["hyperparameters"] = cfg.as_yaml_dict()  # the budget, if --timesteps changed
-            _write_yaml(work / "config.yml", meta)
-            with (work / "command.txt").open("a") as f:  # the commands that made the run
-                f.write((command or shlex.join(sys.argv)) + "\n")
+            book_resume(work, cfg, command)
         else:
             done = 0
             work.mkdir(parents=True, exist_ok=True)
@@ -665,7 +662,7 @@ def _learn(algo_config, cfg: RunConfig, work: Path, *, seed, address, num_env_ru
                     **_registered(cfg.env_id)}
             if not_used(cfg):
                 meta["not_used"] = not_used(cfg)
-            _write_yaml(work / "config.yml", meta)
+            write_yaml(work / "config.yml", meta)
             (work / "command.txt").write_text((command or shlex.join(sys.argv)) + "\n")
             with open(work / "progress.csv", "w", newline="") as f:
                 csv.writer(f).writerow(["iteration", "timesteps", "episode_return_mean",
@@ -739,13 +736,6 @@ def _healthy_runners(algo) -> int:
         return int(group.num_healthy_remote_env_runners()) if group is not None else 0
     except Exception:  # noqa: BLE001  (a message's number only)
         return 0
-
-
-def _write_yaml(path: Path, data: dict) -> None:
-    """``path`` written whole or not at all (a signal during the write left it empty)."""
-    tmp = path.with_name(path.name + ".partial")
-    tmp.write_text(yaml.safe_dump(data, sort_keys=False))
-    os.replace(tmp, path)
 
 
 def _read_evaluations(work: Path) -> dict[str, list]:

@@ -464,6 +464,23 @@ def _atomic(path: Path, write) -> None:
     os.replace(tmp, path)
 
 
+def book_resume(work: Path, cfg: RunConfig, command: str | None) -> None:
+    """A resumed run's record (either backend's): its hyperparameters as resolved now (the
+    budget, if ``--timesteps`` changed it) in ``config.yml``, and the command added to
+    ``command.txt`` (the commands that made the run, in order)."""
+    meta = yaml.safe_load((work / "config.yml").read_text())
+    meta["hyperparameters"] = cfg.as_yaml_dict()
+    write_yaml(work / "config.yml", meta)
+    with (work / "command.txt").open("a") as f:
+        f.write((command or shlex.join(sys.argv)) + "\n")
+
+
+def write_yaml(path: Path, data: dict) -> None:
+    """``data`` as YAML in ``path``, written whole or not at all (a signal between the open,
+    which empties the file, and the write left an empty config.yml)."""
+    _atomic(path, lambda tmp: tmp.write_text(yaml.safe_dump(data, sort_keys=False)))
+
+
 def _checkpoint_callback(every: int, folder: Path, on_policy: bool, normalize: bool):
     """A checkpoint each ``every`` steps, and one at the end: ``model_<steps>_steps.zip`` (SB3's
     names), with the VecNormalize statistics; for off-policy algorithms the replay buffer, the
@@ -627,11 +644,7 @@ def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, 
     work.mkdir(parents=True, exist_ok=True)
     if resume:
         model = _resume_model(cls, algo, cfg, work, env, device)
-        meta = yaml.safe_load((work / "config.yml").read_text())
-        meta["hyperparameters"] = cfg.as_yaml_dict()  # the budget, if --timesteps changed it
-        (work / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
-        with (work / "command.txt").open("a") as f:  # the commands that made the run, in order
-            f.write((command or shlex.join(sys.argv)) + "\n")
+        book_resume(work, cfg, command)
     else:
         try:
             model = cls(cfg.policy, env, seed=seed, device=device, verbose=0,
@@ -656,7 +669,7 @@ def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, 
                                  "states": done.rounds[-1]["states"],
                                  "last_return": done.rounds[-1]["return_mean"],
                                  "log_std": [round(x, 4) for x in done.log_std]}
-        (work / "config.yml").write_text(yaml.safe_dump(meta, sort_keys=False))
+        write_yaml(work / "config.yml", meta)
     upto = model.num_timesteps if resume else None  # the checkpoint's: history after it goes
     model.set_logger(Logger(str(work), [_csv_output(work, upto),
                                         make_output_format("tensorboard", str(work / "tb"))]))
@@ -1100,11 +1113,7 @@ def _record_segment(run_dir: Path, timesteps: int, wall: float,
     if interrupted:
         entry["interrupted"] = True
     meta.setdefault("runs", []).append(entry)
-    # written whole or not at all: a signal between the open (which empties the file) and the
-    # write left an empty config.yml
-    partial = path.with_name(path.name + ".partial")
-    partial.write_text(yaml.safe_dump(meta, sort_keys=False))
-    os.replace(partial, path)
+    write_yaml(path, meta)
     return meta["runs"]
 
 
