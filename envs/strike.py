@@ -533,6 +533,13 @@ MAX_TRACE_EVENTS = 500_000
 MARKER_FRAMES = 12
 
 
+def _norm(v: np.ndarray) -> np.ndarray:
+    """Lengths of the 2-vectors along ``v``'s last axis, by ``np.hypot``: squaring overflowed
+    from ~1.3e154 m/s (``speed_range`` and ``target_speed`` take any finite speed), and the
+    info's speeds read ``inf`` and PuckSpeed's reward NaN with numpy overflow warnings."""
+    return np.hypot(v[..., 0], v[..., 1])
+
+
 def _polar(vx: float, vy: float) -> str:
     """A velocity as speed and heading (degrees CCW from +x)."""
     return f"{math.hypot(vx, vy):.2f} m/s at {math.degrees(math.atan2(vy, vx)):+4.0f}\u00b0"
@@ -654,8 +661,7 @@ class RodSpinTask(_StrikeTask):
     def _result_info(self) -> dict[str, np.ndarray]:
         return {"spin": self.result_w.copy(), "target_spin": self.goal[:, 0].copy(),
                 "rod_velocity": self.result_v.copy(),
-                "speed": np.sqrt((self.result_v**2).sum(1)),
-                "striker_speed": np.sqrt((self.result_vs**2).sum(1))}
+                "speed": _norm(self.result_v), "striker_speed": _norm(self.result_vs)}
 
     def observe(self) -> np.ndarray:
         w = self.world
@@ -755,11 +761,11 @@ class PuckSpeedTask(_StrikeTask):
 
     def _reward(self):
         target = self.goal
-        err = np.sqrt(((self.result_v - target) ** 2).sum(1))
-        width = self.cfg.reward_width * np.sqrt((target**2).sum(1))
+        err = _norm(self.result_v - target)
+        t_speed = _norm(target)
+        width = self.cfg.reward_width * t_speed
         reward = np.exp(-0.5 * (err / width) ** 2)
         a = self.analytic()
-        t_speed = np.sqrt((target**2).sum(1))
         # every speed up to the fastest centred strike's: a slower one than the slowest
         # centred strike's off centre (cos(theta) of it, frictionless; friction turns and
         # slows it a little, continuously down to a grazing strike's nothing)
@@ -769,9 +775,9 @@ class PuckSpeedTask(_StrikeTask):
                         "analytic_speed_gain": a["gain"]}
 
     def _result_info(self) -> dict[str, np.ndarray]:
-        return {"velocity": self.result_v.copy(), "speed": np.sqrt((self.result_v**2).sum(1)),
+        return {"velocity": self.result_v.copy(), "speed": _norm(self.result_v),
                 "spin": self.result_w.copy(), "target_velocity": self.goal.copy(),
-                "striker_speed": np.sqrt((self.result_vs**2).sum(1))}
+                "striker_speed": _norm(self.result_vs)}
 
     def observe(self) -> np.ndarray:
         w = self.world
@@ -788,8 +794,8 @@ class PuckSpeedTask(_StrikeTask):
     @staticmethod
     def goal_reward(achieved, desired, cfg) -> np.ndarray:
         diff = achieved - desired
-        err = np.sqrt((diff * diff).sum(-1))  # products, not ** (RodSpinTask.goal_reward)
-        width = np.maximum(cfg.reward_width * np.sqrt((desired * desired).sum(-1)), 1e-12)
+        err = _norm(diff)
+        width = np.maximum(cfg.reward_width * _norm(desired), 1e-12)
         z = err / width
         return np.exp(-0.5 * (z * z))
 

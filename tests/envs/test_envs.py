@@ -996,6 +996,36 @@ def test_a_strike_whose_state_overflows_raises_not_reports():
         env.step(np.full(3, 0.5, np.float32))
 
 
+@pytest.mark.parametrize("env_id", ["SpinStrike/RodSpin-v0", "SpinStrike/PuckSpeed-v1"])
+def test_strikes_at_1e200_m_per_s_pay_as_at_4(env_id):
+    """Speeds and targets scaled by 5e199 (finite, accepted by the config): the info's speeds
+    squared their components and read ``inf`` from ~1.3e154 m/s, and PuckSpeed's reward was
+    NaN, both with numpy overflow warnings. The oracle's strike pays ~1, every reward and info
+    value is finite, with no warning, single and native vector env alike."""
+    from spinstrike.agents.oracle import oracle_for
+
+    s = 5e199
+    kw = {"speed_range": (0.5 * s, 4.0 * s)}
+    kw.update({"target_spin": (2.0 * s, 20.0 * s)} if "Rod" in env_id
+              else {"target_speed": (0.75 * s, 3.0 * s)})
+    env, policy = gym.make(env_id, **kw), oracle_for(env_id)
+    vec = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point", **kw)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        vec.reset(seed=0)
+        rewards, vec_info = vec.step(vec.action_space.sample())[1::3]
+        for seed in range(3):
+            obs, _ = env.reset(seed=seed)
+            _, reward, _, _, info = env.step(policy(env, obs))
+            assert reward > 0.999
+            speeds = info["speed"], info["striker_speed"]
+            assert all(1e199 < v < 1e201 for v in speeds), speeds
+            assert all(np.isfinite(v).all() for v in info.values()
+                       if isinstance(v, (float, np.ndarray))), info
+    assert np.isfinite(rewards).all()
+    assert np.isfinite(vec_info["striker_speed"]).all() and np.isfinite(vec_info["speed"]).all()
+
+
 def _pin_rod_against_the_right_cushion(env):
     """A rod upright 0.5 mm from the right cushion and the mallet 0.5 mm to its left at
     0.5 m/s: pushed right at full force, the settled steps make many contacts."""
