@@ -996,6 +996,21 @@ def test_a_strike_whose_state_overflows_raises_not_reports():
         env.step(np.full(3, 0.5, np.float32))
 
 
+@pytest.mark.parametrize("env_id", ["SpinStrike/RodSpin-v0", "SpinStrike/RodSpinControl-v0"])
+def test_randomize_none_is_no_randomisation(env_id):
+    """Walk W28a F6: ``gym.make(id, randomize=None)`` (a script's ``cfg.get("randomize")``) was
+    refused ("Input should be a valid dictionary"); it is the default, none, through
+    ``gym.make``, its spec and the native vector env."""
+    made = gym.make(env_id, randomize=None)
+    again = gym.make(made.spec)
+    vec = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point",
+                       randomize=None)
+    assert made.unwrapped.cfg.randomize == {}
+    for env in (made, again):
+        np.testing.assert_array_equal(env.reset(seed=3)[0], gym.make(env_id).reset(seed=3)[0])
+    np.testing.assert_array_equal(vec.reset(seed=3)[0][0], made.reset(seed=3)[0])
+
+
 @pytest.mark.parametrize("env_id", ["SpinStrike/RodSpin-v0", "SpinStrike/PuckSpeed-v1"])
 def test_strikes_at_1e200_m_per_s_pay_as_at_4(env_id):
     """Speeds and targets scaled by 5e199 (finite, accepted by the config): the info's speeds
