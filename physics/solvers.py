@@ -1280,11 +1280,15 @@ def _hold(S, Pm, hw, PA, PB, t_now, dt, tol, zeno_speed, cpair, crec, stats, tra
                                              oay, ka, obx, oby, kb)
         k_n = (Pm[a, INV_MASS] + Pm[b, INV_MASS] + rna * rna * Pm[a, INV_INERTIA]
                + rnb * rnb * Pm[b, INV_INERTIA])
-        mu = -vn / k_n
+        # the substep's impulse in all, j + mu, may not pull: where the pair would part (a
+        # disk sliding along a rod at a normal speed below round-off, walk W28b F3) mu took
+        # back more than j pushed, and the records read -2e-21 N s a substep
+        mu = max(-vn / k_n, -j)
         apply_impulse(S, Pm, a, b, False, mu, nx, ny, rna, rnb, True)
         _no_gain(S, Pm, a, b, e0, nx, ny, rna, rnb)
-        _record(0, t, S[a, X] + oax + ka * nx, S[a, Y] + oay + ka * ny, nx, ny, j + mu, 0.0,
-                cpair, crec, stats)
+        if j + mu > 0.0:
+            _record(0, t, S[a, X] + oax + ka * nx, S[a, Y] + oay + ka * ny, nx, ny, j + mu,
+                    0.0, cpair, crec, stats)
         substeps += 1
         if trace is not None:  # the trace hook
             trace_state(trace, t, S)

@@ -195,3 +195,30 @@ def test_the_held_contact_agrees_with_a_fine_settle(pair, atol):
     got = world.get_state()["state"][0, :2]
     want = ref.get_state()["state"][0, :2]
     np.testing.assert_allclose(got, want, rtol=0, atol=atol)
+
+
+@pytest.mark.parametrize("angle", [1e-12, 1e-13])
+@pytest.mark.parametrize("e", [1.0, 0.5])
+def test_a_disk_grazing_a_rod_below_round_off_records_no_pulling_impulse(angle, e):
+    """Walk W28b F3: a disk sliding onto a free rod's side at ``angle`` rad (a normal speed
+    below the round-off floor, 1e-12 of the point speeds, so the contact is plastic and held)
+    recorded 63 held substeps of -2e-21 N s, against the contract that a reported impulse is a
+    magnitude j >= 0: the velocity stage took back more than the position stage pushed. Every
+    record pushes, and the records still add up to the disk's change of momentum."""
+    v, r, rho, m = 1.0, 0.02, 0.01, 0.05
+    world = physics.World({
+        "effects": ["rotation"], "materials": {"restitution": e},
+        "solver": {"mode": "exact", "tolerance": 1e-12},
+        "bodies": [{"name": "rod", "shape": "rod", "length": 0.4, "thickness": 2 * rho,
+                    "mass": 0.1},
+                   {"name": "disk", "shape": "disk", "radius": r, "mass": m,
+                    "position": [-0.15, rho + r + 0.15 * np.tan(angle)],
+                    "velocity": [v * np.cos(angle), -v * np.sin(angle)]}]})
+    v0 = world.state.velocities[0, 1].copy()
+    c = world.step(0.3)
+    assert len(c) >= 1 and c.dropped[0] == 0
+    assert np.all(c.impulse >= 0.0), c.impulse
+    sign = np.where(c.body_b == 1, 1.0, -1.0)[:, None]
+    np.testing.assert_allclose(m * (world.state.velocities[0, 1] - v0),
+                               (sign * c.impulse[:, None] * c.normal).sum(0), rtol=0, atol=1e-27)
+    assert world.momentum()[0] == pytest.approx(m * v0, rel=0, abs=1e-17)

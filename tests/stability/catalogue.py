@@ -313,9 +313,24 @@ def _grazing(solver: str) -> Measurement:
                 if not world.gaps().min() >= -1e-9:
                     err = math.inf
                 worst = max(worst, err)
+        # (d) below that floor, a puck grazing a free rod at 1e-12 rad: plastic and held, no
+        # record pulling (walk W28b F3: -2e-21 N s), momentum kept (relative to m v)
+        for e in (0.5, 1.0):
+            scene = {"effects": ["rotation"], "materials": {"restitution": e},
+                     "bodies": [{"name": "rod", "shape": "rod", "length": 0.4,
+                                 "thickness": 0.02, "mass": 0.1},
+                                {"name": "puck", "shape": "disk", "radius": 0.02, "mass": 0.05,
+                                 "position": [-0.15, 0.03 + 0.15e-12],
+                                 "velocity": [1.0, -1e-12]}]}
+            world = _world(scene, solver)
+            p0 = world.momentum()[0]
+            c = world.step(0.3)
+            err = float(np.abs(world.momentum()[0] - p0).max() / 0.05)
+            worst = max(worst, err if len(c) and c.impulse.min() >= 0 else math.inf)
     return Measurement(worst, "touching + sliding along a cushion; exact tangential pass"
                        + ("; approach angle 1e-3..1e-11 rad, e = 0 and 1 (vn' = -e vn, "
-                          "relative to vn)" if solver == "exact" else ""))
+                          "relative to vn); a puck grazing a free rod at 1e-12 rad (plastic, "
+                          "no impulse < 0, momentum)" if solver == "exact" else ""))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1070,9 +1085,12 @@ CASES: tuple[Case, ...] = (
     Case("grazing", "Grazing contact: approach speed -> 0, normal ⟂ velocity",
          "no impulse, no sticking, no NaN when touching and sliding or passing tangentially "
          "(velocities and path unchanged); at approach angles down to 1e-11 rad, vn' = -e vn "
-         "(relative to vn) and the tangential velocity untouched", "rel.", _grazing,
+         "(relative to vn) and the tangential velocity untouched; from ~1e-12 rad the normal "
+         "speed is below the round-off floor (1e-12 of the point speeds) and the contact is "
+         "plastic whatever e, held with no pulling impulse", "rel.", _grazing,
          {"exact": Claim(1e-9), "fixed": Claim(1e-12), "pymunk": Claim(1e-9)},
-         brief="tangential passes get no impulse; vn' = -e vn down to 1e-11 rad"),
+         brief="tangential passes get no impulse; vn' = -e vn down to 1e-11 rad, plastic "
+               "below round-off (~1e-12 rad)"),
     Case("theta_90", "theta -> 90 deg (lever arm -> 0)",
          "seed's closed forms at theta = 90 deg - 1e-1..1e-11 rad; exactly end-on: no spin "
          "at all", "V, V/r", _theta_90, {"exact": Claim(1e-12)},
