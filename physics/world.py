@@ -59,6 +59,7 @@ from spinstrike.physics.layout import (
     CI_SUBSTEPS,
     CI_TABLE_FRICTION,
     CI_ZENO_IMPACTS,
+    FALLBACK,
     FALLBACK_CAPPED,
     FALLBACK_JAMMED,
     FALLBACK_NONE,
@@ -142,6 +143,12 @@ _PARALLEL_LOCK = threading.Lock()
 #: GNU OpenMP (numba's layer here) kills a forked child at its first parallel region
 #: ("fork() called from a process already using GNU OpenMP"), and a multiprocessing Pool then
 #: waits for it forever, so such a child runs the serial kernels
+#: (fallback, capped) of each fallback code, for StepStats by one lookup: the three
+#: comparisons and the flags of three arrays were ~4 of the ~10 us of a first ``last_step`` read
+#: after a step (walk W28b F2: a single exact env's step is ~9 us)
+_FALLBACK_FLAGS = np.zeros((len(FALLBACK), 2), bool)
+_FALLBACK_FLAGS[[FALLBACK_JAMMED, FALLBACK_SETTLED, FALLBACK_CAPPED], 0] = True
+_FALLBACK_FLAGS[FALLBACK_CAPPED, 1] = True
 _parallel_ran = False
 _forked_after_parallel = False
 
@@ -1163,16 +1170,14 @@ class World:
     def _step_stats(self) -> StepStats:
         if self._last_step is None:
             st = self._stats.copy()
-            code = st[:, STAT_FALLBACK]
-            fallback = (code == FALLBACK_JAMMED) | (code == FALLBACK_SETTLED) | (
-                code == FALLBACK_CAPPED)
-            capped = code == FALLBACK_CAPPED
+            flags = _FALLBACK_FLAGS[st[:, STAT_FALLBACK]]
             watched_impulse = self._crec[:, self.max_contacts, REC_WATCHED_J].copy()
-            for a in (st, fallback, capped, watched_impulse):  # st: and so its columns
+            for a in (st, flags, watched_impulse):  # and so their columns
                 a.flags.writeable = False
             self.__dict__["_last_step"] = StepStats(
                 st[:, STAT_EVENTS], st[:, STAT_ITERATIONS], st[:, STAT_SUBSTEPS],
-                st[:, STAT_CONTACTS], fallback, capped, st[:, STAT_WATCHED], watched_impulse)
+                st[:, STAT_CONTACTS], flags[:, 0], flags[:, 1], st[:, STAT_WATCHED],
+                watched_impulse)
         return self._last_step
 
     @property
