@@ -270,6 +270,29 @@ def test_main_quick_writes_markdown_and_plot(tmp_path):
             assert f"`{name}` ({accuracy.QUICK_VARIANTS} of {n} variants: " in text
 
 
+@pytest.mark.parametrize("phase", [accuracy.PHASES[0], accuracy.PHASES[-1]])
+def test_the_plain_pymunk_loop_gives_the_backends_answer(phase):
+    """Walk W28b F1: the like-for-like peer (a pymunk Space as a pymunk user writes it, no
+    callbacks) is the same physics as the backend the table times: the same velocities after
+    every off-line disk-rod impact, to the printed digits and beyond."""
+    setting = Setting("pymunk", steps=accuracy.PYMUNK_REFERENCE[0],
+                      iterations=accuracy.PYMUNK_REFERENCE[1])
+    for v in get_case(accuracy.PLAIN_CASE).variants:
+        if not v.normal_fixed:
+            plain, _ = accuracy.plain_pymunk(v, phase=phase, min_time=0)
+            assert plain == pytest.approx(errors(setting, v, [phase])[0][0], rel=1e-9), v.name
+            assert plain > 1e-4  # a fixed-step engine's error, not the exact one's
+
+
+def test_main_quick_reports_the_like_for_like_line(tmp_path):
+    assert accuracy.main(["--quick", "--cases", "offline_disk_rod", "--out", str(tmp_path),
+                          "--no-effects", "--min-time", "0", "--batch", "1"]) == 0
+    line = next(x for x in (tmp_path / "accuracy.md").read_text().splitlines()
+                if x.startswith("- **Like for like**"))
+    assert "plain pymunk loop" in line and "one copy per `world.step`" in line
+    assert re.search(r"\*\*[0-9.]+x\*\* faster", line), line
+
+
 def test_cases_are_listed_in_report_order():
     assert CASES == ("seed", "offline_disk_rod", "disk_disk", "rod_wall", "spinning_rod", "tunnel")
 

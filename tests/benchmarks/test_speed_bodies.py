@@ -106,3 +106,32 @@ def test_without_sb3_a_quick_run_skips_the_ppo_row_and_a_full_run_refuses_first(
     assert "PPO env-share row is skipped" in captured.err
     assert "native vector env (random) / SyncVectorEnv on pymunk: 100.0x" in captured.out
     assert "PPO env share" not in captured.out
+
+
+def test_the_env_rates_time_no_bookkeeping(monkeypatch):
+    """Walk W28b F2: the rates read ``world.last_step`` after every timed step, whose first read
+    builds its stats (~10 us, half of an exact control step), so the rows charged the harness's
+    own bookkeeping to the env (and to B = 1 of the batch sweep). Contacts are counted in the
+    untimed warm-up alone."""
+    from spinstrike.physics import World
+
+    reads = [0]
+    real = World.last_step
+
+    def counted(self):
+        reads[0] += 1
+        return real.fget(self)
+
+    monkeypatch.setattr(World, "last_step", property(counted))
+    rate, per_step = speed._single_rate(speed.CONTROL, 40, 3)
+    assert reads[0] == 40 and rate > 0 and per_step >= 0
+    reads[0] = 0
+    rate, per_step = speed._vector_rate(speed.CONTROL, 4, 10, 3)
+    assert reads[0] == 10 and rate > 0 and per_step >= 0
+    reads[0] = 0
+    rate, per_step = speed._sync_pymunk_rate(2, 5, 2)
+    assert reads[0] == 10 and rate > 0 and per_step >= 0
+    reads[0] = 0
+    scene = speed._many_pucks_scene(4)
+    seconds, per_step = speed._world_step_time(scene, 2, 5, 3)
+    assert reads[0] == 5 and seconds > 0 and per_step >= 0
