@@ -135,6 +135,13 @@ __all__ = ["Buffers", "Contacts", "SimulationError", "State", "StepStats", "Worl
 #: batch size from which the parallel kernels are used
 PARALLEL_BATCH = 256
 
+#: (fallback, capped) of each fallback code, for StepStats by one lookup: the three
+#: comparisons and the flags of three arrays were ~4 of the ~10 us of a first ``last_step`` read
+#: after a step (walk W28b F2: a single exact env's step is ~9 us)
+_FALLBACK_FLAGS = np.zeros((len(FALLBACK), 2), bool)
+_FALLBACK_FLAGS[[FALLBACK_JAMMED, FALLBACK_SETTLED, FALLBACK_CAPPED], 0] = True
+_FALLBACK_FLAGS[FALLBACK_CAPPED, 1] = True
+
 #: one parallel kernel at a time in a process: numba's workqueue threading layer (its choice
 #: where neither TBB nor OpenMP is installed) aborts the process when two threads run parallel
 #: regions at once (a threaded evaluation of two vector envs)
@@ -143,12 +150,6 @@ _PARALLEL_LOCK = threading.Lock()
 #: GNU OpenMP (numba's layer here) kills a forked child at its first parallel region
 #: ("fork() called from a process already using GNU OpenMP"), and a multiprocessing Pool then
 #: waits for it forever, so such a child runs the serial kernels
-#: (fallback, capped) of each fallback code, for StepStats by one lookup: the three
-#: comparisons and the flags of three arrays were ~4 of the ~10 us of a first ``last_step`` read
-#: after a step (walk W28b F2: a single exact env's step is ~9 us)
-_FALLBACK_FLAGS = np.zeros((len(FALLBACK), 2), bool)
-_FALLBACK_FLAGS[[FALLBACK_JAMMED, FALLBACK_SETTLED, FALLBACK_CAPPED], 0] = True
-_FALLBACK_FLAGS[FALLBACK_CAPPED, 1] = True
 _parallel_ran = False
 _forked_after_parallel = False
 
