@@ -25,6 +25,7 @@ checkpoint are kept and the new ones appended, so ``learning_curve.png`` shows t
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import os
 import pickle
@@ -622,6 +623,61 @@ def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, epis
     ])
 
 
+class _StopOnSignal:
+    """Ctrl-C and SIGTERM while SB3 trains end ``model.learn`` at the next env step, and are
+    raised after it (``KeyboardInterrupt``; ``SystemExit(143)``), not inside it.
+
+    Raised inside it, at any bytecode, the exception could land in TensorBoard's event writer
+    between its queue's bookkeeping steps; closing the logger then waited for the writer's
+    thread for ever (twice in CI: the child silent 60 s after the signal, its main thread in
+    ``EventFileWriter.stop`` joining the writer, which waited on an empty queue). A second
+    signal is raised at once. Only in the main thread (where signal handlers run)."""
+
+    def __init__(self) -> None:
+        from stable_baselines3.common.callbacks import BaseCallback
+
+        noted: list[int] = []
+        self.noted = noted
+
+        class Callback(BaseCallback):
+            def _on_step(self) -> bool:
+                return not noted
+
+        self.callback = Callback()
+
+    @staticmethod
+    def _raise(signum: int):
+        import signal
+
+        raise KeyboardInterrupt if signum == signal.SIGINT else SystemExit(128 + signum)
+
+    @contextlib.contextmanager
+    def noting_signals(self):
+        import signal
+        import threading
+
+        if threading.current_thread() is not threading.main_thread():
+            yield
+            return
+
+        def note(signum, frame):
+            if self.noted:  # the second: at once
+                self._raise(signum)
+            self.noted.append(signum)
+
+        previous = {sig: signal.signal(sig, note) for sig in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            yield
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+
+    def raise_noted(self) -> None:
+        """After the logger is closed: the signal that stopped training, as its default."""
+        if self.noted:
+            self._raise(self.noted[0])
+
+
 def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, eval_freq,
            eval_episodes_during, command, torch_threads, imitate=None,
            finish=None) -> tuple[Any, float]:
@@ -687,10 +743,12 @@ def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, 
 
     # our own bar, closed on the way out: SB3's, left open by Ctrl-C, failed at exit
     bar = ProgressBarCallback() if progress and remaining > 0 else None
+    stop = _StopOnSignal()
     try:
         if remaining > 0:
-            model.learn(remaining, callback=[callbacks, bar] if bar else callbacks,
-                        reset_num_timesteps=not resume)
+            with stop.noting_signals():
+                model.learn(remaining, callback=[callbacks, stop.callback, bar] if bar else
+                            [callbacks, stop.callback], reset_num_timesteps=not resume)
     except ValueError as exc:
         # torch's distributions refuse a NaN or infinite parameter: the updates diverged (a
         # learning rate of 1e30 ended in a hundred-line traceback naming a Normal's scale)
@@ -705,6 +763,7 @@ def _learn(algo, cfg: RunConfig, work: Path, *, seed, device, resume, progress, 
         # progress.csv and the TensorBoard events, interrupted or not (SB3 leaves its logger's
         # files to the garbage collector: a ResourceWarning at exit)
         model.logger.close()
+    stop.raise_noted()
     wall = time.time() - start
     model.save(work / "model.zip")
     if cfg.normalize:

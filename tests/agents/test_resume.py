@@ -166,6 +166,55 @@ def test_ctrl_c_ends_with_the_resume_hint_and_no_traceback(tmp_path):
     assert "Traceback" not in err and "Exception ignored" not in err, err
 
 
+@pytest.mark.parametrize("signals", [1, 2])
+def test_a_signal_ends_training_at_the_next_step_and_is_raised_after_it(tmp_path, monkeypatch,
+                                                                         capsys, signals):
+    """Ctrl-C raised inside ``model.learn`` could land in TensorBoard's writer queue, and
+    closing the logger then waited for its thread for ever (twice in CI, the child's stacks
+    showed it). The first SIGINT is noted and ends training at its env step; SB3's
+    ``learn`` returns (``on_training_end``), the logger closes, and then it is raised: exit 130
+    with the resume hint. A second one is raised at once, inside ``learn``, as before."""
+    import os
+    import signal
+
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    from spinstrike.agents import train as train_mod
+
+    seen = {"steps": [], "ended": False}
+
+    class _Signal(BaseCallback):
+        def _on_step(self) -> bool:
+            seen["steps"].append(self.num_timesteps)
+            if self.num_timesteps == 1280:
+                for _ in range(signals):
+                    os.kill(os.getpid(), signal.SIGINT)
+            return True
+
+        def _on_training_end(self) -> None:
+            seen["ended"] = True
+
+    real = train_mod._callbacks
+
+    def callbacks(*args, **kwargs):
+        eval_env, cbs = real(*args, **kwargs)
+        cbs.callbacks.append(_Signal())
+        return eval_env, cbs
+
+    monkeypatch.setattr(train_mod, "_callbacks", callbacks)
+    run = tmp_path / "run"
+    with contextlib.suppress(KeyboardInterrupt):
+        assert main(["train", "--algo", "ppo", "--env", ENV, "--config",
+                     str(_tiny_config(tmp_path / "ppo.yml", 4096)), "--no-video",
+                     "--no-eval", "--no-progress", "--out", str(run)]) == 130
+    assert f"interrupted: continue with --resume --out {run}" in capsys.readouterr().err
+    assert seen["ended"] is (signals == 1)  # learn returned, or the second raised within
+    assert seen["steps"][-1] == 1280  # no step after it (the stop is read in the same step)
+    [stretch] = yaml.safe_load((tmp_path / "run.partial" / "config.yml").read_text())["runs"]
+    assert stretch["interrupted"] is True
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
 def test_a_resumed_run_finishes_as_its_first_command_asked_and_counts_all_its_time(
         tmp_path, monkeypatch, capsys):
     """``--resume`` dropped the first command's ``--no-video`` and ``--eval-episodes`` (it filmed
