@@ -624,14 +624,16 @@ def _callbacks(algo: str, cfg: RunConfig, work: Path, seed: int, freq: int, epis
 
 
 class _StopOnSignal:
-    """Ctrl-C and SIGTERM while SB3 trains end ``model.learn`` at the next env step, and are
-    raised after it (``KeyboardInterrupt``; ``SystemExit(143)``), not inside it.
+    """Ctrl-C and SIGTERM while SB3 trains end ``model.learn`` at the env step under way (after
+    the update or evaluation under way), and are raised after it (``KeyboardInterrupt``;
+    ``SystemExit(143)``), not inside it.
 
     Raised inside it, at any bytecode, the exception could land in TensorBoard's event writer
     between its queue's bookkeeping steps; closing the logger then waited for the writer's
-    thread for ever (twice in CI: the child silent 60 s after the signal, its main thread in
-    ``EventFileWriter.stop`` joining the writer, which waited on an empty queue). A second
-    signal is raised at once. Only in the main thread (where signal handlers run)."""
+    thread (a fresh-venv run: the child silent 60 s after the signal, its main thread in
+    ``EventFileWriter.stop`` joining the writer, which was waiting in its queue's ``get``; a CI
+    run's SIGTERM test hung alike before the stacks were printed). A second signal is raised
+    at once. Only in the main thread (where signal handlers run)."""
 
     def __init__(self) -> None:
         from stable_baselines3.common.callbacks import BaseCallback
