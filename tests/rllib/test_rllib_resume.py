@@ -6,6 +6,7 @@ train --resume --out RUN`` of an RLlib run (it said the run had no checkpoint). 
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -80,7 +81,9 @@ def test_lost_env_runners_stop_the_run_short_of_its_budget_with_an_error(
 
 def _start(out: Path, runners: str):
     """``spinstrike train --backend rllib`` as a terminal starts it (its own process group,
-    SIGINT at its default), 100 iterations asked; returns once 2 have been logged."""
+    SIGINT at its default), 100 iterations asked; returns once 2 have been checkpointed (a row
+    of progress.csv is written before its iteration's checkpoint: a signal between the two
+    keeps the one before, ci38's failure when this waited for the rows)."""
     def reset():
         os.setsid()
         signal.signal(signal.SIGINT, signal.SIG_DFL)
@@ -90,11 +93,14 @@ def _start(out: Path, runners: str):
                  "--out", str(out))
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=ENV, preexec_fn=reset)
-    progress = Path(str(out) + ".partial") / "progress.csv"
+    steps = Path(str(out) + ".partial") / "checkpoint" / "spinstrike_steps.json"
     deadline = time.monotonic() + 240
     while time.monotonic() < deadline and proc.poll() is None:
-        if progress.is_file() and len(_rows(progress)) >= 2:
-            break
+        try:
+            if json.loads(steps.read_text())["iteration"] >= 2:
+                break
+        except (OSError, ValueError, KeyError):  # not yet written, or between the renames
+            pass
         time.sleep(0.2)
     assert proc.poll() is None, proc.communicate()[1][-3000:]
     return proc
