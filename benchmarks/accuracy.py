@@ -685,9 +685,9 @@ def _effects_table(effects: list[dict]) -> list[str]:
            "the motion of the row above them: an effect's code runs only where its parameter "
            "is above zero, so they price a listed effect that does nothing (the same as an "
            "unlisted one, within the noise). Configurations are timed in interleaved rounds, "
-           "the fastest of each kept. pymunk's "
-           "`table_friction` is a Python `velocity_func` per sliding body and step, hence its "
-           "cost.", "",
+           "the fastest of each kept. pymunk's `table_friction` is two Chipmunk joints per "
+           "sliding body (a pivot and a gear joint with capped force, as pymunk users write "
+           "top-down friction), solved with the contacts in every iteration.", "",
            "| configuration | " + " | ".join(names) + " |",
            "|---|" + "---|" * len(names)]
     for r in effects:

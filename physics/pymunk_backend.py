@@ -35,10 +35,12 @@ project allows):
   normal impulse by sequential impulses), not the project's sequential stage: with ``mu > 0``
   the two models differ by design.
 * ``driven`` bodies get ``world._forces`` applied before every pymunk step.
-* ``table_friction`` is implemented by a per-body ``velocity_func`` (Python, called by Chipmunk
-  each step for each sliding body) with the model of ``physics.effects``: speed reduced by
+* ``table_friction`` is implemented by two Chipmunk joints per sliding body (a pivot and a gear
+  joint to the static body, ``max_bias = 0``, ``max_force`` the cloth's force and torque:
+  ``PymunkBackend._set_cloth``) with the model of ``physics.effects``: speed reduced by
   ``mu_t g h`` along the velocity and ``|omega|`` by ``mu_t g h / k`` per step of ``h``, never
-  reversed; driven bodies exempt. Integrated per step (first order), like the ``fixed`` solver.
+  reversed; driven bodies exempt. Integrated per step (first order), like the ``fixed`` solver;
+  solved with the contacts (sequential impulses), not before them.
   Any other effect raises :class:`~physics.scene.SceneError` naming it (``SUPPORTED_EFFECTS``).
 
 Knobs (set on every space):
@@ -126,12 +128,15 @@ COLLISION_SLOP = 0.0
 WALL_DEPTH = 1.0
 #: empty steps a new space takes before bodies are added (see module docstring)
 WARM_STEPS = 5
+#: a speed (spin) at most this times one substep's cloth decrement is round-off of a stopped
+#: body and is set to 0 (``PymunkBackend._set_cloth``)
+STOPPED = 1e-9
 
 
 class _Element:
     """One batch element's pymunk objects."""
 
-    __slots__ = ("space", "bodies", "shapes", "walls", "joints", "cloth")
+    __slots__ = ("space", "bodies", "shapes", "walls", "joints", "cloth", "decel")
 
     def __init__(self) -> None:
         self.space = pymunk.Space()
@@ -139,7 +144,9 @@ class _Element:
         self.shapes: list[pymunk.Shape] = []
         self.walls: list[pymunk.Segment] = []
         self.joints: list[pymunk.Constraint] = []
-        self.cloth: list[list[float]] = []  # per body [speed decel, spin decel], m/s^2, rad/s^2
+        # per body its cloth-friction joints [linear, angular] (None: no such friction)
+        self.cloth: list[list[pymunk.Constraint | None]] = []
+        self.decel: list[tuple[float, float]] = []  # per body [speed, spin] decel, m/s^2, rad/s^2
 
 
 class PymunkBackend:
@@ -228,8 +235,8 @@ class PymunkBackend:
                 joint.collide_bodies = True
                 sp.add(joint)
                 el.joints.append(joint)
-            cloth = [0.0, 0.0]
-            el.cloth.append(cloth)
+            el.cloth.append([None, None])
+            el.decel.append((0.0, 0.0))
         if w.walls:
             for k, ((a, c), r) in enumerate(self._wall_geometry(b)):
                 seg = pymunk.Segment(sp.static_body, a, c, r)
@@ -251,20 +258,45 @@ class PymunkBackend:
         return float(self.world.inertia[b, i]) if self.world.rotation else math.inf
 
     def _set_cloth(self, b: int) -> None:
-        """Install (or remove) the table-friction velocity function of element b's bodies."""
+        """Install, update or remove the table-friction joints of element b's bodies.
+
+        Per sliding body, a :class:`pymunk.PivotJoint` from the static body to its centre and a
+        :class:`pymunk.GearJoint` (ratio 1), both with ``max_bias = 0`` (no pull back towards
+        an anchor, velocity only) and ``max_force`` the cloth's force ``m mu_t g`` and torque
+        ``I mu_t g / k``: each substep of ``h`` takes up to ``mu_t g h`` off the speed along the
+        velocity and ``mu_t g h / k`` off ``|omega|`` and never reverses them, the law of
+        ``physics.effects`` (Chipmunk clamps the joint's impulse vector by its length). This is
+        how a pymunk user writes top-down friction, in C: it was a Python ``velocity_func``
+        per body and substep, ~37 % of the backend's time in the control env (walk W28b F2).
+        Solved with the contacts by the same sequential impulses, not before them. A stopped
+        body keeps a residual of round-off (the joint's effective mass times ``1 / m`` is not
+        exactly 1) that decays to denormals but never to 0; :meth:`step` sets a speed or spin
+        below :data:`STOPPED` times one substep's decrement to 0, as the law would in the
+        next substep, so that a stopped body is at rest (a strike's end waits for that).
+        """
         w = self.world
         el = self._elements[b]
+        sp = el.space
         for i, body in enumerate(el.bodies):
             if w.static[i]:
                 continue
             decel = float(w._params[b, i, FRICTION_DECEL]) if w.table_friction else 0.0
             spin = float(w._params[b, i, SPIN_DECEL]) if w.table_friction and w.rotation else 0.0
-            cell = el.cloth[i]
-            cell[0], cell[1] = decel, spin
-            if decel > 0.0 or spin > 0.0:
-                body.velocity_func = _cloth_velocity(cell)
-            else:
-                body.velocity_func = pymunk.Body.update_velocity
+            el.decel[i] = (decel, spin)
+            for k, (need, force) in enumerate(((decel > 0.0, body.mass * decel),
+                                               (spin > 0.0, body.moment * spin))):
+                joint = el.cloth[i][k]
+                if need and joint is None:
+                    joint = (pymunk.PivotJoint(sp.static_body, body, (0.0, 0.0), (0.0, 0.0))
+                             if k == 0 else pymunk.GearJoint(sp.static_body, body, 0.0, 1.0))
+                    joint.max_bias = 0.0  # no pull back to an anchor: friction only
+                    sp.add(joint)
+                    el.cloth[i][k] = joint
+                elif not need and joint is not None:
+                    sp.remove(joint)
+                    el.cloth[i][k] = joint = None
+                if joint is not None:
+                    joint.max_force = force
 
     def sync_from_world(self) -> None:
         """Take over the world's state after ``set_state`` / ``reset`` / ``restore``.
@@ -401,12 +433,19 @@ class PymunkBackend:
                 if w.static[i]:
                     continue
                 r = row[i]
+                decel, spin = el.decel[i]
                 r[ANGLE] = body.angle
-                r[OMEGA] = body.angular_velocity
+                w_i = body.angular_velocity
+                if spin > 0.0 and abs(w_i) <= STOPPED * spin * h:
+                    w_i = body.angular_velocity = 0.0  # stopped by the cloth (see _set_cloth)
+                r[OMEGA] = w_i
                 if pivot[i]:  # reported at its pin, at rest (see the module docstring)
                     continue
                 x, y = body.position
                 vx, vy = body.velocity
+                if decel > 0.0 and math.hypot(vx, vy) <= STOPPED * decel * h:
+                    vx = vy = 0.0
+                    body.velocity = (0.0, 0.0)
                 r[X] = x
                 r[Y] = y
                 r[VX] = vx
@@ -437,22 +476,3 @@ def _materials_callback(cell: list[float], held: list[float]):
             held[0] = held[1] = 0.0
 
     return pre_solve
-
-
-def _cloth_velocity(cell: list[float]):
-    """velocity_func: Chipmunk's update, then Coulomb cloth friction (``physics.effects``)."""
-
-    def update(body: pymunk.Body, gravity: Any, damping: float, dt: float) -> None:
-        pymunk.Body.update_velocity(body, gravity, damping, dt)
-        decel, spin = cell
-        if decel > 0.0:
-            vx, vy = body.velocity
-            speed = math.hypot(vx, vy)
-            if speed > 0.0:
-                f = max(speed - decel * dt, 0.0) / speed
-                body.velocity = (vx * f, vy * f)
-        if spin > 0.0:
-            w = body.angular_velocity
-            body.angular_velocity = math.copysign(max(abs(w) - spin * dt, 0.0), w)
-
-    return update

@@ -380,6 +380,61 @@ def test_table_friction_decelerates_like_the_model():
     assert np.hypot(*world.state.velocities[0, 0]) == pytest.approx(speed, rel=1e-12)
 
 
+@pytest.mark.parametrize("seed", range(12))
+def test_table_friction_stops_a_body_at_rest_in_the_step_the_model_says(seed):
+    """Random rods and pucks sliding and spinning on the cloth, random substeps: speed and spin
+    fall by mu g h and mu g h / k per substep along a straight path, never reversed, and are
+    exactly 0 from the step the model stops them in, the body at rest where it stopped. (The
+    cloth is two Chipmunk joints per body: round-off of their effective mass left a stopped
+    body at 1e-17 .. 5e-324 m/s for ever, so it was never at rest.)"""
+    rng = np.random.default_rng(seed)
+    shape = "rod" if seed % 2 else "disk"
+    body = {"name": "b", "shape": shape, "mass": float(rng.uniform(0.05, 2.0)),
+            "velocity": rng.uniform(-3.0, 3.0, 2).tolist(), "omega": float(rng.uniform(-40, 40))}
+    body.update({"length": 0.3, "thickness": 0.02} if shape == "rod" else {"radius": 0.03})
+    mu, n, dt = float(rng.uniform(0.05, 0.5)), int(rng.integers(1, 12)), 0.02
+    world = physics.World({"effects": ["rotation", "table_friction"], "table": {"friction": mu},
+                           "bodies": [body]}, solver={"mode": "pymunk", "substeps": n})
+    decel = mu * 9.81
+    spin_decel = decel / math.sqrt(world.inertia[0, 0] / body["mass"])
+    v0, w0 = np.array(body["velocity"]), body["omega"]
+    speed0 = float(np.hypot(*v0))
+    stop_v, stop_w = speed0 / (decel * dt), abs(w0) / (spin_decel * dt)  # in steps
+    assert min(abs(stop_v - round(stop_v)), abs(stop_w - round(stop_w))) > 1e-6  # no tie
+    rest = None
+    for k in range(1, math.ceil(max(stop_v, stop_w)) + 5):
+        world.step(dt)
+        v, w = world.state.velocities[0, 0], float(world.state.omegas[0, 0])
+        speed = float(np.hypot(*v))
+        assert speed == pytest.approx(max(speed0 - decel * dt * k, 0.0), rel=1e-9, abs=1e-12)
+        assert w == pytest.approx(math.copysign(max(abs(w0) - spin_decel * dt * k, 0.0), w0),
+                                  rel=1e-9, abs=1e-12)
+        if k < stop_v:
+            np.testing.assert_allclose(v / speed, v0 / speed0, rtol=0, atol=1e-12)
+        else:
+            assert v.tolist() == [0.0, 0.0], (k, v)
+            if rest is None:
+                rest = world.state.positions[0, 0].copy()
+            np.testing.assert_array_equal(world.state.positions[0, 0], rest)
+        if k >= stop_w:
+            assert w == 0.0, (k, w)
+
+
+def test_table_friction_after_a_change_of_mass_still_decelerates_at_mu_g():
+    """The cloth's force is m mu g: a body made 10x heavier by ``set_body`` (as a domain
+    randomisation does) still slows at mu g, and its spin at mu g / k."""
+    scene = {"effects": ["rotation", "table_friction"], "table": {"friction": 0.2},
+             "bodies": [{"name": "rod", "shape": "rod", "length": 0.2, "thickness": 0.02,
+                         "mass": 0.1, "velocity": [1.0, 0.0], "omega": 20.0}]}
+    world = physics.World(scene, solver=PYMUNK)
+    world.set_body("rod", mass=1.0)
+    world.step(0.1)
+    decel = 0.2 * 9.81
+    assert world.state.velocities[0, 0, 0] == pytest.approx(1.0 - decel * 0.1, rel=1e-12)
+    k = math.sqrt(world.inertia[0, 0] / 1.0)
+    assert world.state.omegas[0, 0] == pytest.approx(20.0 - decel / k * 0.1, rel=1e-12)
+
+
 def test_driven_body_gets_the_force_each_step():
     scene = {"effects": ["rotation"], "bodies": [
         {"name": "mallet", "shape": "disk", "radius": 0.02, "mass": 0.2, "driven": True}]}
