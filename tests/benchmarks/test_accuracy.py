@@ -284,6 +284,35 @@ def test_the_plain_pymunk_loop_gives_the_backends_answer(phase):
             assert plain > 1e-4  # a fixed-step engine's error, not the exact one's
 
 
+def test_the_plain_pymunk_loop_matches_the_backend_on_every_case():
+    """The like-for-like table's peer on every case (cushions as thin static segments, the
+    backend's are thick) gives the backend's answer, and the exact solver at 1e-12 m its
+    known one."""
+    setting = Setting("pymunk", steps=accuracy.PYMUNK_REFERENCE[0],
+                      iterations=accuracy.PYMUNK_REFERENCE[1])
+    for case in CASES:
+        for v in get_case(case).variants[:3]:
+            plain, _ = accuracy.plain_pymunk(v, min_time=0)
+            assert plain == pytest.approx(errors(setting, v, accuracy.PHASES[:1])[0][0],
+                                          rel=1e-6, abs=1e-12), (case, v.name)
+
+
+def test_the_like_for_like_table_has_every_case_it_ran(tmp_path):
+    """``--cases`` without the off-line case: the table (was: no like-for-like at all)."""
+    assert accuracy.main(["--quick", "--cases", "disk_disk", "rod_wall", "--out", str(tmp_path),
+                          "--no-effects", "--min-time", "0", "--batch", "1"]) == 0
+    text = (tmp_path / "accuracy.md").read_text()
+    assert "- **Like for like**" not in text  # its headline is the off-line case's
+    table = text.split("## Like for like, every case")[1].split("\n## ")[0]
+    rows = [x for x in table.splitlines() if x.startswith("| ") and "collisions" not in x]
+    assert [r.split(" | ")[0] for r in rows] == ["| disk_disk", "| rod_wall"]
+    for r in rows:
+        cells = r.strip("| ").split(" | ")
+        assert cells[1] == str(accuracy.QUICK_VARIANTS)
+        assert float(cells[5]) <= 1e-9  # the exact solver's worst error at 1e-12 m
+        assert re.fullmatch(r"\*\*[0-9.]+x\*\* \([0-9.]+-[0-9.]+\)", cells[6]), r
+
+
 def test_main_quick_reports_the_like_for_like_line(tmp_path):
     assert accuracy.main(["--quick", "--cases", "offline_disk_rod", "--out", str(tmp_path),
                           "--no-effects", "--min-time", "0", "--batch", "1"]) == 0
