@@ -136,7 +136,7 @@ STOPPED = 1e-9
 class _Element:
     """One batch element's pymunk objects."""
 
-    __slots__ = ("space", "bodies", "shapes", "walls", "joints", "cloth", "decel")
+    __slots__ = ("space", "bodies", "shapes", "walls", "joints", "cloth", "decel", "h")
 
     def __init__(self) -> None:
         self.space = pymunk.Space()
@@ -147,6 +147,7 @@ class _Element:
         # per body its cloth-friction joints [linear, angular] (None: no such friction)
         self.cloth: list[list[pymunk.Constraint | None]] = []
         self.decel: list[tuple[float, float]] = []  # per body [speed, spin] decel, m/s^2, rad/s^2
+        self.h = 0.0  # the pymunk step the cloth joints' cached impulses are of (0: none yet)
 
 
 class PymunkBackend:
@@ -257,7 +258,7 @@ class PymunkBackend:
     def _moment(self, b: int, i: int) -> float:
         return float(self.world.inertia[b, i]) if self.world.rotation else math.inf
 
-    def _set_cloth(self, b: int) -> None:
+    def _set_cloth(self, b: int, renew: bool = False) -> None:
         """Install, update or remove the table-friction joints of element b's bodies.
 
         Per sliding body, a :class:`pymunk.PivotJoint` from the static body to its centre and a
@@ -273,6 +274,12 @@ class PymunkBackend:
         exactly 1) that decays to denormals but never to 0; :meth:`step` sets a speed or spin
         below :data:`STOPPED` times one substep's decrement to 0, as the law would in the
         next substep, so that a stopped body is at rest (a strike's end waits for that).
+
+        ``renew``: new joints in place of the old, whose cached impulses are of another pymunk
+        step length. Chipmunk warm-starts a joint with its last impulse times ``dt / prev_dt``
+        but clamps the sum with the unscaled one: after a step of ``h0`` a step of ``h1``
+        took ``F (2 h1 - h0)`` off instead of ``F h1`` (0.1 s then 0.3 s: 0.5 s of friction).
+        :meth:`step` renews them when its pymunk step differs from the last one's.
         """
         w = self.world
         el = self._elements[b]
@@ -286,6 +293,9 @@ class PymunkBackend:
             for k, (need, force) in enumerate(((decel > 0.0, body.mass * decel),
                                                (spin > 0.0, body.moment * spin))):
                 joint = el.cloth[i][k]
+                if renew and joint is not None:
+                    sp.remove(joint)
+                    joint = None
                 if need and joint is None:
                     joint = (pymunk.PivotJoint(sp.static_body, body, (0.0, 0.0), (0.0, 0.0))
                              if k == 0 else pymunk.GearJoint(sp.static_body, body, 0.0, 1.0))
@@ -422,6 +432,10 @@ class PymunkBackend:
             sp = el.space
             bodies = el.bodies
             push = [(bodies[i], (float(forces[b, i, 0]), float(forces[b, i, 1]))) for i in driven]
+            if dt > 0.0 and h != el.h:
+                if el.h:  # cached impulses of another step length (see _set_cloth)
+                    self._set_cloth(b, renew=True)
+                el.h = h
             if dt > 0.0:
                 for k in range(n):
                     ctx[1] = (k + 1) * h

@@ -201,8 +201,14 @@ def test_determinism_same_input_same_output():
             assert np.array_equal(p, q) and np.array_equal(p, r)
 
 
-def test_restore_and_pickle_resume_identically():
+@pytest.mark.parametrize("cloth", [0.0, 0.3])
+def test_restore_and_pickle_resume_identically(cloth):
+    """Also with cloth friction (Chipmunk joints whose cached impulses a rebuilt space has
+    not): the same state steps bit for bit the same."""
     scene = _pair(yb=0.02)
+    if cloth:
+        scene["effects"].append("table_friction")
+        scene["table"] = {"friction": cloth}
     world = physics.World(scene, solver=PYMUNK)
     world.step(0.1)
     snap = world.get_state()
@@ -418,6 +424,25 @@ def test_table_friction_stops_a_body_at_rest_in_the_step_the_model_says(seed):
             np.testing.assert_array_equal(world.state.positions[0, 0], rest)
         if k >= stop_w:
             assert w == 0.0, (k, w)
+
+
+@pytest.mark.parametrize("substeps", [1, 7])
+def test_table_friction_over_steps_of_other_lengths_decelerates_at_mu_g(substeps):
+    """world.step(0.1), then 0.3, 0.05 and 0.2: the speed falls by mu g per second of them all.
+    Chipmunk warm-starts a joint with its last impulse scaled to the new step but clamps with
+    the unscaled one: the 0.3 s step took 0.5 s of friction off (0.14 m/s left of 0.53)."""
+    scene = {"effects": ["rotation", "table_friction"], "table": {"friction": 0.2},
+             "bodies": [{"name": "puck", "shape": "disk", "radius": 0.03, "mass": 0.1,
+                         "velocity": [1.3, 0.2], "omega": 80.0}]}
+    world = physics.World(scene, solver={"mode": "pymunk", "substeps": substeps})
+    decel, t = 0.2 * 9.81, 0.0
+    k = math.sqrt(world.inertia[0, 0] / 0.1)
+    for dt in (0.1, 0.3, 0.05, 0.2):
+        world.step(dt)
+        t += dt
+        assert np.hypot(*world.state.velocities[0, 0]) == pytest.approx(
+            np.hypot(1.3, 0.2) - decel * t, rel=1e-12), (dt, t)
+        assert world.state.omegas[0, 0] == pytest.approx(80.0 - decel / k * t, rel=1e-12)
 
 
 def test_table_friction_after_a_change_of_mass_still_decelerates_at_mu_g():
