@@ -273,7 +273,8 @@ class PymunkBackend:
         body keeps a residual of round-off (the joint's effective mass times ``1 / m`` is not
         exactly 1) that decays to denormals but never to 0; :meth:`step` sets a speed or spin
         below :data:`STOPPED` times one substep's decrement to 0, as the law would in the
-        next substep, so that a stopped body is at rest (a strike's end waits for that).
+        next substep, so that a stopped body is at rest, velocity and spin 0, as on the other
+        solvers (tests and users compare with 0).
 
         ``renew``: new joints in place of the old, whose cached impulses are of another pymunk
         step length. Chipmunk warm-starts a joint with its last impulse times ``dt / prev_dt``
