@@ -172,8 +172,9 @@ class PymunkBackend:
         # per element and pair: [restitution, friction], read by the pre_solve callbacks
         self._mats: list[list[list[float]]] = [[[0.0, 0.0] for _ in world.pair_a] for _ in range(B)]
         self._written = np.full_like(world._state, np.nan)
-        # recording context of the running step: [element, time within the step (s), count]
-        self._ctx: list[Any] = [0, 0.0, 0]
+        # recording context of the running step: [element, time within the step (s), count,
+        # Chipmunk's dt_coef: this pymunk step's length over the last one's]
+        self._ctx: list[Any] = [0, 0.0, 0, 1.0]
         self._load_materials()
         for b in range(B):
             self._build(b)
@@ -250,7 +251,7 @@ class PymunkBackend:
             cell = self._mats[b][p]
             held = [0.0, 0.0]  # the arbiter's impulse before the solve (see _materials_callback)
             sp.on_collision(int(w.pair_a[p]), int(w.pair_b[p]),
-                            pre_solve=_materials_callback(cell, held),
+                            pre_solve=_materials_callback(cell, held, self._ctx),
                             post_solve=self._record_callback(p, held))
         self._elements[b] = el
         self._set_cloth(b)
@@ -433,13 +434,16 @@ class PymunkBackend:
             sp = el.space
             bodies = el.bodies
             push = [(bodies[i], (float(forces[b, i, 0]), float(forces[b, i, 1]))) for i in driven]
+            coef = 1.0  # Chipmunk's dt_coef of the first pymunk step (_materials_callback)
             if dt > 0.0 and h != el.h:
                 if el.h:  # cached impulses of another step length (see _set_cloth)
                     self._set_cloth(b, renew=True)
+                    coef = h / el.h
                 el.h = h
             if dt > 0.0:
                 for k in range(n):
                     ctx[1] = (k + 1) * h
+                    ctx[3] = coef if k == 0 else 1.0
                     for body, f in push:
                         body.force = f
                     sp.step(h)
@@ -472,13 +476,21 @@ class PymunkBackend:
         self._written[:] = state
 
 
-def _materials_callback(cell: list[float], held: list[float]):
+def _materials_callback(cell: list[float], held: list[float], ctx: list[Any]):
     """pre_solve: the scene's effective restitution and friction of one pair (``cell``); and
-    into ``held`` the impulse the arbiter holds but will not apply: Chipmunk keeps a separated
-    pair's arbiter cached (``collision_persistence`` steps) and, where the pair touches again,
-    starts it as a first contact (no warm start) with the old accumulated impulse still in it,
-    so ``total_impulse`` after the solve counted an impulse not applied in this step (a rack
-    of 15 pucks: 0.41 N s off a body's change of momentum)."""
+    into ``held`` the part of the impulse the arbiter holds that this step does not apply
+    (subtracted from ``total_impulse`` after the solve, ``_record_callback``):
+
+    * Chipmunk keeps a separated pair's arbiter cached (``collision_persistence`` steps) and,
+      where the pair touches again, starts it as a first contact (no warm start) with the old
+      accumulated impulse still in it, so ``total_impulse`` after the solve counted an impulse
+      not applied in this step (a rack of 15 pucks: 0.41 N s off a body's change of momentum):
+      all of it is held;
+    * a warm-started arbiter applies its cached impulse ``J`` again, times ``dt_coef`` (this
+      pymunk step's length over the last one's, ``ctx[3]``), and its accumulator goes on from
+      ``J`` unscaled: the step applied ``total_impulse + (dt_coef - 1) J``, so ``(1 - dt_coef) J``
+      is held. Where ``world.step``'s length changed, a held contact's first record was off by
+      ``(dt_coef - 1) J`` (a 2 N push held on a cushion: -6.7 %, +50 %; walk W29a F1)."""
 
     def pre_solve(arbiter: pymunk.Arbiter, space: pymunk.Space, data: Any) -> None:
         arbiter.restitution = cell[0]
@@ -487,7 +499,11 @@ def _materials_callback(cell: list[float], held: list[float]):
             J = arbiter.total_impulse
             held[0] = J.x
             held[1] = J.y
-        else:  # warm started: what it holds is applied again in this step
+        elif ctx[3] != 1.0:
+            J = arbiter.total_impulse
+            held[0] = (1.0 - ctx[3]) * J.x
+            held[1] = (1.0 - ctx[3]) * J.y
+        else:
             held[0] = held[1] = 0.0
 
     return pre_solve

@@ -490,6 +490,30 @@ def test_contacts_beyond_max_contacts_are_counted_as_dropped():
     assert contacts.dropped[0] == world.last_step.contacts[0] - 1
 
 
+def test_a_held_contact_records_force_times_dt_when_the_step_length_changes():
+    """A driven mallet pushing 2 N holds a puck on the right cushion (e = 0, all at rest): each
+    step's records are F dt, also the first step at a new length (walk W29a F1: Chipmunk
+    warm-starts a contact with its cached impulse times dt/prev_dt, and the record, the
+    accumulator's sum, was off by (dt/prev_dt - 1) J: -6.7 % at 0.01 -> 0.03 s, +50 % at
+    0.03 -> 0.005 s)."""
+    scene = {"effects": ["rotation", "walls"], "table": {"size": [1.2, 0.8]},
+             "materials": {"restitution": 0.0},
+             "bodies": [{"name": "mallet", "shape": "disk", "radius": 0.03, "mass": 0.2,
+                         "position": [0.47, 0.0], "driven": True},
+                        {"name": "puck", "shape": "disk", "radius": 0.03, "mass": 0.1,
+                         "position": [0.53, 0.0]}]}
+    world = physics.World(scene, solver={"mode": "pymunk", "substeps": 10})
+    world.set_force("mallet", [2.0, 0.0])
+    for _ in range(100):
+        world.step(0.01)
+    for dt in (0.01, 0.03, 0.03, 0.005, 0.005, 0.02):
+        c = world.step(dt)
+        pushes = [j for a, b, j in zip(c.body_a, c.body_b, c.impulse, strict=True) if b == 1]
+        cushion = [j for a, b, j in zip(c.body_a, c.body_b, c.impulse, strict=True) if b > 1]
+        assert sum(pushes) == pytest.approx(2.0 * dt, rel=1e-6), dt
+        assert sum(cushion) == pytest.approx(2.0 * dt, rel=1e-6), dt
+
+
 def test_pymunk_contact_records_explain_every_change_of_momentum_in_a_rack():
     """A striker into a rack of 15 touching pucks (e = 1): each body's change of momentum over
     a step is the sum of the impulses its recorded contacts carry, as on the other solvers.
