@@ -667,7 +667,11 @@ class _StopOnSignal:
                 self._raise(signum)
             self.noted.append(signum)
 
-        previous = {sig: signal.signal(sig, note) for sig in (signal.SIGINT, signal.SIGTERM)}
+        # a signal the process ignores stays ignored: a run started in the background or by a
+        # scheduler with SIGINT ignored went on through a Ctrl-C meant for the shell's
+        # foreground job before this handler was installed; it would have stopped it (ci38)
+        previous = {sig: signal.signal(sig, note) for sig in (signal.SIGINT, signal.SIGTERM)
+                    if signal.getsignal(sig) is not signal.SIG_IGN}
         try:
             yield
         finally:

@@ -203,16 +203,60 @@ def test_a_signal_ends_training_at_the_next_step_and_is_raised_after_it(tmp_path
 
     monkeypatch.setattr(train_mod, "_callbacks", callbacks)
     run = tmp_path / "run"
-    with contextlib.suppress(KeyboardInterrupt):
-        assert main(["train", "--algo", "ppo", "--env", ENV, "--config",
-                     str(_tiny_config(tmp_path / "ppo.yml", 4096)), "--no-video",
-                     "--no-eval", "--no-progress", "--out", str(run)]) == 130
+    # as in a terminal's foreground job (pytest run in the background has SIGINT ignored, and
+    # an ignored signal stays ignored: the next test)
+    outer = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with contextlib.suppress(KeyboardInterrupt):
+            assert main(["train", "--algo", "ppo", "--env", ENV, "--config",
+                         str(_tiny_config(tmp_path / "ppo.yml", 4096)), "--no-video",
+                         "--no-eval", "--no-progress", "--out", str(run)]) == 130
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    finally:
+        signal.signal(signal.SIGINT, outer)
     assert f"interrupted: continue with --resume --out {run}" in capsys.readouterr().err
     assert seen["ended"] is (signals == 1)  # learn returned, or the second raised within
     assert seen["steps"][-1] == 1280  # no step after it (the stop is read in the same step)
     [stretch] = yaml.safe_load((tmp_path / "run.partial" / "config.yml").read_text())["runs"]
     assert stretch["interrupted"] is True
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_a_run_that_ignores_sigint_goes_on_through_one(tmp_path, monkeypatch):
+    """A run started with SIGINT ignored (in the background, by ``nohup ... &`` or a scheduler)
+    is not stopped by a SIGINT during training: the noting handler was installed over
+    ``SIG_IGN`` and turned it into a stop (ci38: pytest in the background). It trains its
+    budget and SIGINT is still ignored after it."""
+    import os
+    import signal
+
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    from spinstrike.agents import train as train_mod
+
+    class _Signal(BaseCallback):
+        def _on_step(self) -> bool:
+            if self.num_timesteps == 1280:
+                os.kill(os.getpid(), signal.SIGINT)
+            return True
+
+    real = train_mod._callbacks
+
+    def callbacks(*args, **kwargs):
+        eval_env, cbs = real(*args, **kwargs)
+        cbs.callbacks.append(_Signal())
+        return eval_env, cbs
+
+    monkeypatch.setattr(train_mod, "_callbacks", callbacks)
+    outer = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        assert main(["train", "--algo", "ppo", "--env", ENV, "--config",
+                     str(_tiny_config(tmp_path / "ppo.yml", 4096)), "--no-video", "--no-eval",
+                     "--no-progress", "--out", str(tmp_path / "run")]) == 0
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, outer)
+    [stretch] = yaml.safe_load((tmp_path / "run" / "config.yml").read_text())["runs"]
+    assert stretch["timesteps"] == 4096 and not stretch.get("interrupted")
 
 
 def test_a_resumed_run_finishes_as_its_first_command_asked_and_counts_all_its_time(
