@@ -421,6 +421,9 @@ def raw_pymunk_step(steps: int = 5000) -> float:
 
 #: the case the like-for-like line times (its impacts' answers depend on the contact pose)
 PLAIN_CASE = "offline_disk_rod"
+#: steps per approach below PYMUNK_REFERENCE's at which the like-for-like line also times the
+#: plain loop (walk W29a F5: its time is linear in them, so the ratio is the choice of 100)
+PLAIN_FEWER = (10, 30)
 
 
 def _plain_space(variant: Variant, iterations: int):
@@ -520,8 +523,16 @@ def like_for_like(min_time: float = 0.1, quick: bool = False,
             variants = sorted(variants, key=lambda v: v.normal_fixed)
         variants = variants[:QUICK_VARIANTS] if quick else variants
         runs[name] = [(v, _one_at_a_time(v, min_time)) for v in variants]
-    head = [r for v, r in runs.get(PLAIN_CASE, []) if not v.normal_fixed]
-    out: dict[str, Any] = _pooled(head) if head else {}
+    head = [(v, r) for v, r in runs.get(PLAIN_CASE, []) if not v.normal_fixed]
+    out: dict[str, Any] = _pooled([r for _, r in head]) if head else {}
+    if head:  # the plain loop's cost is linear in its steps: what fewer of them buy
+        out["fewer"] = {}
+        for steps in PLAIN_FEWER:
+            errs, times = zip(*(plain_pymunk(v, steps=steps, min_time=min_time)
+                                for v, _ in head), strict=True)
+            out["fewer"][steps] = {"plain": float(np.median(times)),
+                                   "median_error": float(np.median(errs)),
+                                   "plain_error": max(errs)}
     out["cases"] = {name: _pooled([r for _, r in rows]) for name, rows in runs.items()}
     return out
 
@@ -702,11 +713,40 @@ def _acceptance(rows: list[dict], raw_step: float | None, plain: dict | None = N
                    f"copies), **{_us(plain['exact'])} µs**: **{plain['ratio']:.1f}x** faster. "
                    "The table's pymunk times are the backend's, whose per-pair callbacks add to "
                    "Chipmunk's, and its exact times are per copy of 16 stepped at once; "
-                   "every case like for like is in the table below.")
+                   "every case like for like is in the table below."
+                   + _fewer_steps(plain))
     out.append("")
     if plain is not None and plain.get("cases"):
         out += _like_for_like_table(plain["cases"])
     return out
+
+
+def _fewer_steps(plain: dict) -> str:
+    """The like-for-like line's tail: the plain loop at fewer steps per approach."""
+    fewer = plain.get("fewer")
+    if not fewer:
+        return ""
+    ref = {"plain": plain["plain"], "plain_error": plain["plain_error"]}
+    parts = [f"{steps}: {_us(r['plain'])} µs, error {_e(r['median_error'])} median, "
+             f"{_e(r['plain_error'])} worst ({r['plain'] / plain['exact']:.2f}x the exact "
+             "solver's time)" for steps, r in sorted(fewer.items())]
+    return (" The ratio is the choice of steps: the plain loop's time is linear in them (each "
+            "`Space.step` about the same, the collision itself a small part), so the honest "
+            "comparison is error at equal time. Fewer steps per approach: "
+            + "; ".join(parts) + f"; {PYMUNK_REFERENCE[0]}: {_us(ref['plain'])} µs, worst "
+            f"{_e(ref['plain_error'])}. At the exact solver's {_us(plain['exact'])} µs "
+            f"(error <= {_e(plain['exact_error'])}) plain pymunk affords about "
+            f"{_affordable(plain)} steps per approach.")
+
+
+def _affordable(plain: dict) -> str:
+    """Steps per approach the plain loop takes in the exact solver's time (linear fit through
+    the timed step counts), rounded."""
+    pts = sorted([(s, r["plain"]) for s, r in plain["fewer"].items()]
+                 + [(PYMUNK_REFERENCE[0], plain["plain"])])
+    xs, ys = np.array([p[0] for p in pts], float), np.array([p[1] for p in pts])
+    slope, icpt = np.polyfit(xs, ys, 1)
+    return f"{max((plain['exact'] - icpt) / slope, 0.0):.0f}"
 
 
 def _like_for_like_table(cases: dict[str, dict[str, float]]) -> list[str]:

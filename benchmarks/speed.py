@@ -8,7 +8,8 @@ What is measured (env-steps per second unless said otherwise; fastest of the rep
 * the native vector env of ``RodSpinControl-v0`` (exact solver) at 4096 envs, random actions and a
   batched chase-and-hit policy that makes contact, beside a ``SyncVectorEnv`` of the same env on
   the pymunk backend and Gymnasium's own ``CartPole-v1`` vector env (1024 envs, no collisions);
-* the single env through ``gym.make`` (all default wrappers), exact and pymunk;
+* the single env through ``gym.make`` (all default wrappers), exact and pymunk, and Chipmunk
+  alone on the pymunk env's own space under the same forces (no SpinStrike code in the loop);
 * the one-strike envs: strikes per second, single and vector;
 * the share of SB3 PPO's wall time spent in the env (native ``VecEnv`` adapter);
 * how the cost grows with the batch size (1..65536) and with the number of bodies (2..256
@@ -133,6 +134,55 @@ def _sync_pymunk_rate(n: int, steps: int, repeats: int) -> tuple[float, float]:
     best = _best_uncounted(run, repeats)
     vec.close()
     return steps * n / best, contacts[0] / (steps * n)
+
+
+def _chipmunk_alone_rate(steps: int, repeats: int) -> float:
+    """Env-steps/s of Chipmunk alone on the scene of the pymunk backend's single env: the
+    env's own ``Space`` (its bodies, thick cushions, cloth joints and per-pair callbacks, which
+    fire at its ~0.2 contacts a step), stepped ``substeps`` times per env step under the mallet
+    forces random actions set in the env, with no SpinStrike code in the loop: no observation,
+    reward, write-back or checks. The floor of a pymunk user's own env of this scene (walk
+    W29a F4: the 8x against the backend times mostly SpinStrike's Python around Chipmunk)."""
+    env = gym.make(CONTROL, solver={"mode": "pymunk"})
+    world = env.unwrapped.world
+    forces = _recorded_forces(env, steps)
+    best = math.inf
+    for _ in range(repeats):
+        env.reset(seed=0)  # a fresh space at the start of the same motion, untimed
+        best = min(best, _replay_forces(world, forces))
+    env.close()
+    return steps / best
+
+
+def _recorded_forces(env, steps: int) -> list:
+    """The forces ``env`` (a single control env) sets on its world's bodies in ``steps`` env
+    steps of random actions from ``reset(seed=0)``: per step, [N] (fx, fy)."""
+    world = env.unwrapped.world
+    rng = np.random.default_rng(0)
+    env.reset(seed=0)
+    forces = []
+    for _ in range(steps):
+        env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
+        forces.append([(float(f[0]), float(f[1])) for f in world._forces[0]])
+    return forces
+
+
+def _replay_forces(world, forces: list) -> float:
+    """Step element 0's pymunk space as ``world.step`` does (``substeps`` calls of
+    ``Space.step``, the driven bodies' forces set before each), one env step per row of
+    ``forces`` ([N] (fx, fy)), and nothing else; seconds taken."""
+    driven = [i for i in range(world.n_bodies) if world.driven[i]]
+    n = int(world.solver.substeps)
+    h = float(world.dt) / n
+    space = world.backend.space(0)
+    pairs = [(next(s.body for s in space.shapes if s.collision_type == i), i) for i in driven]
+    t = time.perf_counter()
+    for row in forces:
+        for _ in range(n):
+            for body, i in pairs:
+                body.force = row[i]
+            space.step(h)
+    return time.perf_counter() - t
 
 
 def _cartpole_rate(n: int, steps: int, repeats: int) -> float:
@@ -316,6 +366,7 @@ def _pymunk_pucks(n_pucks: int, steps: int, substeps: int) -> float:
     scene = _many_pucks_scene(n_pucks)
     hw, hh = 0.6, 0.4
     space = pymunk.Space()
+    space.collision_slop = 0.0  # in metres: pymunk's 0.1 would be five puck radii
     e = math.sqrt(scene["materials"]["restitution"])
     walls = [((-hw, -hh), (hw, -hh)), ((hw, -hh), (hw, hh)), ((hw, hh), (-hw, hh)),
              ((-hw, hh), (-hw, -hh))]
@@ -539,6 +590,10 @@ def main(argv: list[str] | None = None, prog: str = "python -m spinstrike.benchm
     row("single env via gym.make, exact, chase-and-hit", single_chase, c2)
     single_pymunk, c3 = _single_rate(CONTROL, 2000, reps, solver={"mode": "pymunk"})
     row("single env via gym.make, pymunk backend, random actions", single_pymunk, c3)
+    chipmunk = _chipmunk_alone_rate(400 if quick else 2000, reps)
+    single_chipmunk_share = single_pymunk / chipmunk
+    row("Chipmunk alone on that env's space, same forces (no observation, reward or checks)",
+        chipmunk)
     strike_single, c4 = _single_rate("SpinStrike/RodSpin-v0", 300, reps)
     row("RodSpin-v0 single env, random strikes", strike_single, c4, "strikes/s")
     strike_vec, c5 = _vector_rate("SpinStrike/RodSpin-v0", 1024, 10, reps)
@@ -565,7 +620,8 @@ def main(argv: list[str] | None = None, prog: str = "python -m spinstrike.benchm
     if out is None:
         print(f"native vector env (random) / SyncVectorEnv on pymunk: {vec_rand / sync_rate:.1f}x; "
               f"/ CartPole-v1 vector env: {vec_rand / cart:.2f}x; single env exact / pymunk: "
-              f"{single_exact / single_pymunk:.2f}x")
+              f"{single_exact / single_pymunk:.2f}x; / Chipmunk alone: "
+              f"{single_exact / chipmunk:.2f}x")
         print("(--quick: printed only; --out DIR writes speed.md and the plots)")
         return 0
     _plot(out / "speed_batch.png", [b for b, _, _ in per_batch], [t for _, t, _ in per_batch],
@@ -598,7 +654,11 @@ def main(argv: list[str] | None = None, prog: str = "python -m spinstrike.benchm
               "* native vector env (random) / SyncVectorEnv on pymunk: "
               f"**{vec_rand / sync_rate:.1f}x**",
               f"* native vector env (random) / CartPole-v1 vector env: {vec_rand / cart:.2f}x",
-              f"* single env exact / single env pymunk: **{single_exact / single_pymunk:.2f}x**",
+              f"* single env exact / single env pymunk: **{single_exact / single_pymunk:.2f}x**; "
+              f"/ Chipmunk alone on that env's space: **{single_exact / chipmunk:.2f}x** (the "
+              f"backend's env step is {single_chipmunk_share:.0%} Chipmunk, the rest SpinStrike's "
+              "Python around it: write-back, checks, observation, reward; a pymunk user's own "
+              "env of this scene would land between the two)",
               f"* vector / single, RodSpin strikes: {strike_vec / strike_single:.1f}x", "",
               "## Cost against batch size", "",
               "| B | µs per element-step | contacts per element-step |", "|---|---|---|"]

@@ -320,6 +320,13 @@ def test_main_quick_reports_the_like_for_like_line(tmp_path):
                 if x.startswith("- **Like for like**"))
     assert "plain pymunk loop" in line and "one copy per `world.step`" in line
     assert re.search(r"\*\*[0-9.]+x\*\* faster", line), line
+    # walk W29a F5: the ratio is linear in the chosen steps per approach; the line gives the
+    # plain loop at fewer steps and what it affords in the exact solver's time
+    assert "error at equal time" in line
+    for steps in accuracy.PLAIN_FEWER:
+        assert re.search(rf"; {steps}: [0-9.]+ µs, error [0-9.e+-]+ median", line) or \
+            re.search(rf"approach: {steps}: [0-9.]+ µs, error [0-9.e+-]+ median", line), line
+    assert re.search(r"affords about [0-9]+ steps per approach", line), line
 
 
 def test_cases_are_listed_in_report_order():

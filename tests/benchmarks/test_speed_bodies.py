@@ -135,3 +135,24 @@ def test_the_env_rates_time_no_bookkeeping(monkeypatch):
     scene = speed._many_pucks_scene(4)
     seconds, per_step = speed._world_step_time(scene, 2, 5, 3)
     assert reads[0] == 5 and seconds > 0 and per_step >= 0
+
+
+def test_chipmunk_alone_replays_the_pymunk_envs_own_physics():
+    """The 'Chipmunk alone' row (walk W29a F4) times the env's own space under the env's own
+    forces and nothing else: replayed from reset, it ends where the env's steps ended, bit for
+    bit (so the row prices the same physics, without SpinStrike's Python around it)."""
+    import gymnasium as gym
+
+    env = gym.make(speed.CONTROL, solver={"mode": "pymunk"})
+    world = env.unwrapped.world
+    forces = speed._recorded_forces(env, 60)
+    assert any(f != (0.0, 0.0) for row in forces for f in row)
+    expected = world.state.positions[0].copy()
+    env.reset(seed=0)
+    assert speed._replay_forces(world, forces) > 0.0
+    space = world.backend.space(0)
+    got = [next(s.body.position for s in space.shapes if s.collision_type == i)
+           for i in range(world.n_bodies) if not world.static[i]]
+    want = [tuple(expected[i]) for i in range(world.n_bodies) if not world.static[i]]
+    assert [tuple(p) for p in got] == want
+    assert speed._chipmunk_alone_rate(20, 1) > 0.0
