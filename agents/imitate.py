@@ -157,22 +157,37 @@ def _sigterm_exits():
     exits with the signal's code: Ray's ``wait`` turns a ``SystemExit`` raised while it waits
     into its own ``SystemExit(1)``)."""
     import signal
-    import threading
 
     received: list[int] = []
-    if threading.current_thread() is not threading.main_thread():
-        yield received  # signal handlers can only be set from the main thread
-        return
 
     def _exit(signum, frame):
         received.append(signum)
         raise SystemExit(128 + signum)
 
-    previous = signal.signal(signal.SIGTERM, _exit)
-    try:
+    with handling((signal.SIGTERM,), _exit):
         yield received
+
+
+@contextmanager
+def handling(signums, handler):
+    """Within: ``handler`` for each of ``signums`` that the process does not ignore, the
+    previous handlers back after. A signal ignored stays ignored (SIGINT in a job started in
+    the background, ``nohup ... &`` or by a scheduler: a handler installed over ``SIG_IGN``
+    stopped such a run on a signal it was not meant to see, ci38). Nothing outside the main
+    thread, where Python runs signal handlers and lets them be set."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {sig: signal.signal(sig, handler) for sig in signums
+                if signal.getsignal(sig) is not signal.SIG_IGN}
+    try:
+        yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig, old in previous.items():
+            signal.signal(sig, old)
 
 
 def _worker_init() -> None:

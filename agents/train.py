@@ -655,28 +655,19 @@ class _StopOnSignal:
 
     @contextlib.contextmanager
     def noting_signals(self):
+        """Within: the first SIGINT or SIGTERM noted, a second raised; a signal the process
+        ignores stays ignored (``imitate.handling``)."""
         import signal
-        import threading
 
-        if threading.current_thread() is not threading.main_thread():
-            yield
-            return
+        from spinstrike.agents.imitate import handling
 
         def note(signum, frame):
             if self.noted:  # the second: at once
                 self._raise(signum)
             self.noted.append(signum)
 
-        # a signal the process ignores stays ignored: a run started in the background or by a
-        # scheduler with SIGINT ignored went on through a Ctrl-C meant for the shell's
-        # foreground job before this handler was installed; it would have stopped it (ci38)
-        previous = {sig: signal.signal(sig, note) for sig in (signal.SIGINT, signal.SIGTERM)
-                    if signal.getsignal(sig) is not signal.SIG_IGN}
-        try:
+        with handling((signal.SIGINT, signal.SIGTERM), note):
             yield
-        finally:
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
 
     def raise_noted(self) -> None:
         """After the logger is closed: the signal that stopped training, as its default."""
