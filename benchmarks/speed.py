@@ -652,7 +652,9 @@ def main(argv: list[str] | None = None, prog: str = "python -m spinstrike.benchm
               for env_id, (c1, c1000, w1, w1000) in startup.items()]
     lines += ["", "Ratios in this run:", "",
               "* native vector env (random) / SyncVectorEnv on pymunk: "
-              f"**{vec_rand / sync_rate:.1f}x**",
+              f"**{vec_rand / sync_rate:.1f}x**; / Chipmunk alone on one env's space (the "
+              "table's row, the most a single-threaded vector env of a pymunk user's own could "
+              f"reach): **{vec_rand / chipmunk:.1f}x**",
               f"* native vector env (random) / CartPole-v1 vector env: {vec_rand / cart:.2f}x",
               f"* single env exact / single env pymunk: **{single_exact / single_pymunk:.2f}x**; "
               f"/ Chipmunk alone on that env's space: **{single_exact / chipmunk:.2f}x** (the "
