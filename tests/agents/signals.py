@@ -53,13 +53,29 @@ def signal_after_checkpoint(args: list[str], cwd: Path, signum: int, run: Path) 
 
 
 @contextlib.contextmanager
+def with_callback(monkeypatch, callback):
+    """Within the block, ``spinstrike train`` (in this process) trains with the SB3 callback
+    ``callback`` after its own."""
+    from spinstrike.agents import train as train_mod
+
+    real = train_mod._callbacks
+
+    def callbacks(*args, **kwargs):
+        eval_env, cbs = real(*args, **kwargs)
+        cbs.callbacks.append(callback)
+        return eval_env, cbs
+
+    with monkeypatch.context() as m:
+        m.setattr(train_mod, "_callbacks", callbacks)
+        yield
+
+
+@contextlib.contextmanager
 def ctrl_c_after(monkeypatch, steps: int):
     """Within the block, ``spinstrike train`` (in this process) raises ``KeyboardInterrupt``
     from a callback once training has passed ``steps``, so every test stops at the same
     place."""
     from stable_baselines3.common.callbacks import BaseCallback
-
-    from spinstrike.agents import train as train_mod
 
     class _CtrlC(BaseCallback):
         def _on_step(self) -> bool:
@@ -67,13 +83,5 @@ def ctrl_c_after(monkeypatch, steps: int):
                 raise KeyboardInterrupt
             return True
 
-    real = train_mod._callbacks
-
-    def callbacks(*args, **kwargs):
-        eval_env, cbs = real(*args, **kwargs)
-        cbs.callbacks.append(_CtrlC())
-        return eval_env, cbs
-
-    with monkeypatch.context() as m:
-        m.setattr(train_mod, "_callbacks", callbacks)
+    with with_callback(monkeypatch, _CtrlC()):
         yield

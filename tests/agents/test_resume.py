@@ -15,7 +15,7 @@ import yaml
 
 import spinstrike.envs.sb3 as sb3
 from spinstrike.agents.cli import main
-from tests.agents.signals import ctrl_c_after, signal_after_checkpoint
+from tests.agents.signals import ctrl_c_after, signal_after_checkpoint, with_callback
 
 ENV = "SpinStrike/RodSpin-v0"
 
@@ -179,7 +179,6 @@ def test_a_signal_ends_training_at_the_next_step_and_is_raised_after_it(tmp_path
 
     from stable_baselines3.common.callbacks import BaseCallback
 
-    from spinstrike.agents import train as train_mod
 
     seen = {"steps": [], "ended": False}
 
@@ -194,20 +193,12 @@ def test_a_signal_ends_training_at_the_next_step_and_is_raised_after_it(tmp_path
         def _on_training_end(self) -> None:
             seen["ended"] = True
 
-    real = train_mod._callbacks
-
-    def callbacks(*args, **kwargs):
-        eval_env, cbs = real(*args, **kwargs)
-        cbs.callbacks.append(_Signal())
-        return eval_env, cbs
-
-    monkeypatch.setattr(train_mod, "_callbacks", callbacks)
     run = tmp_path / "run"
     # as in a terminal's foreground job (pytest run in the background has SIGINT ignored, and
     # an ignored signal stays ignored: the next test)
     outer = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
-        with contextlib.suppress(KeyboardInterrupt):
+        with contextlib.suppress(KeyboardInterrupt), with_callback(monkeypatch, _Signal()):
             assert main(["train", "--algo", "ppo", "--env", ENV, "--config",
                          str(_tiny_config(tmp_path / "ppo.yml", 4096)), "--no-video",
                          "--no-eval", "--no-progress", "--out", str(run)]) == 130
@@ -231,7 +222,6 @@ def test_a_run_that_ignores_sigint_goes_on_through_one(tmp_path, monkeypatch):
 
     from stable_baselines3.common.callbacks import BaseCallback
 
-    from spinstrike.agents import train as train_mod
 
     class _Signal(BaseCallback):
         def _on_step(self) -> bool:
@@ -239,19 +229,12 @@ def test_a_run_that_ignores_sigint_goes_on_through_one(tmp_path, monkeypatch):
                 os.kill(os.getpid(), signal.SIGINT)
             return True
 
-    real = train_mod._callbacks
-
-    def callbacks(*args, **kwargs):
-        eval_env, cbs = real(*args, **kwargs)
-        cbs.callbacks.append(_Signal())
-        return eval_env, cbs
-
-    monkeypatch.setattr(train_mod, "_callbacks", callbacks)
     outer = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
-        assert main(["train", "--algo", "ppo", "--env", ENV, "--config",
-                     str(_tiny_config(tmp_path / "ppo.yml", 4096)), "--no-video", "--no-eval",
-                     "--no-progress", "--out", str(tmp_path / "run")]) == 0
+        with with_callback(monkeypatch, _Signal()):
+            assert main(["train", "--algo", "ppo", "--env", ENV, "--config",
+                         str(_tiny_config(tmp_path / "ppo.yml", 4096)), "--no-video",
+                         "--no-eval", "--no-progress", "--out", str(tmp_path / "run")]) == 0
         assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
     finally:
         signal.signal(signal.SIGINT, outer)
