@@ -163,7 +163,7 @@ def _recorded_forces(env, steps: int) -> list:
     forces = []
     for _ in range(steps):
         env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
-        forces.append([(float(f[0]), float(f[1])) for f in world._forces[0]])
+        forces.append([(float(f[0]), float(f[1])) for f in world.get_state()["forces"][0]])
     return forces
 
 
