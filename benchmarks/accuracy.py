@@ -726,15 +726,14 @@ def _fewer_steps(plain: dict) -> str:
     fewer = plain.get("fewer")
     if not fewer:
         return ""
-    ref = {"plain": plain["plain"], "plain_error": plain["plain_error"]}
     parts = [f"{steps}: {_us(r['plain'])} µs, error {_e(r['median_error'])} median, "
              f"{_e(r['plain_error'])} worst ({r['plain'] / plain['exact']:.2f}x the exact "
              "solver's time)" for steps, r in sorted(fewer.items())]
     return (" The ratio is the choice of steps: the plain loop's time is linear in them (each "
             "`Space.step` about the same, the collision itself a small part), so the honest "
             "comparison is error at equal time. Fewer steps per approach: "
-            + "; ".join(parts) + f"; {PYMUNK_REFERENCE[0]}: {_us(ref['plain'])} µs, worst "
-            f"{_e(ref['plain_error'])}. At the exact solver's {_us(plain['exact'])} µs "
+            + "; ".join(parts) + f"; {PYMUNK_REFERENCE[0]}: {_us(plain['plain'])} µs, worst "
+            f"{_e(plain['plain_error'])}. At the exact solver's {_us(plain['exact'])} µs "
             f"(error <= {_e(plain['exact_error'])}) plain pymunk affords about "
             f"{_affordable(plain)} steps per approach.")
 
